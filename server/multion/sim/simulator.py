@@ -1,0 +1,146 @@
+"""The simulator: a scene, its navigable grid, the agent's pose and its camera.
+
+Motion follows the navigable grid, like Habitat's navmesh: a forward step whose straight sweep
+leaves the (radius-eroded) navigable area is refused, the agent stays where it was and the step
+counts as a collision (no sliding, SPEC §2).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+
+from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim.camera import Camera, CameraConfig, CameraImage
+from multion.sim.navgrid import NavGrid, NavGridConfig, build_navgrid
+from multion.sim.world import PyBulletWorld
+from multion_client.constants import Action
+
+_GRID_CACHE: OrderedDict[tuple[str, NavGridConfig], NavGrid] = OrderedDict()
+_GRID_CACHE_SIZE = 32
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """The agent's body and its action magnitudes (paper §3)."""
+
+    radius: float = 0.1
+    height: float = 1.5
+    forward_step: float = 0.25
+    """Metres per MOVE_FORWARD."""
+    turn_angle_deg: float = 30.0
+    """Degrees per TURN_LEFT / TURN_RIGHT."""
+
+
+def load_world(scene_id: str) -> PyBulletWorld:
+    """Build the PyBullet world of a scene id (``house-00042``, ``room-6x4``, or a mesh path)."""
+    if is_mesh_scene(scene_id):
+        return PyBulletWorld.from_mesh(scene_id)
+    return PyBulletWorld.from_layout(layout_for(scene_id))
+
+
+def navgrid_for(scene_id: str, world: PyBulletWorld, config: NavGridConfig) -> NavGrid:
+    """The navigable grid of a scene, computed once per process and configuration."""
+    key = (scene_id, config)
+    if key in _GRID_CACHE:
+        _GRID_CACHE.move_to_end(key)
+        return _GRID_CACHE[key]
+    grid = build_navgrid(world, config)
+    _GRID_CACHE[key] = grid
+    while len(_GRID_CACHE) > _GRID_CACHE_SIZE:
+        _GRID_CACHE.popitem(last=False)
+    return grid
+
+
+class Simulator:
+    """Holds one scene at a time and the agent in it."""
+
+    def __init__(
+        self,
+        agent: AgentConfig = AgentConfig(),
+        camera: CameraConfig = CameraConfig(),
+        navgrid: NavGridConfig = NavGridConfig(),
+    ) -> None:
+        self.agent_config = agent
+        self.camera_config = camera
+        self.navgrid_config = NavGridConfig(
+            **{
+                **navgrid.__dict__,
+                "agent_radius": agent.radius,
+                "agent_height": agent.height,
+                "view_height": camera.sensor_height,
+            }
+        )
+        self.scene_id: str | None = None
+        self.world: PyBulletWorld | None = None
+        self.grid: NavGrid | None = None
+        self.camera: Camera | None = None
+        self.position = np.zeros(2)
+        self.yaw = 0.0
+        self._start_yaw = 0.0
+        self._turns = 0
+
+    def load_scene(self, scene_id: str) -> NavGrid:
+        """Switch to ``scene_id`` (a no-op when it is already loaded); returns its grid."""
+        if scene_id != self.scene_id or self.world is None:
+            self.close()
+            self.world = load_world(scene_id)
+            self.grid = navgrid_for(scene_id, self.world, self.navgrid_config)
+            self.camera = Camera(self.camera_config, self.world.client)
+            self.scene_id = scene_id
+        assert self.grid is not None
+        return self.grid
+
+    def close(self) -> None:
+        if self.world is not None:
+            self.world.close()
+        self.world = None
+        self.camera = None
+        self.scene_id = None
+
+    # ------------------------------------------------------------------ agent
+    def set_agent(self, position: np.ndarray, yaw: float) -> None:
+        self.position = np.asarray(position, dtype=np.float64)[:2].copy()
+        self._start_yaw = float(yaw)
+        self._turns = 0
+        self.yaw = _wrap(self._start_yaw)
+
+    def act(self, action: int) -> bool:
+        """Apply a motion action; returns True when a forward step was blocked (a collision).
+
+        Headings are kept as start yaw plus a whole number of turns, so they never drift.
+        """
+        if action == Action.TURN_LEFT:
+            self._turns += 1
+        elif action == Action.TURN_RIGHT:
+            self._turns -= 1
+        elif action == Action.MOVE_FORWARD:
+            step = self.agent_config.forward_step
+            target = self.position + step * np.array([math.cos(self.yaw), math.sin(self.yaw)])
+            assert self.grid is not None
+            if not self.grid.segment_is_navigable(self.position, target):
+                return True
+            self.position = target
+        self.yaw = _wrap(
+            self._start_yaw + math.radians(self.agent_config.turn_angle_deg) * self._turns
+        )
+        return False
+
+    def render(self, segmentation: bool = False) -> CameraImage:
+        assert self.camera is not None and self.grid is not None, "load a scene first"
+        return self.camera.render(
+            float(self.position[0]),
+            float(self.position[1]),
+            self.yaw,
+            self.grid.floor_z,
+            segmentation,
+        )
+
+
+def _wrap(angle: float) -> float:
+    """Angle in (-pi, pi]."""
+    wrapped = math.remainder(angle, 2 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped

@@ -1,0 +1,197 @@
+"""The PyBullet side of the simulator: one DIRECT client holding a static scene and the goal objects.
+
+The world only builds geometry and answers geometric queries (ray casts, camera images). Motion,
+rules and metrics live in the task; nothing here knows about episodes or networks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pybullet as p
+
+from multion.scenes.layout import SceneLayout
+
+# pybullet refuses ray batches above this size
+RAY_BATCH_LIMIT = 16_384
+MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
+HIDDEN_POSITION = (0.0, 0.0, -100.0)
+
+
+class PyBulletWorld:
+    """A PyBullet physics client with one scene loaded.
+
+    Build it with :meth:`from_layout` (procedural scenes) or :meth:`from_mesh` (scans). Goal
+    cylinders are visual-only bodies: they are rendered but neither block the agent nor rays.
+    """
+
+    def __init__(self) -> None:
+        self.client = p.connect(p.DIRECT)
+        self.scene_bodies: list[int] = []
+        self._goal_bodies: dict[tuple[int, float, float], list[int]] = {}
+        self._goal_in_use: list[int] = []
+
+    # ------------------------------------------------------------------ building
+    @classmethod
+    def from_layout(cls, layout: SceneLayout) -> PyBulletWorld:
+        world = cls()
+        for box in layout.boxes:
+            col = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=box.half_extents, physicsClientId=world.client
+            )
+            vis = p.createVisualShape(
+                p.GEOM_BOX,
+                halfExtents=box.half_extents,
+                rgbaColor=box.rgba,
+                physicsClientId=world.client,
+            )
+            body = p.createMultiBody(
+                baseMass=0,
+                baseCollisionShapeIndex=col,
+                baseVisualShapeIndex=vis,
+                basePosition=box.center,
+                physicsClientId=world.client,
+            )
+            world.scene_bodies.append(body)
+        return world
+
+    @classmethod
+    def from_mesh(cls, path: str | Path) -> PyBulletWorld:
+        """Load a scan (OBJ / GLB / GLTF / PLY) as one static, concave triangle mesh.
+
+        Non-OBJ formats are converted to OBJ with trimesh first (PyBullet only reads OBJ).
+        """
+        path = Path(path)
+        if path.suffix.lower() not in MESH_SUFFIXES:
+            raise ValueError(
+                f"unsupported mesh format {path.suffix!r} for {path}; use one of {MESH_SUFFIXES}"
+            )
+        if not path.is_file():
+            raise FileNotFoundError(f"mesh scene file not found: {path}")
+        obj_path = path if path.suffix.lower() == ".obj" else _convert_to_obj(path)
+        world = cls()
+        col = p.createCollisionShape(
+            p.GEOM_MESH,
+            fileName=str(obj_path),
+            flags=p.GEOM_FORCE_CONCAVE_TRIMESH,
+            physicsClientId=world.client,
+        )
+        vis = p.createVisualShape(p.GEOM_MESH, fileName=str(obj_path), physicsClientId=world.client)
+        if col < 0 or vis < 0:
+            raise ValueError(f"PyBullet could not load the mesh {path}")
+        body = p.createMultiBody(0, col, vis, physicsClientId=world.client)
+        world.scene_bodies.append(body)
+        return world
+
+    @property
+    def goal_bodies_in_use(self) -> list[int]:
+        """Bodies of the goals placed by the last :meth:`place_goals`, in order."""
+        return list(self._goal_in_use)
+
+    def close(self) -> None:
+        if self.client >= 0:
+            p.disconnect(physicsClientId=self.client)
+            self.client = -1
+
+    def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    # ------------------------------------------------------------------ queries
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds ``(low, high)`` of the scene geometry (goals excluded)."""
+        lows, highs = [], []
+        for body in self.scene_bodies:
+            low, high = p.getAABB(body, physicsClientId=self.client)
+            lows.append(low)
+            highs.append(high)
+        return np.min(lows, axis=0), np.max(highs, axis=0)
+
+    def cast_rays(
+        self, starts: np.ndarray, ends: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cast many rays; returns ``(hit, fraction, normal)`` arrays, one row per ray."""
+        n = len(starts)
+        hit = np.zeros(n, dtype=bool)
+        fraction = np.ones(n)
+        normal = np.zeros((n, 3))
+        for lo in range(0, n, RAY_BATCH_LIMIT):
+            hi = min(n, lo + RAY_BATCH_LIMIT)
+            results = p.rayTestBatch(
+                starts[lo:hi].tolist(), ends[lo:hi].tolist(), physicsClientId=self.client
+            )
+            for k, (body, _link, frac, _pos, nrm) in enumerate(results):
+                if body >= 0:
+                    hit[lo + k] = True
+                    fraction[lo + k] = frac
+                    normal[lo + k] = nrm
+        return hit, fraction, normal
+
+    # ------------------------------------------------------------------ goals
+    def place_goals(
+        self,
+        goals: Sequence[tuple[tuple[float, float, float], tuple[float, float, float, float]]],
+        radius: float,
+        height: float,
+    ) -> list[int]:
+        """Show one cylinder per ``(base_position, rgba)``; hides the previous episode's goals.
+
+        Bodies are reused across episodes (moving a body is far cheaper than creating one).
+        """
+        for body in self._goal_in_use:
+            p.resetBasePositionAndOrientation(
+                body, HIDDEN_POSITION, (0, 0, 0, 1), physicsClientId=self.client
+            )
+        free = {key: list(bodies) for key, bodies in self._goal_bodies.items()}
+        used: list[int] = []
+        for (x, y, z), rgba in goals:
+            key = (hash(tuple(rgba)), radius, height)
+            if free.get(key):
+                body = free[key].pop()
+            else:
+                vis = p.createVisualShape(
+                    p.GEOM_CYLINDER,
+                    radius=radius,
+                    length=height,
+                    rgbaColor=rgba,
+                    physicsClientId=self.client,
+                )
+                body = p.createMultiBody(
+                    0, -1, vis, basePosition=HIDDEN_POSITION, physicsClientId=self.client
+                )
+                self._goal_bodies.setdefault(key, []).append(body)
+            p.resetBasePositionAndOrientation(
+                body, (x, y, z + height / 2), (0, 0, 0, 1), physicsClientId=self.client
+            )
+            used.append(body)
+        self._goal_in_use = used
+        return used
+
+
+def _convert_to_obj(path: Path) -> Path:
+    """Convert a GLB / GLTF / PLY scan to an OBJ cached beside it (atomic write)."""
+    import os
+    import tempfile
+
+    import trimesh
+
+    target = path.with_suffix(path.suffix + ".converted.obj")
+    if target.is_file() and target.stat().st_mtime >= path.stat().st_mtime:
+        return target
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as error:  # trimesh raises many kinds of errors for bad files
+        raise ValueError(f"could not read mesh scene {path}: {error}") from error
+    fd, tmp = tempfile.mkstemp(suffix=".obj", dir=target.parent)
+    os.close(fd)
+    try:
+        mesh.export(tmp, file_type="obj")
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return target

@@ -1,0 +1,211 @@
+"""Episode datasets: gzipped JSON files, their validation, and the seeded generator (SPEC §5).
+
+File format (``*.json.gz``)::
+
+    {"format": "multion-episodes", "version": 1, "num_goals": 3, "split": "val",
+     "generator": {...}, "episodes": [Episode.to_dict(), ...]}
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import os
+import tempfile
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from multion.sim.geodesic import distance_field
+from multion.sim.navgrid import NavGrid
+from multion.task.episode import Episode, Goal
+from multion_client.constants import NUM_CATEGORIES
+
+FORMAT = "multion-episodes"
+VERSION = 1
+DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "datasets"
+
+
+class DatasetError(ValueError):
+    """A dataset file that cannot be used; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class EpisodeConstraints:
+    """What a generated episode must satisfy (paper §5)."""
+
+    min_geodesic: float = 2.0
+    max_geodesic: float = 20.0
+    min_goal_separation: float = 1.0
+    """Euclidean metres between any two goals, so cylinders never overlap."""
+    max_tries: int = 200
+
+
+def task_name(num_goals: int) -> str:
+    return f"{num_goals}-on"
+
+
+def packaged_dataset_path(num_goals: int, split: str) -> Path:
+    return DATA_DIR / task_name(num_goals) / f"{split}.json.gz"
+
+
+def load_dataset(path: str | Path, num_goals: int | None = None) -> list[Episode]:
+    """Read and check a dataset file. Raises :class:`DatasetError` naming the file and problem."""
+    path = Path(path)
+    try:
+        with gzip.open(path, "rt", encoding="utf-8") as handle:
+            data = json.load(handle)
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: no such dataset file") from None
+    except (OSError, EOFError, json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise DatasetError(f"{path}: not a readable gzipped JSON dataset ({error})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise DatasetError(f'{path}: not a MultiON dataset (expected "format": "{FORMAT}")')
+    if data.get("version") != VERSION:
+        raise DatasetError(
+            f"{path}: dataset version {data.get('version')!r} is not supported (expected {VERSION})"
+        )
+    raw = data.get("episodes")
+    if not isinstance(raw, list) or not raw:
+        raise DatasetError(f'{path}: "episodes" must be a non-empty list')
+    expected = num_goals if num_goals is not None else data.get("num_goals")
+    episodes = []
+    seen_ids: set[str] = set()
+    for index, item in enumerate(raw):
+        try:
+            episode = Episode.from_dict(item)
+        except (KeyError, TypeError, ValueError) as error:
+            raise DatasetError(f"{path}: episode {index}: malformed ({_describe(error)})") from None
+        problem = check_episode(episode, expected)
+        if problem is None and episode.episode_id in seen_ids:
+            problem = "duplicate episode_id"
+        if problem:
+            raise DatasetError(f"{path}: episode {index} ({episode.episode_id}): {problem}")
+        seen_ids.add(episode.episode_id)
+        episodes.append(episode)
+    return episodes
+
+
+def check_episode(episode: Episode, num_goals: int | None = None) -> str | None:
+    """Structural problems of an episode (geometry is checked when it is loaded in a scene)."""
+    if not episode.goals:
+        return "has no goals"
+    if num_goals is not None and episode.num_goals != num_goals:
+        return f"has {episode.num_goals} goals, the dataset is for {num_goals}"
+    categories = [g.category for g in episode.goals]
+    bad = [c for c in categories if not 0 <= c < NUM_CATEGORIES]
+    if bad:
+        return f"goal category {bad[0]} is not in 0..{NUM_CATEGORIES - 1}"
+    if len(set(categories)) != len(categories):
+        return f"goal categories {categories} repeat (they are sampled without replacement)"
+    values = [
+        *episode.start_position,
+        episode.start_yaw,
+        *(v for g in episode.goals for v in g.position),
+    ]
+    if not all(np.isfinite(values)):
+        return "has a non-finite coordinate"
+    return None
+
+
+def save_dataset(
+    path: str | Path,
+    episodes: Sequence[Episode],
+    num_goals: int,
+    split: str,
+    generator: dict[str, Any] | None = None,
+) -> Path:
+    """Write a dataset atomically (temp file + rename), so a crash leaves no half-written file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": FORMAT,
+        "version": VERSION,
+        "num_goals": num_goals,
+        "split": split,
+        "generator": generator or {},
+        "episodes": [e.to_dict() for e in episodes],
+    }
+    fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as handle:
+            handle.write(json.dumps(payload, separators=(",", ":")).encode("utf-8"))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return path
+
+
+def sample_episode(
+    grid: NavGrid,
+    scene_id: str,
+    num_goals: int,
+    rng: np.random.Generator,
+    episode_id: str,
+    constraints: EpisodeConstraints = EpisodeConstraints(),
+    goal_radius: float = 0.05,
+) -> Episode | None:
+    """Sample one episode in a scene, or None when ``max_tries`` starts all fail.
+
+    Start and goals are navigable cell centres of the (single-floor, connected) grid; each next
+    point is drawn among cells at geodesic 2–20 m from the previous one, at least
+    ``min_goal_separation`` from earlier goals; categories are drawn without replacement.
+    """
+    rows, cols = np.nonzero(grid.navigable)
+    cells = grid.cell_to_world(rows, cols)
+    for _ in range(constraints.max_tries):
+        start = cells[rng.integers(len(cells))]
+        points = [start]
+        distances: list[float] = []
+        for _goal in range(num_goals):
+            field = distance_field(grid, points[-1], 0.0)[rows, cols]
+            ok = (field >= constraints.min_geodesic) & (field <= constraints.max_geodesic)
+            for earlier in points[1:]:
+                ok &= np.hypot(*(cells - earlier).T) >= constraints.min_goal_separation
+            candidates = np.flatnonzero(ok)
+            if len(candidates) == 0:
+                break
+            pick = candidates[rng.integers(len(candidates))]
+            points.append(cells[pick])
+            distances.append(float(field[pick]))
+        if len(points) != num_goals + 1:
+            continue
+        categories = rng.choice(NUM_CATEGORIES, size=num_goals, replace=False)
+        z = grid.floor_z
+        goals = tuple(
+            Goal(category=int(c), position=(round(float(p[0]), 4), round(float(p[1]), 4), z))
+            for c, p in zip(categories, points[1:], strict=True)
+        )
+        # distances as the env measures them: to the goal's footprint, from the previous point
+        measured = []
+        previous = start
+        for goal in goals:
+            field = distance_field(grid, np.asarray(goal.position[:2]), goal_radius)
+            measured.append(float(grid.lookup(field, previous, outside=np.inf)))
+            previous = np.asarray(goal.position[:2])
+        return Episode(
+            episode_id=episode_id,
+            scene_id=scene_id,
+            start_position=(round(float(start[0]), 4), round(float(start[1]), 4), z),
+            start_yaw=round(float(rng.uniform(-np.pi, np.pi)), 6),
+            goals=goals,
+            geodesic_distances=tuple(measured),
+        )
+    return None
+
+
+def _describe(error: Exception) -> str:
+    if isinstance(error, KeyError):
+        return f"missing field {error.args[0]!r}"
+    return str(error)
+
+
+def iter_chunks(items: Sequence[Any], count: int) -> Iterator[tuple[int, int]]:
+    """Split ``count`` items as evenly as possible over ``len(items)`` buckets: ``(index, n)``."""
+    base, extra = divmod(count, len(items))
+    for index in range(len(items)):
+        yield index, base + (1 if index < extra else 0)

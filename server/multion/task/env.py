@@ -1,0 +1,423 @@
+"""The MultiON task as a Gymnasium environment."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from multion.scenes.registry import scene_ids
+from multion.sim.camera import CameraConfig
+from multion.sim.geodesic import distance_field
+from multion.sim.navgrid import NavGridConfig
+from multion.sim.simulator import AgentConfig, Simulator
+from multion.task.dataset import (
+    DatasetError,
+    load_dataset,
+    packaged_dataset_path,
+    sample_episode,
+    task_name,
+)
+from multion.task.episode import Episode
+from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
+from multion.task.measures import EpisodeState, Measures
+from multion_client.constants import GOAL_RGBA, NUM_ACTIONS, NUM_CATEGORIES, Action
+
+SENSORS = (
+    "rgb",
+    "depth",
+    "goal",
+    "goal_onehot",
+    "gps",
+    "compass",
+    "oracle_map",
+    "oracle_ego_map",
+    "goal_mask",
+)
+
+
+class EpisodeOverError(RuntimeError):
+    """``step`` was called after the episode ended; call ``reset``."""
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """Rules and rewards of MultiON (SPEC §2)."""
+
+    num_goals: int = 3
+    """m, the number of ordered goals."""
+    success_distance: float = 1.5
+    """FOUND succeeds within this geodesic distance of the current goal, metres."""
+    max_steps: int = 2500
+    found_budget: int = 0
+    """Wrong FOUNDs allowed before one ends the episode (0: the first one ends it)."""
+    goal_reward: float = 3.0
+    slack_reward: float = -0.01
+    goal_radius: float = 0.05
+    goal_height: float = 0.75
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Everything that defines a MultiON environment."""
+
+    task: TaskConfig = field(default_factory=TaskConfig)
+    agent: AgentConfig = field(default_factory=AgentConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    navgrid: NavGridConfig = field(default_factory=NavGridConfig)
+    maps: MapConfig = field(default_factory=MapConfig)
+    sensors: tuple[str, ...] = ("rgb", "depth", "goal")
+    split: str = "val"
+    dataset: str | None = None
+    """A dataset file; None uses the packaged one for (m, split), or samples online for train."""
+
+    def __post_init__(self) -> None:
+        unknown = [s for s in self.sensors if s not in SENSORS]
+        if unknown:
+            raise ValueError(f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
+        if not 1 <= self.task.num_goals <= NUM_CATEGORIES:
+            raise ValueError(f"num_goals must be in 1..{NUM_CATEGORIES}, got {self.task.num_goals}")
+        if self.maps.ego_size % 2 != 1:
+            raise ValueError(f"maps.ego_size must be odd, got {self.maps.ego_size}")
+
+
+class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
+    """Multi-object navigation in a 3D home (MultiON, NeurIPS 2020).
+
+    ## Description
+    The agent must find an episode-specific, ordered list of ``m`` coloured cylinders and call
+    FOUND within 1.5 m (geodesic) of each in turn.
+
+    ## Observation
+    A dict with the configured sensors: ``rgb`` (H, W, 3) uint8; ``depth`` (H, W, 1) float32 in
+    [0, 1] (0.5–5 m); ``goal`` current goal category (0..7); ``goal_onehot`` (8,); ``gps`` (2,)
+    position relative to the start, in the start frame (x ahead, y left); ``compass`` (1,)
+    heading relative to the start, radians; ``oracle_map`` / ``oracle_ego_map`` (S, S, 2) uint8
+    egocentric crops (occupancy, goal category + 1); ``goal_mask`` (H, W) uint8, goal category + 1
+    per pixel (for supervising recognisers).
+
+    ## Actions
+    ``Discrete(4)``: 0 FOUND, 1 MOVE_FORWARD (0.25 m), 2 TURN_LEFT (30°), 3 TURN_RIGHT (30°).
+
+    ## Rewards
+    ``-0.01 + (d_{t-1} - d_t) + 3·[correct FOUND]``, d the geodesic distance to the current goal.
+
+    ## Termination
+    Terminated when every goal is found (success) or on a wrong FOUND beyond the found budget;
+    truncated after ``max_steps`` actions. ``info["metrics"]`` always holds the episode's measures.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        config: EnvConfig | None = None,
+        episodes: Sequence[Episode] | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        self.config = config or EnvConfig()
+        self.render_mode = render_mode
+        self.sim = Simulator(self.config.agent, self.config.camera, self.config.navgrid)
+        self.episodes = list(episodes) if episodes is not None else self._default_episodes()
+        self._cursor = 0
+        self._train_scenes = scene_ids("train") if self.episodes is None else []
+        self.observation_space = build_observation_space(self.config)
+        self.action_space = spaces.Discrete(NUM_ACTIONS)
+        self.episode: Episode | None = None
+        self.state: EpisodeState | None = None
+        self.measures = Measures()
+        self._fields: list[np.ndarray] = []
+        self._oracle: OracleMap | None = None
+        self._reveal: EgoMapReveal | None = None
+        self._last_rgb: np.ndarray | None = None
+        self._done = True
+        self._online_count = 0
+
+    # ------------------------------------------------------------------ episodes
+    def _default_episodes(self) -> list[Episode] | None:
+        cfg = self.config
+        if cfg.dataset is not None:
+            return load_dataset(cfg.dataset, cfg.task.num_goals)
+        path = packaged_dataset_path(cfg.task.num_goals, cfg.split)
+        if path.is_file():
+            return load_dataset(path, cfg.task.num_goals)
+        if cfg.split == "train":
+            return None  # sampled online from the train scenes
+        raise DatasetError(
+            f"{path}: no packaged {task_name(cfg.task.num_goals)} {cfg.split} dataset; "
+            f"generate one with `multion dataset generate` and pass it as `dataset`"
+        )
+
+    def _next_episode(self, options: dict[str, Any]) -> Episode:
+        if "episode" in options:
+            episode = options["episode"]
+            return episode if isinstance(episode, Episode) else Episode.from_dict(episode)
+        if self.episodes is None:
+            scene = self._train_scenes[int(self.np_random.integers(len(self._train_scenes)))]
+            grid = self.sim.load_scene(scene)
+            self._online_count += 1
+            episode = sample_episode(
+                grid,
+                scene,
+                self.config.task.num_goals,
+                self.np_random,
+                f"train-online-{self._online_count:07d}",
+            )
+            if episode is None:
+                return self._next_episode(options)
+            return episode
+        if "episode_index" in options:
+            index = int(options["episode_index"])
+            if not 0 <= index < len(self.episodes):
+                raise IndexError(
+                    f"episode_index {index} is out of range 0..{len(self.episodes) - 1}"
+                )
+            self._cursor = index
+        elif "episode_id" in options:
+            ids = [e.episode_id for e in self.episodes]
+            if options["episode_id"] not in ids:
+                raise KeyError(f"unknown episode_id {options['episode_id']!r}")
+            self._cursor = ids.index(options["episode_id"])
+        episode = self.episodes[self._cursor % len(self.episodes)]
+        self._cursor = (self._cursor + 1) % len(self.episodes)
+        return episode
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        if seed is not None and self.episodes:
+            self._cursor = seed % len(self.episodes)
+        episode = self._next_episode(dict(options or {}))
+        grid = self.sim.load_scene(episode.scene_id)
+        start = np.asarray(episode.start_position[:2], dtype=np.float64)
+        if not bool(grid.is_navigable(start)):
+            raise DatasetError(
+                f"episode {episode.episode_id}: start {episode.start_position} is not navigable "
+                f"in {episode.scene_id}"
+            )
+        task = self.config.task
+        self._fields = [
+            distance_field(grid, np.asarray(g.position[:2]), task.goal_radius)
+            for g in episode.goals
+        ]
+        optimal = []
+        previous = start
+        for index, field_ in enumerate(self._fields):
+            d = float(grid.lookup(field_, previous, outside=np.inf))
+            if not math.isfinite(d):
+                raise DatasetError(
+                    f"episode {episode.episode_id}: goal {index} is unreachable in {episode.scene_id}"
+                )
+            optimal.append(d)
+            previous = np.asarray(episode.goals[index].position[:2])
+        assert self.sim.world is not None
+        self.sim.world.place_goals(
+            [(g.position, GOAL_RGBA[g.category]) for g in episode.goals],
+            task.goal_radius,
+            task.goal_height,
+        )
+        self.sim.set_agent(start, episode.start_yaw)
+        self.episode = episode
+        m = episode.num_goals
+        self.state = EpisodeState(
+            episode=episode,
+            optimal_distances=tuple(optimal),
+            position=self.sim.position.copy(),
+            distance_to_goal=optimal[0],
+            first_seen_step=[None] * m,
+            current_since_step=[0] + [None] * (m - 1),
+        )
+        self._update_seen()
+        self.measures.reset(self.state)
+        if {"oracle_map", "oracle_ego_map"} & set(self.config.sensors):
+            if self._oracle is None or self._oracle.grid is not grid:
+                self._oracle = OracleMap(grid, self.config.maps)
+                self._reveal = EgoMapReveal(self._oracle, self.config.camera.hfov_deg)
+            self._oracle.set_goals(episode.goals)
+            assert self._reveal is not None
+            self._reveal.reset()
+        self._done = False
+        return self._observe(), self._info()
+
+    def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self._done or self.state is None:
+            raise EpisodeOverError("the episode is over; call reset() before step()")
+        action = _check_action(action)
+        state, task = self.state, self.config.task
+        state.step += 1
+        state.found_correct = state.found_wrong = False
+        reward = task.slack_reward
+        terminated = False
+        if action == Action.FOUND:
+            if state.distance_to_goal <= task.success_distance:
+                state.found_correct = True
+                state.goals_found += 1
+                reward += task.goal_reward
+                if state.goals_found == len(self._fields):
+                    state.end_reason, terminated = "success", True
+                    state.distance_to_goal = 0.0
+                else:
+                    state.current_since_step[state.goals_found] = state.step
+                    state.distance_to_goal = self._distance(state.goals_found)
+            else:
+                state.found_wrong = True
+                state.wrong_founds += 1
+                if state.wrong_founds > task.found_budget:
+                    state.end_reason, terminated = "wrong_found", True
+            state.collided = False
+        else:
+            state.collided = self.sim.act(action)
+            state.position = self.sim.position.copy()
+            previous = state.distance_to_goal
+            state.distance_to_goal = self._distance(state.goals_found)
+            reward += previous - state.distance_to_goal
+        truncated = not terminated and state.step >= task.max_steps
+        if truncated:
+            state.end_reason = "max_steps"
+        self._update_seen()
+        self.measures.update(state)
+        self._done = terminated or truncated
+        return self._observe(), float(reward), terminated, truncated, self._info()
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        if self._last_rgb is None:
+            self._last_rgb = self.sim.render().rgb
+        return self._last_rgb
+
+    def close(self) -> None:
+        self.sim.close()
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def episode_over(self) -> bool:
+        return self._done
+
+    def metrics(self) -> dict[str, Any]:
+        return self.measures.values()
+
+    def _distance(self, goal_index: int) -> float:
+        assert self.sim.grid is not None
+        return float(
+            self.sim.grid.lookup(self._fields[goal_index], self.sim.position, outside=np.inf)
+        )
+
+    def _update_seen(self) -> None:
+        state, grid = self.state, self.sim.grid
+        assert state is not None and grid is not None and self.episode is not None
+        for index, goal in enumerate(self.episode.goals):
+            if state.first_seen_step[index] is None and can_see(
+                grid,
+                self.sim.position,
+                self.sim.yaw,
+                np.asarray(goal.position[:2]),
+                self.config.camera.hfov_deg,
+                self.config.maps.view_distance,
+            ):
+                state.first_seen_step[index] = state.step
+
+    def _info(self) -> dict[str, Any]:
+        assert self.episode is not None
+        return {
+            "episode_id": self.episode.episode_id,
+            "scene_id": self.episode.scene_id,
+            "metrics": self.measures.values(),
+        }
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        sensors = set(self.config.sensors)
+        state, episode = self.state, self.episode
+        assert state is not None and episode is not None
+        obs: dict[str, np.ndarray] = {}
+        self._last_rgb = None
+        if sensors & {"rgb", "depth", "goal_mask"}:
+            image = self.sim.render(segmentation="goal_mask" in sensors)
+            self._last_rgb = image.rgb
+            if "rgb" in sensors:
+                obs["rgb"] = image.rgb
+            if "depth" in sensors:
+                obs["depth"] = image.depth
+            if "goal_mask" in sensors:
+                obs["goal_mask"] = self._goal_mask(image.segmentation)
+        current = episode.goals[min(state.goals_found, episode.num_goals - 1)].category
+        if "goal" in sensors:
+            obs["goal"] = np.int64(current)
+        if "goal_onehot" in sensors:
+            onehot = np.zeros(NUM_CATEGORIES, dtype=np.float32)
+            onehot[current] = 1.0
+            obs["goal_onehot"] = onehot
+        if sensors & {"gps", "compass"}:
+            start = np.asarray(episode.start_position[:2])
+            c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
+            dx, dy = self.sim.position - start
+            if "gps" in sensors:
+                obs["gps"] = np.array([c * dx + s * dy, -s * dx + c * dy], dtype=np.float32)
+            if "compass" in sensors:
+                obs["compass"] = np.array(
+                    [math.remainder(self.sim.yaw - episode.start_yaw, 2 * math.pi)],
+                    dtype=np.float32,
+                )
+        if self._oracle is not None and sensors & {"oracle_map", "oracle_ego_map"}:
+            if "oracle_map" in sensors:
+                obs["oracle_map"] = self._oracle.egocentric(
+                    self._oracle.layers, self.sim.position, self.sim.yaw
+                )
+            if "oracle_ego_map" in sensors:
+                assert self._reveal is not None
+                self._reveal.update(self.sim.position, self.sim.yaw)
+                obs["oracle_ego_map"] = self._oracle.egocentric(
+                    self._reveal.layers(), self.sim.position, self.sim.yaw
+                )
+        return obs
+
+    def _goal_mask(self, segmentation: np.ndarray | None) -> np.ndarray:
+        assert segmentation is not None and self.episode is not None and self.sim.world is not None
+        mask = np.zeros(segmentation.shape, dtype=np.uint8)
+        for body, goal in zip(self.sim.world.goal_bodies_in_use, self.episode.goals, strict=True):
+            mask[segmentation == body] = goal.category + 1
+        return mask
+
+
+def build_observation_space(config: EnvConfig) -> spaces.Dict:
+    cam, size = config.camera, config.maps.ego_size
+    every = {
+        "rgb": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
+        "depth": spaces.Box(
+            0.0,
+            1.0 if cam.normalize_depth else cam.max_depth,
+            (cam.height, cam.width, 1),
+            np.float32,
+        ),
+        "goal": spaces.Discrete(NUM_CATEGORIES),
+        "goal_onehot": spaces.Box(0.0, 1.0, (NUM_CATEGORIES,), np.float32),
+        "gps": spaces.Box(-np.inf, np.inf, (2,), np.float32),
+        "compass": spaces.Box(-np.pi, np.pi, (1,), np.float32),
+        "oracle_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
+        "oracle_ego_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
+        "goal_mask": spaces.Box(0, NUM_CATEGORIES, (cam.height, cam.width), np.uint8),
+    }
+    return spaces.Dict({name: every[name] for name in config.sensors})
+
+
+def _check_action(action: Any) -> int:
+    try:
+        value = int(action)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"action {action!r} is not an integer; actions are 0..{NUM_ACTIONS - 1} "
+            f"({', '.join(a.name for a in Action)})"
+        ) from None
+    if value != action or not 0 <= value < NUM_ACTIONS:
+        raise ValueError(
+            f"illegal action {action!r}; actions are 0..{NUM_ACTIONS - 1} "
+            f"({', '.join(a.name for a in Action)})"
+        )
+    return value

@@ -1,0 +1,356 @@
+"""Episode measures (SPEC §3): each a small class with ``reset`` / ``update`` / ``value``.
+
+Measures read an :class:`EpisodeState` that the task keeps up to date, and may read measures they
+declare in ``depends_on`` (SPL depends on Success and PathLength); :class:`Measures` updates them
+in dependency order.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from multion.task.episode import Episode
+
+MetricValue = float | int | str | None | list[float] | list[bool]
+
+
+@dataclass
+class EpisodeState:
+    """What happened so far in the current episode, as the task records it."""
+
+    episode: Episode
+    optimal_distances: tuple[float, ...]
+    """Geodesic d(start, g1), d(g1, g2), … measured at reset."""
+    position: np.ndarray
+    step: int = 0
+    collided: bool = False
+    found_correct: bool = False
+    found_wrong: bool = False
+    goals_found: int = 0
+    wrong_founds: int = 0
+    distance_to_goal: float = 0.0
+    first_seen_step: list[int | None] = field(default_factory=list)
+    current_since_step: list[int | None] = field(default_factory=list)
+    end_reason: str | None = None
+
+
+class Measure(ABC):
+    """One metric. ``name`` is its key in the metrics dict."""
+
+    name: ClassVar[str]
+    depends_on: ClassVar[tuple[str, ...]] = ()
+
+    @abstractmethod
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None: ...
+
+    @abstractmethod
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None: ...
+
+    @property
+    @abstractmethod
+    def value(self) -> MetricValue: ...
+
+
+class Steps(Measure):
+    name = "steps"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = 0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.step
+
+    @property
+    def value(self) -> int:
+        return self._value
+
+
+class Collisions(Measure):
+    name = "collisions"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = 0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value += int(state.collided)
+
+    @property
+    def value(self) -> int:
+        return self._value
+
+
+class PathLength(Measure):
+    """p: metres actually walked (turns and FOUND add nothing)."""
+
+    name = "path_length"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = 0.0
+        self._previous = state.position.copy()
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value += float(np.hypot(*(state.position - self._previous)))
+        self._previous = state.position.copy()
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class DistanceToGoal(Measure):
+    """Geodesic distance to the current goal (0 once every goal is found)."""
+
+    name = "distance_to_goal"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.distance_to_goal
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.distance_to_goal
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class GoalsFound(Measure):
+    name = "goals_found"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = 0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.goals_found
+
+    @property
+    def value(self) -> int:
+        return self._value
+
+
+class WrongFounds(Measure):
+    name = "wrong_founds"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = 0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.wrong_founds
+
+    @property
+    def value(self) -> int:
+        return self._value
+
+
+class Progress(Measure):
+    """Fraction of the goals found."""
+
+    name = "progress"
+    depends_on = ("goals_found",)
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._m = state.episode.num_goals
+        self._value = 0.0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = float(measures["goals_found"].value) / self._m  # type: ignore[arg-type]
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class Success(Measure):
+    """1 when all goals were found, in order, within the step limit."""
+
+    name = "success"
+    depends_on = ("goals_found",)
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._m = state.episode.num_goals
+        self._value = 0.0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = float(measures["goals_found"].value == self._m)
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class SPL(Measure):
+    """s · d / max(p, d) with d the geodesic length start → g1 → … → gm."""
+
+    name = "spl"
+    depends_on = ("success", "path_length")
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._d = float(sum(state.optimal_distances))
+        self._value = 0.0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        s = float(measures["success"].value)  # type: ignore[arg-type]
+        p = float(measures["path_length"].value)  # type: ignore[arg-type]
+        self._value = s * self._d / max(p, self._d)
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class PPL(Measure):
+    """Paper's PPL: progress · d̄ / max(p, d̄), d̄ through the goals found, p the whole path."""
+
+    name = "ppl"
+    depends_on = ("progress", "goals_found", "path_length")
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._optimal = state.optimal_distances
+        self._value = 0.0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        found = int(measures["goals_found"].value)  # type: ignore[arg-type]
+        if found == 0:
+            self._value = 0.0
+            return
+        d_bar = float(sum(self._optimal[:found]))
+        p = float(measures["path_length"].value)  # type: ignore[arg-type]
+        self._value = float(measures["progress"].value) * d_bar / max(p, d_bar)  # type: ignore[arg-type]
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class PathLengthAtFound(Measure):
+    """Path length walked at each correct FOUND, in order."""
+
+    name = "path_length_at_found"
+    depends_on = ("path_length",)
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value: list[float] = []
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        if state.found_correct:
+            self._value.append(float(measures["path_length"].value))  # type: ignore[arg-type]
+
+    @property
+    def value(self) -> list[float]:
+        return list(self._value)
+
+
+class ReferencePPL(Measure):
+    """The reference code's PPL variant: p is the path length at the last correct FOUND."""
+
+    name = "ppl_reference"
+    depends_on = ("progress", "path_length_at_found")
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._optimal = state.optimal_distances
+        self._value = 0.0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        at_found: list[float] = measures["path_length_at_found"].value  # type: ignore[assignment]
+        if not at_found:
+            self._value = 0.0
+            return
+        d_bar = float(sum(self._optimal[: len(at_found)]))
+        self._value = float(measures["progress"].value) * d_bar / max(at_found[-1], d_bar)  # type: ignore[arg-type]
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
+class SeenBeforeCurrent(Measure):
+    """Per goal k ≥ 2: was it seen before goal k-1 was found (the supplement's seen / not-seen)?"""
+
+    name = "seen_before_current"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._state = state
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._state = state
+
+    @property
+    def value(self) -> list[bool]:
+        s = self._state
+        out = []
+        for k in range(1, s.episode.num_goals):
+            seen, since = s.first_seen_step[k], s.current_since_step[k]
+            # a goal never made current was "seen before" if it was seen at all
+            out.append(seen is not None and (since is None or seen < since))
+        return out
+
+
+class EndReason(Measure):
+    """``success``, ``wrong_found``, ``max_steps``, or None while the episode runs."""
+
+    name = "end_reason"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value: str | None = None
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.end_reason
+
+    @property
+    def value(self) -> str | None:
+        return self._value
+
+
+DEFAULT_MEASURES: tuple[type[Measure], ...] = (
+    Steps,
+    Collisions,
+    PathLength,
+    DistanceToGoal,
+    GoalsFound,
+    WrongFounds,
+    Progress,
+    Success,
+    SPL,
+    PPL,
+    PathLengthAtFound,
+    ReferencePPL,
+    SeenBeforeCurrent,
+    EndReason,
+)
+
+
+class Measures:
+    """A set of measures updated in dependency order."""
+
+    def __init__(self, kinds: tuple[type[Measure], ...] = DEFAULT_MEASURES) -> None:
+        by_name = {kind.name: kind for kind in kinds}
+        order: list[str] = []
+
+        def visit(name: str, trail: tuple[str, ...]) -> None:
+            if name in order:
+                return
+            if name in trail:
+                raise ValueError(f"measure dependency cycle: {' -> '.join(trail + (name,))}")
+            if name not in by_name:
+                raise ValueError(f"measure {trail[-1]!r} depends on unknown measure {name!r}")
+            for dep in by_name[name].depends_on:
+                visit(dep, trail + (name,))
+            order.append(name)
+
+        for kind in kinds:
+            visit(kind.name, ())
+        self._measures: dict[str, Measure] = {name: by_name[name]() for name in order}
+
+    def reset(self, state: EpisodeState) -> None:
+        for measure in self._measures.values():
+            measure.reset(state, self._measures)
+
+    def update(self, state: EpisodeState) -> None:
+        for measure in self._measures.values():
+            measure.update(state, self._measures)
+
+    def values(self) -> dict[str, MetricValue]:
+        return {name: measure.value for name, measure in self._measures.items()}
