@@ -105,7 +105,12 @@ def build_navgrid(world: PyBulletWorld, config: NavGridConfig = NavGridConfig())
     """Compute the navigable grid of the scene loaded in ``world``."""
     low, high = world.bounds()
     cs = config.cell_size
-    origin = (float(low[0] - config.margin), float(low[1] - config.margin))
+    # cell centres on multiples of the cell size: hand-placed points and 0.25 m steps then fall on
+    # centres rather than on boundaries, where float rounding would decide the cell
+    origin = (
+        float((np.floor((low[0] - config.margin) / cs) - 0.5) * cs),
+        float((np.floor((low[1] - config.margin) / cs) - 0.5) * cs),
+    )
     cols = int(np.ceil((high[0] + config.margin - origin[0]) / cs))
     rows = int(np.ceil((high[1] + config.margin - origin[1]) / cs))
     jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
@@ -127,21 +132,24 @@ def build_navgrid(world: PyBulletWorld, config: NavGridConfig = NavGridConfig())
     inside = _inside_scene(world, centres, low, high)
     floor = hit & (np.abs(hit_z - floor_z) <= config.max_step_height)
 
+    # close one-cell cracks in the floor (slab seams, small holes in scans): rays through them
+    # would otherwise cut doors in two once eroded
+    floor_map = ndimage.binary_closing(floor.reshape(rows, cols), structure=np.ones((3, 3), dtype=bool))
+    floor_map &= inside.reshape(rows, cols)
+
     # 3. short crossing rays per cell, only where they can change the answer
     obstacle = np.zeros(len(centres), dtype=bool)
-    candidates = np.flatnonzero(floor)
+    candidates = np.flatnonzero(floor_map.ravel())
     for height in config.obstacle_heights:
         obstacle[candidates] |= _crossing_hits(world, centres[candidates], floor_z + height, cs)
     view_blocked = np.zeros(len(centres), dtype=bool)
     in_scene = np.flatnonzero(inside)
-    view_blocked[in_scene] = _crossing_hits(
-        world, centres[in_scene], floor_z + config.view_height, cs
-    )
+    view_blocked[in_scene] = _crossing_hits(world, centres[in_scene], floor_z + config.view_height, cs)
 
-    free = (floor & ~obstacle).reshape(rows, cols)
+    free = floor_map & ~obstacle.reshape(rows, cols)
     # 4. erosion by the agent radius, then the largest 8-connected region
     clearance = ndimage.distance_transform_edt(free) * cs
-    eroded = clearance > config.agent_radius
+    eroded = clearance >= config.agent_radius - 1e-9
     labels, count = ndimage.label(eroded, structure=np.ones((3, 3), dtype=int))
     if count == 0:
         raise ValueError(

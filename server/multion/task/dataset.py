@@ -48,6 +48,15 @@ def task_name(num_goals: int) -> str:
     return f"{num_goals}-on"
 
 
+def parse_task(name: str | int) -> int:
+    """``"3-on"``, ``"3-ON"``, ``"3on"`` or ``3`` → 3; a clear ``ValueError`` otherwise."""
+    text = str(name).strip().lower().replace("_", "-")
+    number = text[: -len("-on")] if text.endswith("-on") else text[:-2] if text.endswith("on") else text
+    if not number.isdigit() or not 1 <= int(number) <= NUM_CATEGORIES:
+        raise ValueError(f"unknown task {name!r}: use 1-on … {NUM_CATEGORIES}-on")
+    return int(number)
+
+
 def packaged_dataset_path(num_goals: int, split: str) -> Path:
     return DATA_DIR / task_name(num_goals) / f"{split}.json.gz"
 
@@ -187,6 +196,8 @@ def sample_episode(
             field = distance_field(grid, np.asarray(goal.position[:2]), goal_radius)
             measured.append(float(grid.lookup(field, previous, outside=np.inf)))
             previous = np.asarray(goal.position[:2])
+        if not all(constraints.min_geodesic <= d <= constraints.max_geodesic for d in measured):
+            continue  # the footprint distance can differ from the cell distance by a few cm
         return Episode(
             episode_id=episode_id,
             scene_id=scene_id,

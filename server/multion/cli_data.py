@@ -1,0 +1,89 @@
+"""``multion dataset …`` and ``multion scene …``: datasets and scene pictures / exports."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from multion.task.dataset import DatasetError, parse_task
+
+
+def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    gen = sub.add_parser("generate", help="generate episodes for a task and split (seeded, reproducible)")
+    gen.add_argument("--task", default="3-on", help="m-ON task: 1-on, 2-on, 3-on … (default 3-on)")
+    gen.add_argument("--split", default="val", choices=["train", "val", "test"])
+    gen.add_argument("--episodes", type=int, default=1000, help="number of episodes (default 1000)")
+    gen.add_argument("--seed", type=int, default=0)
+    gen.add_argument("--scenes", nargs="*", help="scene ids (default: the split's procedural houses)")
+    gen.add_argument("--out", required=True, type=Path, help="output file (.json.gz)")
+    check = sub.add_parser("check", help="validate a dataset file and print a summary")
+    check.add_argument("path", type=Path)
+
+
+def run_dataset(args: argparse.Namespace) -> int:
+    if args.action == "generate":
+        from multion.task.generate import generate_dataset
+
+        if args.episodes <= 0:
+            print("--episodes must be positive", file=sys.stderr)
+            return 2
+        path = generate_dataset(args.out, parse_task(args.task), args.split, args.episodes, args.seed, args.scenes)
+        print(f"wrote {path}")
+        return 0
+    from multion.task.dataset import load_dataset
+
+    try:
+        episodes = load_dataset(args.path)
+    except DatasetError as error:
+        print(f"invalid dataset: {error}", file=sys.stderr)
+        return 1
+    scenes = sorted({e.scene_id for e in episodes})
+    lengths = [sum(e.geodesic_distances) for e in episodes if e.geodesic_distances]
+    print(f"{args.path}: {len(episodes)} episodes, {episodes[0].num_goals} goals each, {len(scenes)} scenes")
+    if lengths:
+        print(f"total geodesic length: mean {sum(lengths) / len(lengths):.2f} m, "
+              f"min {min(lengths):.2f} m, max {max(lengths):.2f} m")
+    return 0
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    pic = sub.add_parser("picture", help="draw a scene from above with its navigable area (PNG)")
+    pic.add_argument("scene_id", help="house-00042, room-6x4, or a mesh file path")
+    pic.add_argument("--out", type=Path, required=True)
+    exp = sub.add_parser("export", help="export a procedural scene as a Wavefront OBJ mesh")
+    exp.add_argument("scene_id")
+    exp.add_argument("--out", type=Path, required=True)
+
+
+def run_scene(args: argparse.Namespace) -> int:
+    from multion.scenes.registry import is_mesh_scene, layout_for
+
+    try:
+        layout = None if is_mesh_scene(args.scene_id) else layout_for(args.scene_id)
+    except ValueError as error:
+        print(error, file=sys.stderr)
+        return 2
+    if args.action == "export":
+        from multion.scenes.obj_export import export_obj
+
+        if layout is None:
+            print("only procedural scenes can be exported", file=sys.stderr)
+            return 2
+        print(f"wrote {export_obj(layout, args.out)}")
+        return 0
+    from multion.sim.simulator import Simulator
+    from multion.viz import scene_picture
+
+    sim = Simulator()
+    try:
+        grid = sim.load_scene(args.scene_id)
+    finally:
+        sim.close()
+    image = scene_picture(layout, grid.navigable, grid.origin, grid.cell_size)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    image.save(args.out)
+    print(f"wrote {args.out} ({grid.navigable.sum() * grid.cell_size ** 2:.1f} m² navigable)")
+    return 0
