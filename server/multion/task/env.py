@@ -38,6 +38,7 @@ SENSORS = (
     "oracle_map",
     "oracle_ego_map",
     "goal_mask",
+    "goal_distance",
 )
 
 
@@ -99,7 +100,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     position relative to the start, in the start frame (x ahead, y left); ``compass`` (1,)
     heading relative to the start, radians; ``oracle_map`` / ``oracle_ego_map`` (S, S, 2) uint8
     egocentric crops (occupancy, goal category + 1); ``goal_mask`` (H, W) uint8, goal category + 1
-    per pixel (for supervising recognisers).
+    per pixel (for supervising recognisers); ``goal_distance`` (1,) oracle geodesic distance to the
+    current goal (for oracle baselines such as Rand+OracleFound).
 
     ## Actions
     ``Discrete(4)``: 0 FOUND, 1 MOVE_FORWARD (0.25 m), 2 TURN_LEFT (30°), 3 TURN_RIGHT (30°).
@@ -354,6 +356,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             onehot = np.zeros(NUM_CATEGORIES, dtype=np.float32)
             onehot[current] = 1.0
             obs["goal_onehot"] = onehot
+        if "goal_distance" in sensors:
+            obs["goal_distance"] = np.array([min(state.distance_to_goal, 1e6)], dtype=np.float32)
         if sensors & {"gps", "compass"}:
             start = np.asarray(episode.start_position[:2])
             c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
@@ -403,6 +407,7 @@ def build_observation_space(config: EnvConfig) -> spaces.Dict:
         "oracle_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
         "oracle_ego_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
         "goal_mask": spaces.Box(0, NUM_CATEGORIES, (cam.height, cam.width), np.uint8),
+        "goal_distance": spaces.Box(0.0, np.inf, (1,), np.float32),
     }
     return spaces.Dict({name: every[name] for name in config.sensors})
 
