@@ -426,3 +426,15 @@ def _check_action(action: Any) -> int:
             f"({', '.join(a.name for a in Action)})"
         )
     return value
+
+
+def make_env(
+    num_goals: int = 3,
+    config: EnvConfig | None = None,
+    episodes: Sequence[Episode] | None = None,
+    render_mode: str | None = None,
+) -> MultiONEnv:
+    """Entry point of the registered ids: the default config for ``num_goals`` unless one is given."""
+    if config is None:
+        config = EnvConfig(task=TaskConfig(num_goals=num_goals))
+    return MultiONEnv(config, episodes=episodes, render_mode=render_mode)

@@ -1,0 +1,136 @@
+"""Sensors checked against geometry known by hand in ``room-6x4`` (walls at x = 0, 6; y = 0, 4)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from multion.sim.camera import CameraConfig
+from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.episode import Episode, Goal
+from multion.task.maps import MapConfig
+from multion_client.constants import GOAL_CATEGORIES, MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN
+
+
+def env_at(start, yaw, goals, sensors, camera=CameraConfig(), maps=MapConfig()):
+    episode = Episode(
+        "s", "room-6x4", (*start, 0.0), yaw, tuple(Goal(c, (x, y, 0.0)) for c, (x, y) in goals)
+    )
+    config = EnvConfig(
+        task=TaskConfig(num_goals=len(goals)), camera=camera, maps=maps, sensors=sensors
+    )
+    env = MultiONEnv(config, episodes=[episode])
+    obs, _ = env.reset(seed=0)
+    return env, obs
+
+
+def test_depth_to_wall_within_2cm():
+    # facing +x from x = 3: the wall is 3 m ahead; planar depth is 3 m across the image centre
+    env, obs = env_at((3.0, 2.0), 0.0, [(0, (1.0, 1.0))], ("depth",))
+    depth_m = 0.5 + 4.5 * obs["depth"][:, :, 0]
+    assert obs["depth"].dtype == np.float32 and obs["depth"].shape == (256, 256, 1)
+    assert depth_m[128, 128] == pytest.approx(3.0, abs=0.02)
+    assert depth_m[100, 60] == pytest.approx(3.0, abs=0.02)  # planar depth, not ray length
+    # turning right by 90° (3 turns) faces the y = 0 wall, 2 m away
+    for _ in range(3):
+        obs, *_ = env.step(3)
+    depth_m = 0.5 + 4.5 * obs["depth"][:, :, 0]
+    assert depth_m[128, 128] == pytest.approx(2.0, abs=0.02)
+
+
+def test_depth_is_clipped_and_normalised():
+    env, obs = env_at((0.3, 2.0), math.pi, [(0, (4.0, 2.0))], ("depth",))  # 0.3 m from a wall
+    assert obs["depth"].min() >= 0.0 and obs["depth"].max() <= 1.0
+    assert obs["depth"][128, 128, 0] == pytest.approx(0.0)  # below 0.5 m → clipped to 0
+
+
+@pytest.mark.parametrize("category", range(8))
+def test_goal_cylinder_colour_seen_from_one_metre(category):
+    env, obs = env_at((2.0, 2.0), 0.0, [(category, (3.0, 2.0))], ("rgb",))
+    # the cylinder (0.75 m tall, camera at 0.88 m) fills the centre column below the horizon
+    patch = obs["rgb"][190:230, 124:132].reshape(-1, 3).astype(float).mean(axis=0)
+    expected = {
+        "red": (1, 0, 0),
+        "green": (0, 1, 0),
+        "blue": (0, 0, 1),
+        "cyan": (0, 1, 1),
+        "magenta": (1, 0, 1),
+        "yellow": (1, 1, 0),
+        "black": (0, 0, 0),
+        "white": (1, 1, 1),
+    }
+    on = np.array(expected[GOAL_CATEGORIES[category]], dtype=bool)
+    if on.any():
+        assert (patch[on] > 120).all(), (GOAL_CATEGORIES[category], patch)
+    assert (patch[~on] < 40).all(), (GOAL_CATEGORIES[category], patch)
+    # and nothing of that colour at the far left of the image
+    assert not np.allclose(obs["rgb"][200, 5].astype(float), patch, atol=30)
+
+
+def test_goal_mask_marks_the_goal_pixels():
+    env, obs = env_at((2.0, 2.0), 0.0, [(5, (3.0, 2.0))], ("goal_mask",))
+    mask = obs["goal_mask"]
+    assert mask.dtype == np.uint8 and set(np.unique(mask)) == {0, 6}
+    assert mask[210, 128] == 6 and mask[210, 20] == 0
+
+
+def test_goal_one_hot_gps_compass():
+    env, obs = env_at(
+        (1.0, 1.0), math.pi / 2, [(3, (1.0, 3.5))], ("goal", "goal_onehot", "gps", "compass")
+    )
+    assert obs["goal"] == 3 and obs["goal_onehot"].tolist() == [0, 0, 0, 1, 0, 0, 0, 0]
+    obs, *_ = env.step(1)  # forward along +y, which is "ahead" in the start frame
+    assert obs["gps"] == pytest.approx([0.25, 0.0], abs=1e-6)
+    obs, *_ = env.step(2)  # turn left 30°
+    assert obs["compass"][0] == pytest.approx(math.radians(30), abs=1e-6)
+
+
+def test_oracle_map_is_egocentric_and_rotated():
+    # coarse 0.5 m cells to make the room's cells easy to reason about
+    maps = MapConfig(cell_size=0.5, ego_size=21)
+    env, obs = env_at((1.0, 2.0), 0.0, [(2, (4.0, 2.0))], ("oracle_map",), maps=maps)
+    occ, goal = obs["oracle_map"][..., 0], obs["oracle_map"][..., 1]
+    c = 10
+    assert occ[c, c] == MAP_FREE
+    # the goal is 3 m ahead: 6 cells up from the centre, same column; category 2 → value 3
+    assert goal[c - 6, c] == 3 and goal.sum() == 3
+    # far away (beyond the walls) is unknown; the wall cells at x = 0 lie behind the agent
+    assert occ[0, 0] == MAP_UNKNOWN
+    assert occ[c + 2, c] in (MAP_OCCUPIED, MAP_FREE)
+    # turning left 90° puts the goal on the agent's right: same row as the agent, to the right
+    for _ in range(3):
+        obs, *_ = env.step(2)
+    assert obs["oracle_map"][c, c + 6, 1] == 3
+
+
+def test_oracle_ego_map_is_occluded_by_walls():
+    # an L-shaped view: in the empty room everything within 5 m in front is revealed, and the
+    # cells behind the agent are not
+    maps = MapConfig(cell_size=0.5, ego_size=21)
+    env, obs = env_at(
+        (1.0, 2.0), 0.0, [(2, (4.0, 2.0))], ("oracle_ego_map", "oracle_map"), maps=maps
+    )
+    ego, full = obs["oracle_ego_map"][..., 0], obs["oracle_map"][..., 0]
+    c = 10
+    assert ego[c - 4, c] == MAP_FREE  # 2 m ahead: seen
+    assert (
+        ego[
+            c - 6,
+            c + 0,
+        ]
+        == full[c - 6, c]
+    )
+    assert ego[c + 1, c] == MAP_UNKNOWN  # just behind the agent: not seen
+    # cells beyond the far wall (x > 6) are never revealed, even within 5 m
+    env2, obs2 = env_at((4.5, 2.0), 0.0, [(2, (1.0, 2.0))], ("oracle_ego_map",), maps=maps)
+    assert (obs2["oracle_ego_map"][c - 5 : c - 3, c, 0] != MAP_FREE).all()
+
+
+def test_seen_goals_are_recorded_for_the_supplement_table():
+    # goal 2 (green) is in view from the start, before goal 1 (red, behind the agent) is found
+    episode_goals = [(0, (0.5, 2.0)), (1, (4.5, 2.0))]
+    env, _ = env_at((2.0, 2.0), 0.0, episode_goals, ("goal",))
+    for action in [2] * 6 + [1] * 3 + [0]:  # turn around, walk to red, FOUND
+        _, _, _, _, info = env.step(action)
+    assert info["metrics"]["goals_found"] == 1
+    assert info["metrics"]["seen_before_current"] == [True]
