@@ -1,0 +1,430 @@
+"""Furniture made of boxes, and how it is placed in a room without blocking it.
+
+Each piece is an :class:`Item` built in its own frame: ``u`` runs along the wall it stands
+against, ``v`` points away from that wall into the room, ``z`` is up. Placing an item means
+choosing a wall (or the room centre, for dining tables) and an offset along it, then rotating the
+parts into the world frame. A placement is kept only if it
+
+* stays inside the room, clear of the door zones and of the furniture already placed, and
+* leaves the free floor around the parts in one piece for every agent radius from 5 to 20 cm,
+
+so furniture can never cut a room in two or wall off a door.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from multion.scenes.layout import Box, Rgba
+from multion.scenes.palette import FABRICS, MATERIALS, varied
+
+Rect = tuple[float, float, float, float]  # (x0, y0, x1, y1)
+AGENT_HEIGHT = 1.5  # parts starting higher than this do not block the agent
+
+
+@dataclass(frozen=True)
+class Part:
+    """One box of an item, as low and high corners ``(u, v, z)`` in the item's frame."""
+
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+    rgba: Rgba
+
+
+@dataclass(frozen=True)
+class Item:
+    """A piece of furniture: a ``width`` × ``depth`` footprint in its frame and its parts."""
+
+    name: str
+    width: float
+    depth: float
+    parts: tuple[Part, ...]
+    centre: bool = False  # stands in the middle of the room instead of against a wall
+
+
+@dataclass(frozen=True)
+class PlacementConfig:
+    """How carefully furniture is placed."""
+
+    wall_gap: float = 0.02  # gap between furniture and the wall behind it
+    item_gap: float = 0.05  # minimum gap between two items
+    clearance: float = 0.15  # agent radius (0.1) plus a margin, for the free-area check
+    check_radii: tuple[float, ...] = (0.05, 0.075, 0.1, 0.125, 0.15, 0.175, 0.2)
+    cell: float = 0.05  # raster resolution of the connectivity check
+    max_depth_fraction: float = 0.6  # an item reaches at most this far across the room
+    min_free_fraction: float = 0.35  # this much of the room stays free (at ``clearance``)
+    attempts: int = 30  # random placements tried per item before giving up on it
+
+
+def _p(u0: float, v0: float, z0: float, u1: float, v1: float, z1: float, rgba: Rgba) -> Part:
+    return Part((u0, v0, z0), (u1, v1, z1), rgba)
+
+
+def _legs(u0: float, v0: float, u1: float, v1: float, top: float, rgba: Rgba) -> list[Part]:
+    s = 0.05  # leg thickness
+    return [_p(u, v, 0.0, u + s, v + s, top, rgba) for u in (u0, u1 - s) for v in (v0, v1 - s)]
+
+
+def _table(u0: float, v0: float, u1: float, v1: float, height: float, rgba: Rgba) -> list[Part]:
+    return [_p(u0, v0, height - 0.04, u1, v1, height, rgba), *_legs(u0, v0, u1, v1, height, rgba)]
+
+
+def _chair(u0: float, v0: float, back_at_low_v: bool, wood: Rgba, seat: Rgba) -> list[Part]:
+    """A 0.45 m chair whose lower corner is ``(u0, v0)``; the back is on the low- or high-v side."""
+    u1, v1 = u0 + 0.45, v0 + 0.45
+    back_v = (v0, v0 + 0.05) if back_at_low_v else (v1 - 0.05, v1)
+    return [
+        *_legs(u0, v0, u1, v1, 0.43, wood),
+        _p(u0, v0, 0.42, u1, v1, 0.47, seat),
+        _p(u0, back_v[0], 0.46, u1, back_v[1], 0.92, wood),
+    ]
+
+
+def _mat(rng: np.random.Generator, *names: str) -> Rgba:
+    return varied(MATERIALS[names[int(rng.integers(len(names)))]], rng)
+
+
+def _snap(x: float) -> float:
+    return round(x * 20) / 20  # 5 cm steps keep sizes readable
+
+
+# ----------------------------------------------------------------------------- item builders
+
+
+def bed_set(rng: np.random.Generator) -> Item:
+    bw, bl = float(rng.choice([0.9, 1.4, 1.6, 1.8])), 2.05
+    stands = int(rng.choice([0, 1, 2], p=[0.2, 0.3, 0.5]))
+    wood, linen, blanket = (
+        _mat(rng, "wood_light", "wood_mid"),
+        _mat(rng, "linen"),
+        _mat(rng, *FABRICS),
+    )
+    b0 = 0.5 if stands else 0.0
+    b1 = b0 + bw
+    parts = [
+        _p(b0, 0, 0, b1, bl, 0.3, wood),
+        _p(b0 + 0.03, 0.08, 0.29, b1 - 0.03, bl - 0.03, 0.5, linen),
+        _p(b0, 0, 0, b1, 0.06, 1.0, wood),
+        _p(b0 + 0.12, 0.12, 0.49, b1 - 0.12, 0.45, 0.62, linen),
+        _p(b0 + 0.01, 0.8, 0.48, b1 - 0.01, bl - 0.01, 0.54, blanket),
+    ]
+    for s0 in [0.0, b1 + 0.05][:stands]:
+        parts.append(_p(s0, 0, 0, s0 + 0.45, 0.4, 0.55, wood))
+    return Item("bed", b1 + (0.5 if stands == 2 else 0.0), bl, tuple(parts))
+
+
+def wardrobe(rng: np.random.Generator) -> Item:
+    w, d, h = _snap(rng.uniform(1.0, 1.8)), 0.6, 2.05
+    wood, metal = _mat(rng, "wood_light", "wood_mid", "wood_dark"), _mat(rng, "metal")
+    seam = _mat(rng, "wood_dark")
+    parts = [
+        _p(0, 0, 0, w, d - 0.01, h, wood),
+        _p(w / 2 - 0.005, d - 0.02, 0.05, w / 2 + 0.005, d, h - 0.05, seam),
+        _p(w / 2 - 0.1, d - 0.02, 1.0, w / 2 - 0.07, d, 1.3, metal),
+        _p(w / 2 + 0.07, d - 0.02, 1.0, w / 2 + 0.1, d, 1.3, metal),
+    ]
+    return Item("wardrobe", w, d, tuple(parts))
+
+
+def bookshelf(rng: np.random.Generator) -> Item:
+    w, d, h = _snap(rng.uniform(0.8, 1.2)), 0.35, _snap(rng.uniform(1.8, 2.1))
+    wood = _mat(rng, "wood_light", "wood_mid", "wood_dark")
+    parts = [
+        _p(0, 0, 0, w, 0.02, h, wood),
+        _p(0, 0, 0, 0.03, d, h, wood),
+        _p(w - 0.03, 0, 0, w, d, h, wood),
+        _p(0.02, 0, h - 0.03, w - 0.02, d, h, wood),
+        _p(0.02, 0, 0, w - 0.02, d, 0.08, wood),
+    ]
+    levels = np.linspace(0.08, h - 0.03, 5)
+    for z in levels[1:-1]:
+        parts.append(_p(0.02, 0.01, z - 0.025, w - 0.02, d, z, wood))
+    for z in levels[:-1]:  # a row of books on every shelf
+        bw, bh = _snap(rng.uniform(0.2, w - 0.2)), float(rng.uniform(0.18, 0.28))
+        u0 = float(rng.uniform(0.04, w - 0.04 - bw))
+        parts.append(_p(u0, 0.04, z, u0 + bw, 0.26, z + bh, _mat(rng, *FABRICS)))
+    return Item("bookshelf", w, d, tuple(parts))
+
+
+def sofa_set(rng: np.random.Generator) -> Item:
+    sw, sd = _snap(rng.uniform(1.8, 2.4)), 0.9
+    fabric, wood = _mat(rng, *FABRICS), _mat(rng, "wood_light", "wood_mid", "wood_dark")
+    parts = [
+        _p(0.02, 0.02, 0, sw - 0.02, sd - 0.02, 0.11, wood),
+        _p(0.14, 0.05, 0.1, sw - 0.14, sd, 0.45, fabric),
+        _p(0, 0, 0.1, sw, 0.22, 0.85, fabric),
+        _p(0, 0, 0.1, 0.15, sd, 0.62, fabric),
+        _p(sw - 0.15, 0, 0.1, sw, sd, 0.62, fabric),
+    ]
+    depth = sd
+    if rng.random() < 0.7:  # coffee table in front of the sofa
+        tw = min(sw - 0.4, _snap(rng.uniform(0.9, 1.2)))
+        u0, v0 = (sw - tw) / 2, sd + 0.4
+        parts += _table(u0, v0, u0 + tw, v0 + 0.55, 0.42, wood)
+        depth = v0 + 0.55
+    return Item("sofa", sw, depth, tuple(parts))
+
+
+def armchair(rng: np.random.Generator) -> Item:
+    fabric, wood = _mat(rng, *FABRICS), _mat(rng, "wood_mid", "wood_dark")
+    parts = (
+        _p(0.02, 0.02, 0, 0.83, 0.83, 0.1, wood),
+        _p(0.13, 0.05, 0.09, 0.72, 0.85, 0.44, fabric),
+        _p(0, 0, 0.09, 0.85, 0.2, 0.85, fabric),
+        _p(0, 0, 0.09, 0.14, 0.85, 0.6, fabric),
+        _p(0.71, 0, 0.09, 0.85, 0.85, 0.6, fabric),
+    )
+    return Item("armchair", 0.85, 0.85, parts)
+
+
+def tv_stand(rng: np.random.Generator) -> Item:
+    w = _snap(rng.uniform(1.3, 1.8))
+    tw = min(w - 0.2, _snap(rng.uniform(0.9, 1.3)))
+    wood, screen = _mat(rng, "wood_mid", "wood_dark", "linen"), _mat(rng, "screen")
+    u0 = (w - tw) / 2
+    parts = (
+        _p(0, 0, 0, w, 0.42, 0.5, wood),
+        _p(w / 2 - 0.1, 0.12, 0.49, w / 2 + 0.1, 0.28, 0.58, screen),
+        _p(u0, 0.15, 0.57, u0 + tw, 0.2, 0.57 + 0.56 * tw, screen),
+    )
+    return Item("tv", w, 0.42, parts)
+
+
+def kitchen_counter(rng: np.random.Generator) -> Item:
+    w = _snap(rng.uniform(1.8, 3.0))
+    body, top = _mat(rng, "wood_light", "linen", "wood_mid"), _mat(rng, "stone", "ceramic")
+    metal, hob = _mat(rng, "metal"), _mat(rng, "screen")
+    sink0 = 0.2 + float(rng.random()) * max(w - 1.8, 0.0)
+    parts = (
+        _p(0, 0, 0.08, w, 0.58, 0.86, body),
+        _p(0.03, 0, 0, w - 0.03, 0.52, 0.09, top),  # recessed plinth
+        _p(0, 0, 0.85, w, 0.62, 0.9, top),
+        _p(sink0, 0.1, 0.89, sink0 + 0.5, 0.5, 0.905, metal),
+        _p(w - 0.8, 0.1, 0.89, w - 0.2, 0.5, 0.91, hob),
+        _p(0, 0, 1.5, w, 0.35, 2.2, body),
+    )
+    return Item("counter", w, 0.62, parts)
+
+
+def fridge(rng: np.random.Generator) -> Item:
+    metal, handle = _mat(rng, "metal", "ceramic"), _mat(rng, "stone")
+    parts = (
+        _p(0, 0, 0, 0.7, 0.68, 1.85, metal),
+        _p(0.6, 0.67, 0.9, 0.63, 0.72, 1.5, handle),
+    )
+    return Item("fridge", 0.7, 0.72, parts)
+
+
+def dining_set(rng: np.random.Generator, small: bool = False) -> Item:
+    tw = _snap(rng.uniform(0.8, 1.0) if small else rng.uniform(1.4, 1.8))
+    td = 0.8 if small else 0.9
+    wood, seat = _mat(rng, "wood_light", "wood_mid", "wood_dark"), _mat(rng, *FABRICS)
+    v_table = 0.55  # chairs take 0.55 m on both long sides
+    parts = _table(0, v_table, tw, v_table + td, 0.76, wood)
+    per_side = 1 if small else (3 if tw >= 1.7 else 2)
+    for k in range(per_side):
+        u0 = (k + 0.5) * tw / per_side - 0.225
+        parts += _chair(u0, 0.02, True, wood, seat)
+        parts += _chair(u0, v_table + td + 0.08, False, wood, seat)
+    return Item("dining_table", tw, v_table * 2 + td, tuple(parts), centre=True)
+
+
+def desk_set(rng: np.random.Generator) -> Item:
+    dw, dd = _snap(rng.uniform(1.1, 1.5)), 0.65
+    wood, seat, screen = (
+        _mat(rng, "wood_light", "wood_mid"),
+        _mat(rng, *FABRICS),
+        _mat(rng, "screen"),
+    )
+    parts = [
+        _p(0, 0, 0.72, dw, dd, 0.76, wood),
+        _p(0, 0, 0, 0.04, dd, 0.73, wood),
+        _p(dw - 0.04, 0, 0, dw, dd, 0.73, wood),
+        _p(dw / 2 - 0.25, 0.1, 0.8, dw / 2 + 0.25, 0.13, 1.12, screen),
+        _p(dw / 2 - 0.05, 0.08, 0.75, dw / 2 + 0.05, 0.2, 0.81, screen),
+        *_chair(dw / 2 - 0.225, 0.55, False, wood, seat),
+    ]
+    return Item("desk", dw, 1.0, tuple(parts))
+
+
+def bathtub(rng: np.random.Generator) -> Item:
+    bw, d, r = _snap(rng.uniform(1.6, 1.75)), 0.75, 0.08
+    ceramic = _mat(rng, "ceramic")
+    parts = (
+        _p(0, 0, 0, bw, d, 0.35, ceramic),
+        _p(0, 0, 0.34, bw, r, 0.55, ceramic),
+        _p(0, d - r, 0.34, bw, d, 0.55, ceramic),
+        _p(0, r - 0.01, 0.34, r, d - r + 0.01, 0.55, ceramic),
+        _p(bw - r, r - 0.01, 0.34, bw, d - r + 0.01, 0.55, ceramic),
+    )
+    return Item("bathtub", bw, d, parts)
+
+
+def toilet(rng: np.random.Generator) -> Item:
+    ceramic = _mat(rng, "ceramic")
+    parts = (
+        _p(0, 0, 0, 0.42, 0.2, 0.8, ceramic),
+        _p(0.03, 0.18, 0, 0.39, 0.66, 0.41, ceramic),
+        _p(0.02, 0.19, 0.4, 0.4, 0.68, 0.44, ceramic),
+    )
+    return Item("toilet", 0.42, 0.68, parts)
+
+
+def sink_cabinet(rng: np.random.Generator) -> Item:
+    w = _snap(rng.uniform(0.6, 0.9))
+    wood, ceramic, metal = (
+        _mat(rng, "wood_light", "wood_mid"),
+        _mat(rng, "ceramic"),
+        _mat(rng, "metal"),
+    )
+    parts = (
+        _p(0, 0, 0, w, 0.46, 0.8, wood),
+        _p(0, 0, 0.79, w, 0.48, 0.86, ceramic),
+        _p(w / 2 - 0.02, 0.03, 0.85, w / 2 + 0.02, 0.12, 0.98, metal),
+        _p(0.05, 0, 1.15, w - 0.05, 0.02, 1.75, metal),
+    )
+    return Item("sink", w, 0.48, parts)
+
+
+def cabinet(rng: np.random.Generator, name: str = "sideboard", lo: float = 1.2) -> Item:
+    """A low cabinet on legs: sideboard, hallway console, filing cabinet …"""
+    w, d = _snap(rng.uniform(lo, lo + 0.5)), 0.45
+    wood, dark = _mat(rng, "wood_light", "wood_mid", "wood_dark", "metal"), _mat(rng, "wood_dark")
+    parts = (
+        _p(0, 0, 0.12, w, d - 0.01, 0.85, wood),
+        *_legs(0.02, 0.02, w - 0.02, d - 0.03, 0.13, dark),
+        _p(0.05, d - 0.02, 0.5, w - 0.05, d, 0.51, dark),
+    )
+    return Item(name, w, d, parts)
+
+
+def plant(rng: np.random.Generator) -> Item:
+    pot, leaves = _mat(rng, "wood_dark", "stone", "fabric_rust"), _mat(rng, "foliage")
+    h = float(rng.uniform(0.8, 1.3))
+    parts = (_p(0.05, 0.05, 0, 0.35, 0.35, 0.35, pot), _p(0, 0, 0.33, 0.4, 0.4, h, leaves))
+    return Item("plant", 0.4, 0.4, parts)
+
+
+Builder = Callable[[np.random.Generator], Item]
+
+# Per room type: (builder, probability of trying it) in the order they are placed.
+ROOM_FURNITURE: dict[str, list[tuple[Builder, float]]] = {
+    "living_room": [(sofa_set, 1.0), (tv_stand, 0.9), (bookshelf, 0.6), (armchair, 0.5),
+                    (plant, 0.5)],
+    "kitchen": [(kitchen_counter, 1.0), (fridge, 0.9), (kitchen_counter, 0.5),
+                (lambda rng: dining_set(rng, small=True), 0.4)],
+    "bedroom": [(bed_set, 1.0), (wardrobe, 0.9), (desk_set, 0.3), (plant, 0.3)],
+    "bathroom": [(bathtub, 0.9), (toilet, 1.0), (sink_cabinet, 1.0)],
+    "dining_room": [(dining_set, 1.0), (cabinet, 0.8), (bookshelf, 0.3), (plant, 0.4)],
+    "office": [(desk_set, 1.0), (bookshelf, 0.9), (lambda rng: cabinet(rng, "files", 0.5), 0.5),
+               (armchair, 0.3)],
+    "hallway": [(lambda rng: cabinet(rng, "console", 0.8), 0.6), (plant, 0.4)],
+}  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- placement
+
+
+def _frame(rng: np.random.Generator, item: Item, room: Rect, cfg: PlacementConfig):
+    """A random origin and unit axes (eu, ev) for ``item`` in ``room``, or None if it can't fit."""
+    x0, y0, x1, y1 = room
+    w, d, g = item.width, item.depth, cfg.wall_gap
+    if item.centre:
+        turned = bool(rng.integers(2))
+        fx, fy = (d, w) if turned else (w, d)
+        cx = (x0 + x1) / 2 + rng.uniform(-0.3, 0.3) - fx / 2
+        cy = (y0 + y1) / 2 + rng.uniform(-0.3, 0.3) - fy / 2
+        return ((cx + d, cy), (0, 1), (-1, 0)) if turned else ((cx, cy), (1, 0), (0, 1))
+    side = int(rng.integers(4))  # 0 south, 1 north, 2 west, 3 east
+    length, across = (x1 - x0, y1 - y0) if side < 2 else (y1 - y0, x1 - x0)
+    if w > length - 2 * g or d > cfg.max_depth_fraction * across:
+        return None
+    s = [g, length - w - g, float(rng.uniform(g, length - w - g))][int(rng.integers(3))]
+    return [
+        ((x0 + s, y0 + g), (1, 0), (0, 1)),
+        ((x0 + s + w, y1 - g), (-1, 0), (0, -1)),
+        ((x0 + g, y0 + s + w), (0, -1), (1, 0)),
+        ((x1 - g, y0 + s), (0, 1), (-1, 0)),
+    ][side]
+
+
+def _to_world(lo, hi, origin, eu, ev) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Rotate the rectangle [lo, hi] (in u, v) into world x, y; returns (min corner, max corner)."""
+    xs = [origin[0] + u * eu[0] + v * ev[0] for u in (lo[0], hi[0]) for v in (lo[1], hi[1])]
+    ys = [origin[1] + u * eu[1] + v * ev[1] for u in (lo[0], hi[0]) for v in (lo[1], hi[1])]
+    return (min(xs), min(ys)), (max(xs), max(ys))
+
+
+def _overlaps(a: Rect, b: Rect, gap: float = 0.0) -> bool:
+    return a[0] < b[2] + gap and b[0] < a[2] + gap and a[1] < b[3] + gap and b[1] < a[3] + gap
+
+
+def _stays_navigable(room: Rect, obstacles: list[Rect], cfg: PlacementConfig) -> bool:
+    """True if the room's free space is in one piece for every agent radius we check.
+
+    Checking a range of radii (not just the agent's 0.1 m) means no narrow gap can seal off a
+    pocket of free floor, whatever resolution a navigation grid later uses.
+    """
+    x0, y0, x1, y1 = room
+    gx, gy = np.meshgrid(np.arange(x0 + cfg.cell / 2, x1, cfg.cell),
+                         np.arange(y0 + cfg.cell / 2, y1, cfg.cell))  # fmt: skip
+    # Exact distance from each cell centre to the nearest wall or obstacle.
+    dist = np.minimum(np.minimum(gx - x0, x1 - gx), np.minimum(gy - y0, y1 - gy))
+    for fx0, fy0, fx1, fy1 in obstacles:
+        dx = np.maximum(np.maximum(fx0 - gx, gx - fx1), 0.0)
+        dy = np.maximum(np.maximum(fy0 - gy, gy - fy1), 0.0)
+        dist = np.minimum(dist, np.hypot(dx, dy))
+    if (dist > cfg.clearance).mean() < cfg.min_free_fraction:
+        return False
+    return all(ndimage.label(dist > r)[1] == 1 for r in cfg.check_radii)
+
+
+def furnish_room(
+    rng: np.random.Generator,
+    room: Rect,
+    room_type: str,
+    keep_clear: list[Rect],
+    density: float = 1.0,
+    cfg: PlacementConfig = PlacementConfig(),
+) -> list[Box]:
+    """Furniture boxes for one room (interior rectangle ``room``), avoiding ``keep_clear`` areas."""
+    boxes: list[Box] = []
+    footprints: list[Rect] = []  # whole items: nothing else may be put there
+    obstacles: list[Rect] = []  # the parts that block the agent: what navigation will see
+    for builder, probability in ROOM_FURNITURE.get(room_type, []):
+        if rng.random() >= min(1.0, probability * density):
+            continue
+        item = builder(rng)
+        for _ in range(cfg.attempts):
+            frame = _frame(rng, item, room, cfg)
+            if frame is None:
+                continue
+            lo, hi = _to_world((0, 0), (item.width, item.depth), *frame)
+            rect = (lo[0], lo[1], hi[0], hi[1])
+            inside = room[0] <= lo[0] and room[1] <= lo[1] and hi[0] <= room[2] and hi[1] <= room[3]
+            if not inside or any(_overlaps(rect, z) for z in keep_clear):
+                continue
+            if any(_overlaps(rect, f, cfg.item_gap) for f in footprints):
+                continue
+            parts = [(*_to_world(p.lo, p.hi, *frame), p) for p in item.parts]
+            blocking = [(a[0], a[1], b[0], b[1]) for a, b, p in parts if p.lo[2] < AGENT_HEIGHT]
+            if not _stays_navigable(room, [*obstacles, *blocking], cfg):
+                continue
+            footprints.append(rect)
+            obstacles += blocking
+            for (bx0, by0), (bx1, by1), part in parts:
+                z0, z1 = part.lo[2], part.hi[2]
+                boxes.append(
+                    Box(
+                        center=((bx0 + bx1) / 2, (by0 + by1) / 2, (z0 + z1) / 2),
+                        half_extents=((bx1 - bx0) / 2, (by1 - by0) / 2, (z1 - z0) / 2),
+                        rgba=part.rgba,
+                        kind="furniture",
+                    )
+                )
+            break
+    return boxes

@@ -1,0 +1,64 @@
+"""Scene colours that can never be mistaken for a goal object.
+
+The goal objects are pure red, green, blue, cyan, magenta, yellow, black and white cylinders, so
+every scene colour goes through :func:`muted`: saturation at most 0.5 and value (brightest channel)
+in [0.25, 0.78]. That guarantees a distance of at least 0.22 in every case (largest per-channel
+difference) from all eight goal colours: the brightest channel stays 0.22 below 1 and 0.25 above 0.
+"""
+
+from __future__ import annotations
+
+import colorsys
+
+import numpy as np
+
+from multion.scenes.layout import Rgba
+
+MAX_SATURATION = 0.5
+MIN_VALUE = 0.25
+MAX_VALUE = 0.78
+
+# Per room type: (floor colour, wall colour) before per-seed variation.
+ROOM_COLOURS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "living_room": ((0.62, 0.47, 0.33), (0.78, 0.74, 0.64)),  # oak, warm beige
+    "kitchen": ((0.66, 0.64, 0.58), (0.70, 0.75, 0.64)),  # stone tiles, pale sage
+    "bedroom": ((0.52, 0.39, 0.29), (0.68, 0.64, 0.74)),  # walnut, dusty lavender
+    "bathroom": ((0.48, 0.52, 0.55), (0.62, 0.72, 0.72)),  # slate, pale aqua grey
+    "dining_room": ((0.56, 0.40, 0.32), (0.78, 0.70, 0.58)),  # cherry, sand
+    "office": ((0.45, 0.45, 0.48), (0.66, 0.69, 0.74)),  # grey carpet, grey blue
+    "hallway": ((0.70, 0.58, 0.44), (0.74, 0.72, 0.68)),  # light oak, greige
+    "room": ((0.60, 0.55, 0.48), (0.74, 0.72, 0.68)),  # the plain test room
+}
+CEILING = (0.78, 0.77, 0.74)
+
+# Furniture materials.
+MATERIALS: dict[str, tuple[float, float, float]] = {
+    "wood_light": (0.72, 0.60, 0.45),
+    "wood_mid": (0.58, 0.44, 0.30),
+    "wood_dark": (0.40, 0.30, 0.22),
+    "fabric_blue": (0.42, 0.48, 0.58),
+    "fabric_olive": (0.52, 0.54, 0.40),
+    "fabric_rust": (0.62, 0.45, 0.38),
+    "fabric_mauve": (0.58, 0.48, 0.55),
+    "fabric_sand": (0.74, 0.68, 0.56),
+    "linen": (0.76, 0.74, 0.68),
+    "metal": (0.55, 0.56, 0.58),
+    "ceramic": (0.78, 0.78, 0.75),
+    "stone": (0.42, 0.42, 0.44),
+    "screen": (0.26, 0.27, 0.30),
+    "foliage": (0.42, 0.52, 0.36),
+}
+FABRICS = ("fabric_blue", "fabric_olive", "fabric_rust", "fabric_mauve", "fabric_sand")
+
+
+def muted(rgb: tuple[float, float, float], alpha: float = 1.0) -> Rgba:
+    """Clamp a colour into the safe range (see the module docstring) and add alpha."""
+    h, s, v = colorsys.rgb_to_hsv(*(float(c) for c in rgb))
+    r, g, b = colorsys.hsv_to_rgb(h, min(s, MAX_SATURATION), min(max(v, MIN_VALUE), MAX_VALUE))
+    return (round(r, 4), round(g, 4), round(b, 4), alpha)
+
+
+def varied(rgb: tuple[float, float, float], rng: np.random.Generator, amount: float = 0.04) -> Rgba:
+    """A slightly different shade of ``rgb`` (per-channel noise of ±amount), still safe."""
+    noise = rng.uniform(-amount, amount, size=3)
+    return muted(tuple(float(c) for c in np.clip(np.asarray(rgb) + noise, 0.0, 1.0)))  # type: ignore[arg-type]

@@ -1,0 +1,82 @@
+"""Scene ids, the train / val / test splits, and turning an id into a layout.
+
+Accepted ids:
+
+* ``house-NNNNN``: procedural house number N (any non-negative integer, usually 5 digits);
+  the default splits use houses 0–60 (train), 61–71 (val) and 72–89 (test), the same counts
+  as Matterport3D's 61 / 11 / 18 scenes.
+* ``room-WxD``: one empty W × D metre room, e.g. ``room-6x4`` or ``room-10x2.5``.
+* a path ending in ``.obj``, ``.glb``, ``.gltf`` or ``.ply``: a mesh scan, loaded elsewhere.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+
+from multion.scenes.house import generate_house
+from multion.scenes.layout import SceneLayout
+from multion.scenes.room import make_room
+
+SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
+MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
+
+_HOUSE = re.compile(r"house-(\d+)")
+_ROOM = re.compile(r"room-(\d+(?:\.\d+)?)x(\d+(?:\.\d+)?)")
+_ACCEPTED = "'house-NNNNN' (e.g. house-00042), 'room-WxD' in metres (e.g. room-6x4, room-10x2.5)"
+
+
+def _first_seeds() -> dict[str, int]:
+    """The first house number of each split: the splits are consecutive, disjoint ranges."""
+    first, start = {}, 0
+    for split, size in SPLIT_SIZES.items():
+        first[split] = start
+        start += size
+    return first
+
+
+def house_id(seed: int) -> str:
+    """The canonical id of house number ``seed``, e.g. ``house-00042``."""
+    return f"house-{seed:05d}"
+
+
+def scene_ids(split: str) -> list[str]:
+    """The house ids of ``split`` ("train", "val" or "test")."""
+    if split not in SPLIT_SIZES:
+        raise ValueError(f"unknown split {split!r}; valid splits are {', '.join(SPLIT_SIZES)}")
+    start = _first_seeds()[split]
+    return [house_id(seed) for seed in range(start, start + SPLIT_SIZES[split])]
+
+
+def scene_split(scene_id: str) -> str | None:
+    """The default split a scene belongs to, or None (rooms, meshes, houses beyond the splits)."""
+    match = _HOUSE.fullmatch(scene_id)
+    if match is None:
+        return None
+    seed = int(match.group(1))
+    for split, start in _first_seeds().items():
+        if start <= seed < start + SPLIT_SIZES[split]:
+            return split
+    return None
+
+
+def is_mesh_scene(scene_id: str) -> bool:
+    """True if ``scene_id`` is a path to a mesh file rather than a procedural scene."""
+    return scene_id.lower().endswith(MESH_SUFFIXES)
+
+
+@functools.lru_cache(maxsize=64)
+def layout_for(scene_id: str) -> SceneLayout:
+    """The layout of a procedural scene id (see the module docstring for the accepted forms)."""
+    if match := _HOUSE.fullmatch(scene_id):
+        return generate_house(int(match.group(1)), scene_id=scene_id)
+    if match := _ROOM.fullmatch(scene_id):
+        width, depth = float(match.group(1)), float(match.group(2))
+        if width <= 0 or depth <= 0:
+            raise ValueError(f"scene id {scene_id!r}: room width and depth must be positive")
+        return make_room(width, depth, scene_id=scene_id)
+    if is_mesh_scene(scene_id):
+        raise ValueError(
+            f"scene id {scene_id!r} is a mesh file; it has no procedural layout (load the mesh)"
+        )
+    raise ValueError(f"unknown scene id {scene_id!r}; accepted forms are {_ACCEPTED}")

@@ -1,0 +1,55 @@
+"""Top-down scene pictures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from multion.scenes.room import make_room
+from multion.viz import BLOCKED, NAVIGABLE, picture_frame, scene_picture, world_to_pixel
+
+
+def colour_count(image, rgb) -> int:
+    return int((np.asarray(image) == rgb).all(-1).sum())
+
+
+def test_picture_size_and_both_light_and_dark_cells():
+    nav = np.zeros((80, 120), bool)  # 4 m high, 6 m wide at 0.05 m cells
+    nav[20:60, 20:100] = True
+    image = scene_picture(None, nav, origin=(0.0, 0.0), cell_size=0.05, pixels_per_metre=40)
+    assert image.size == (240, 160)
+    assert image.mode == "RGB"
+    assert colour_count(image, NAVIGABLE) > 0.25 * 240 * 160
+    assert colour_count(image, BLOCKED) > 0.25 * 240 * 160
+
+
+def test_high_y_is_at_the_top_of_the_picture():
+    nav = np.zeros((40, 40), bool)
+    nav[30:, :] = True  # rows with the largest y
+    pixels = np.asarray(scene_picture(None, nav, (0.0, 0.0), 0.1, 20))
+    assert (pixels[5, 70] == NAVIGABLE).all()  # near the top (right of the scale bar)
+    assert (pixels[70, 70] == BLOCKED).all()  # near the bottom
+
+
+def test_layout_walls_are_drawn_where_they_are():
+    layout = make_room(6, 4)
+    nav = np.ones((90, 130), bool)  # x from -0.25 to 6.25, y from -0.25 to 4.25
+    image = scene_picture(layout, nav, (-0.25, -0.25), 0.05, 40)
+    frame = picture_frame(nav, (-0.25, -0.25), 0.05, 40)
+    pixels = np.asarray(image)
+    wall_x, wall_y = world_to_pixel(-0.07, 2.0, frame)  # inside the west wall
+    assert (pixels[int(wall_y), int(wall_x)] != NAVIGABLE).any()
+    mid_x, mid_y = world_to_pixel(3.0, 2.0, frame)  # the empty room centre
+    assert (pixels[int(mid_y), int(mid_x)] == NAVIGABLE).all()
+
+
+def test_world_to_pixel_corners():
+    frame = picture_frame(np.ones((40, 60), bool), (1.0, 2.0), 0.1, 10)
+    assert frame.image_size == (60, 40)
+    assert world_to_pixel(1.0, 2.0, frame) == pytest.approx((0.0, 40.0))  # lower-left
+    assert world_to_pixel(7.0, 6.0, frame) == pytest.approx((60.0, 0.0))  # upper-right
+
+
+def test_rejects_non_2d_grids():
+    with pytest.raises(ValueError, match="2-D"):
+        scene_picture(None, np.ones((3, 3, 3), bool), (0, 0), 0.05)
