@@ -98,11 +98,8 @@ def _snap(x: float) -> float:
 def bed_set(rng: np.random.Generator) -> Item:
     bw, bl = float(rng.choice([0.9, 1.4, 1.6, 1.8])), 2.05
     stands = int(rng.choice([0, 1, 2], p=[0.2, 0.3, 0.5]))
-    wood, linen, blanket = (
-        _mat(rng, "wood_light", "wood_mid"),
-        _mat(rng, "linen"),
-        _mat(rng, *FABRICS),
-    )
+    wood, linen = _mat(rng, "wood_light", "wood_mid"), _mat(rng, "linen")
+    blanket = _mat(rng, *FABRICS)
     b0 = 0.5 if stands else 0.0
     b1 = b0 + bw
     parts = [
@@ -212,10 +209,7 @@ def kitchen_counter(rng: np.random.Generator) -> Item:
 
 def fridge(rng: np.random.Generator) -> Item:
     metal, handle = _mat(rng, "metal", "ceramic"), _mat(rng, "stone")
-    parts = (
-        _p(0, 0, 0, 0.7, 0.68, 1.85, metal),
-        _p(0.6, 0.67, 0.9, 0.63, 0.72, 1.5, handle),
-    )
+    parts = (_p(0, 0, 0, 0.7, 0.68, 1.85, metal), _p(0.6, 0.67, 0.9, 0.63, 0.72, 1.5, handle))
     return Item("fridge", 0.7, 0.72, parts)
 
 
@@ -235,11 +229,8 @@ def dining_set(rng: np.random.Generator, small: bool = False) -> Item:
 
 def desk_set(rng: np.random.Generator) -> Item:
     dw, dd = _snap(rng.uniform(1.1, 1.5)), 0.65
-    wood, seat, screen = (
-        _mat(rng, "wood_light", "wood_mid"),
-        _mat(rng, *FABRICS),
-        _mat(rng, "screen"),
-    )
+    wood, seat = _mat(rng, "wood_light", "wood_mid"), _mat(rng, *FABRICS)
+    screen = _mat(rng, "screen")
     parts = [
         _p(0, 0, 0.72, dw, dd, 0.76, wood),
         _p(0, 0, 0, 0.04, dd, 0.73, wood),
