@@ -1,0 +1,134 @@
+"""``multion bench``: speed measured in one run, printed as ratios (SPEC; issues 2, 3 and 5).
+
+Timed unit tests are useless on shared, noisy machines; ratios measured back to back in one
+process are not. ``sim`` compares the task's steps per second with PyBullet's bare
+``getCameraImage`` on the same scene; ``http`` compares the server with the in-process env.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+import pybullet as p
+
+from multion.sim.camera import CameraConfig
+from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.generate import generate_episodes
+
+SCENE = "house-00061"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--only",
+        choices=["sim", "http", "train"],
+        action="append",
+        help="run only these parts (repeatable; default: sim and http)",
+    )
+    parser.add_argument(
+        "--steps", type=int, default=300, help="steps per measurement (default 300)"
+    )
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=1000,
+        help="3-ON episodes to generate for the generation timing (default 1000)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    parts = args.only or ["sim", "http"]
+    if "sim" in parts:
+        bench_sim(args.steps, args.episodes)
+    if "http" in parts:
+        from multion.api.bench_http import run_http_bench
+
+        run_http_bench()
+    if "train" in parts:
+        from multion_agents.bench_train import run_train_bench
+
+        run_train_bench()
+    return 0
+
+
+def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
+    """Print and return the simulator numbers of issue 2."""
+    results: dict[str, float] = {}
+    start = time.perf_counter()
+    episode_list = generate_episodes(3, "val", 4, seed=0, scenes=[SCENE], progress=False)
+    results["scene_build_s"] = time.perf_counter() - start  # includes 4 episodes (~0.2 s)
+    print(f"scene {SCENE}: build + navigable grid + 4 episodes: {results['scene_build_s']:.2f} s")
+    print(f"{'resolution':>10} {'env steps/s':>12} {'raw renders/s':>14} {'ratio':>6}")
+    for size in (256, 128):
+        config = EnvConfig(
+            task=TaskConfig(num_goals=3),
+            camera=CameraConfig(width=size, height=size),
+            sensors=("rgb", "depth", "goal"),
+        )
+        env = MultiONEnv(config, episodes=episode_list)
+        env_rate, poses = _env_rate(env, steps)
+        raw_rate = _raw_render_rate(env, poses)
+        env.close()
+        ratio = env_rate / raw_rate
+        results[f"env_sps_{size}"], results[f"raw_sps_{size}"], results[f"ratio_{size}"] = (
+            env_rate,
+            raw_rate,
+            ratio,
+        )
+        print(
+            f"{size:>8}² {env_rate:>12.1f} {raw_rate:>14.1f} {ratio:>6.2f}   (target ratio ≥ 0.90)"
+        )
+    start = time.perf_counter()
+    generate_episodes(3, "val", episodes, seed=0, progress=False)
+    results["generate_s"] = time.perf_counter() - start
+    print(
+        f"generating {episodes} 3-ON val episodes (11 scenes, grids included): {results['generate_s']:.1f} s"
+    )
+    return results
+
+
+def _env_rate(env: MultiONEnv, steps: int) -> tuple[float, list[tuple[float, float, float]]]:
+    """Steps per second of the full task step (motion, render, depth, measures), and its poses."""
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    done_steps, elapsed, poses = 0, 0.0, []
+    while done_steps < steps:
+        action = int(rng.choice([1, 1, 2, 3]))  # never FOUND: keep episodes running
+        begin = time.perf_counter()
+        _, _, terminated, truncated, _ = env.step(action)
+        elapsed += time.perf_counter() - begin
+        poses.append((float(env.sim.position[0]), float(env.sim.position[1]), env.sim.yaw))
+        done_steps += 1
+        if terminated or truncated:
+            env.reset()
+    return done_steps / elapsed, poses
+
+
+def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -> float:
+    """Bare ``getCameraImage`` calls with the same camera, scene and lighting, at the same poses."""
+    camera, grid, world = env.sim.camera, env.sim.grid, env.sim.world
+    assert camera is not None and grid is not None and world is not None
+    cfg = camera.config
+    elapsed = 0.0
+    for x, y, yaw in poses:
+        eye = (x, y, grid.floor_z + cfg.sensor_height)
+        view = p.computeViewMatrix(eye, (x + math.cos(yaw), y + math.sin(yaw), eye[2]), (0, 0, 1))
+        begin = time.perf_counter()
+        p.getCameraImage(
+            cfg.width,
+            cfg.height,
+            view,
+            camera.projection,
+            shadow=0,
+            lightAmbientCoeff=0.6,
+            lightDiffuseCoeff=0.4,
+            lightSpecularCoeff=0.0,
+            renderer=p.ER_TINY_RENDERER,
+            flags=p.ER_NO_SEGMENTATION_MASK,
+            physicsClientId=world.client,
+        )
+        elapsed += time.perf_counter() - begin
+    return len(poses) / elapsed
