@@ -10,7 +10,13 @@ from tqdm import tqdm
 
 from multion.scenes.registry import scene_ids
 from multion.sim.simulator import Simulator
-from multion.task.dataset import EpisodeConstraints, iter_chunks, sample_episode, save_dataset, task_name
+from multion.task.dataset import (
+    EpisodeConstraints,
+    iter_chunks,
+    sample_episode,
+    save_dataset,
+    task_name,
+)
 from multion.task.episode import Episode
 
 
