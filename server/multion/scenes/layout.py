@@ -28,11 +28,11 @@ class Box:
 
     @property
     def min_corner(self) -> tuple[float, float, float]:
-        return tuple(c - h for c, h in zip(self.center, self.half_extents))  # type: ignore[return-value]
+        return tuple(c - h for c, h in zip(self.center, self.half_extents, strict=True))  # type: ignore[return-value]
 
     @property
     def max_corner(self) -> tuple[float, float, float]:
-        return tuple(c + h for c, h in zip(self.center, self.half_extents))  # type: ignore[return-value]
+        return tuple(c + h for c, h in zip(self.center, self.half_extents, strict=True))  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
