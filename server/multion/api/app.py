@@ -1,0 +1,107 @@
+"""The FastAPI application: routers, error handlers and the worker pool's lifespan."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from starlette.exceptions import HTTPException
+
+from multion.api.deps import MsgpackResponse
+from multion.api.routers import meta, sessions
+from multion.api.sessions import SessionRegistry
+from multion.api.settings import ServerSettings
+from multion.api.workers import WorkerPool
+from multion_client.errors import (
+    BadRequest,
+    InternalError,
+    MethodNotAllowed,
+    MultiONError,
+    NotFound,
+    error_from_code,
+)
+from multion_client.protocol import API_VERSION
+
+log = logging.getLogger("multion.api")
+
+DESCRIPTION = """\
+Remote MultiON environments. Create a session (one or more environments), then reset and step
+it; observations come back as msgpack with numpy arrays as raw bytes. Metrics are computed here;
+clients only send actions. The `multion_client` package (`Client`, `RemoteEnv`,
+`RemoteVectorEnv`) speaks this protocol. Errors are `{"error": {"code", "message"}}`.
+"""
+
+
+def create_app(settings: ServerSettings | None = None) -> FastAPI:
+    """A MultiON server app; its lifespan starts and stops the simulator workers."""
+    settings = settings or ServerSettings()
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        pool = WorkerPool(settings.workers, settings.worker_start_timeout_s)
+        try:
+            await pool.start()
+        except BaseException:
+            await pool.stop()
+            raise
+        registry = SessionRegistry(settings, pool)
+        app.state.settings, app.state.registry = settings, registry
+        reaper = asyncio.create_task(registry.reap_forever())
+        try:
+            yield
+        finally:
+            reaper.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await reaper
+            await pool.stop()  # workers close their environments as they exit
+
+    app = FastAPI(
+        title="MultiON server",
+        version=API_VERSION,
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.include_router(meta.router)
+    app.include_router(sessions.router)
+    app.add_exception_handler(MultiONError, _api_error)
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(HTTPException, _http_error)
+    app.add_exception_handler(Exception, _unexpected_error)
+    return app
+
+
+def _respond(error: MultiONError) -> MsgpackResponse:
+    return MsgpackResponse(error.to_wire(), status_code=error.status)
+
+
+async def _api_error(request: Request, error: Exception) -> MsgpackResponse:
+    assert isinstance(error, MultiONError)
+    return _respond(error)
+
+
+async def _validation_error(request: Request, error: Exception) -> MsgpackResponse:
+    assert isinstance(error, RequestValidationError)
+    problems = "; ".join(
+        f"{'.'.join(str(p) for p in e.get('loc', ()))}: {e.get('msg')}" for e in error.errors()
+    )
+    return _respond(BadRequest(f"invalid request: {problems}", status=422))
+
+
+async def _http_error(request: Request, error: Exception) -> MsgpackResponse:
+    assert isinstance(error, HTTPException)
+    if error.status_code == 404:
+        wrapped: MultiONError = NotFound(f"no route {request.method} {request.url.path}")
+    elif error.status_code == 405:
+        wrapped = MethodNotAllowed(f"{request.method} is not allowed on {request.url.path}")
+    else:
+        wrapped = error_from_code(f"http_{error.status_code}", str(error.detail), error.status_code)
+    return _respond(wrapped)
+
+
+async def _unexpected_error(request: Request, error: Exception) -> MsgpackResponse:
+    log.exception("unexpected error in %s %s", request.method, request.url.path, exc_info=error)
+    return _respond(InternalError(f"{type(error).__name__}: {error}"))

@@ -1,0 +1,74 @@
+"""``multion serve``: run a MultiON server with uvicorn (one HTTP process, N simulator workers)."""
+
+from __future__ import annotations
+
+import argparse
+
+from multion.api.settings import ServerSettings
+
+# Options that map one-to-one onto ServerSettings fields (None: keep the MULTION_* / default).
+_OPTIONS: tuple[tuple[str, type, str], ...] = (
+    ("host", str, "address to listen on (default 127.0.0.1; 0.0.0.0 for every interface)"),
+    ("port", int, "TCP port (default 8000)"),
+    ("workers", int, "simulator worker processes; sessions are spread over them (default 1)"),
+    ("max_sessions", int, "most open sessions (default 64)"),
+    ("max_envs_per_session", int, "most environments in one session (default 64)"),
+    ("max_envs_total", int, "most environments over all sessions (default 256)"),
+    ("idle_timeout_s", float, "close sessions unused for this many seconds (default 900)"),
+    ("max_request_bytes", int, "largest request body accepted (default 32 MiB)"),
+    ("worker_timeout_s", float, "kill and replace a worker silent this long (default 300)"),
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``serve`` options; each also reads ``MULTION_<NAME>`` from the environment."""
+    for name, kind, text in _OPTIONS:
+        parser.add_argument(f"--{name.replace('_', '-')}", dest=name, type=kind, help=text)
+    parser.add_argument(
+        "--log-level",
+        default="info",
+        choices=["critical", "error", "warning", "info", "debug"],
+        help="uvicorn log level (default info)",
+    )
+    parser.add_argument(
+        "--no-access-log", action="store_true", help="do not log every request (faster)"
+    )
+
+
+def settings_from_args(args: argparse.Namespace) -> ServerSettings:
+    given = {name: getattr(args, name) for name, _, _ in _OPTIONS}
+    return ServerSettings(**{k: v for k, v in given.items() if v is not None})
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until interrupted; returns the exit status."""
+    import uvicorn
+    from pydantic import ValidationError
+
+    from multion.api.app import create_app
+
+    try:
+        settings = settings_from_args(args)
+    except ValidationError as error:
+        print(f"multion serve: invalid option: {error}")
+        return 2
+    uvicorn.run(
+        create_app(settings),
+        host=settings.host,
+        port=settings.port,
+        log_level=args.log_level,
+        access_log=not args.no_access_log,
+        timeout_graceful_shutdown=10,
+    )
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m multion.api.cli_serve``: the same as ``multion serve``."""
+    parser = argparse.ArgumentParser(prog="multion serve", description=__doc__)
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

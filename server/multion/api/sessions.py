@@ -1,0 +1,370 @@
+"""Sessions: the registry, its limits, the idle reaper, and the fan-out to simulator workers.
+
+A session's environments are split into *shards*, one per worker it uses (a 4-env session on
+a 2-worker server has 2 + 2), so one step request renders in several processes at once. The
+workers' replies are spliced into one msgpack response without decoding the arrays.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+import uuid
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.api.settings import ServerSettings
+from multion.api.workers import Reply, Worker, WorkerPool
+from multion_client import errors
+from multion_client.constants import NUM_ACTIONS, Action
+from multion_client.protocol import (
+    CreateSession,
+    Reset,
+    SessionInfo,
+    Step,
+    decode,
+    encode,
+    join_encoded,
+)
+
+log = logging.getLogger("multion.api")
+
+OBSERVATION_FIELDS = ("observations", "infos")
+STEP_FIELDS = ("observations", "rewards", "terminated", "truncated", "infos")
+
+
+@dataclass
+class Shard:
+    worker: Worker
+    shard_id: str
+    start: int
+    count: int
+    closed: bool = False
+
+
+@dataclass
+class Session:
+    session_id: str
+    num_envs: int
+    auto_reset: bool
+    shards: list[Shard]
+    info: bytes = b""
+    """The encoded SessionInfo, the answer to create."""
+    last_used: float = field(default_factory=time.monotonic)
+    started: bool = False
+    done: list[bool] = field(default_factory=list)
+    failed: str | None = None
+    busy: int = 0
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+
+
+class SessionRegistry:
+    """All sessions of a server; every method raises the typed errors of ``multion_client``."""
+
+    def __init__(self, settings: ServerSettings, pool: WorkerPool) -> None:
+        self.settings = settings
+        self.pool = pool
+        self.sessions: dict[str, Session] = {}
+        self.reaped = 0
+        self._pending_sessions = 0
+        self._pending_envs = 0
+        pool.on_death = self._worker_died
+
+    # ------------------------------------------------------------------ operations
+    async def create(self, message: CreateSession) -> bytes:
+        """Start the environments of a new session; returns the encoded SessionInfo."""
+        try:
+            session_config_from_dict(message.config)  # fail fast, before any worker is involved
+        except ConfigError as error:
+            raise errors.InvalidConfig(str(error)) from None
+        n, s = message.num_envs, self.settings
+        if n > s.max_envs_per_session:
+            raise errors.TooManyEnvs(
+                f"num_envs={n} is above this server's limit of {s.max_envs_per_session} per session"
+            )
+        if self.live_sessions() + self._pending_sessions >= s.max_sessions:
+            raise errors.TooManySessions(
+                f"the server already has {s.max_sessions} sessions (its limit); close one first"
+            )
+        in_use = self.live_envs() + self._pending_envs
+        if in_use + n > s.max_envs_total:
+            raise errors.TooManyEnvs(
+                f"{n} more environments would exceed the server's limit of {s.max_envs_total} "
+                f"({in_use} in use)"
+            )
+        self._pending_sessions += 1
+        self._pending_envs += n
+        try:
+            return await _shielded(self._create(message))
+        finally:
+            self._pending_sessions -= 1
+            self._pending_envs -= n
+
+    async def reset(self, session_id: str, message: Reset) -> bytes:
+        session = self.get(session_id)
+        n = session.num_envs
+        seeds = message.seeds or [None] * n
+        options = message.options or [None] * n
+        if len(seeds) != n or len(options) != n:
+            raise errors.BadRequest(
+                f"reset needs one seed and one options entry per environment ({n}), "
+                f"got {len(seeds)} seeds and {len(options)} options (empty lists mean none)"
+            )
+
+        async def run(session: Session) -> bytes:
+            session.done = [True] * n  # until the reset succeeds
+            payloads = [
+                {
+                    "seeds": seeds[sh.start : sh.start + sh.count],
+                    "options": options[sh.start : sh.start + sh.count],
+                }
+                for sh in session.shards
+            ]
+            replies = await self._fan_out(session.shards, "reset", payloads)
+            session.started = True
+            session.done = [d for header, _ in replies for d in header["done"]]
+            return _splice(OBSERVATION_FIELDS, replies, n)
+
+        return await self._run(session, run)
+
+    async def step(self, session_id: str, message: Step) -> bytes:
+        session = self.get(session_id)
+        actions = _check_actions(message.actions, session.num_envs)
+
+        async def run(session: Session) -> bytes:
+            if not session.auto_reset:
+                over = [i for i, done in enumerate(session.done) if done]
+                if not session.started or over:
+                    raise errors.EpisodeOver(
+                        "no episode has started; call reset first"
+                        if not session.started
+                        else f"the episode of environment(s) {over} is over; call reset first "
+                        "(or create the session with auto_reset)"
+                    )
+            payloads = [
+                {"actions": actions[sh.start : sh.start + sh.count]} for sh in session.shards
+            ]
+            replies = await self._fan_out(session.shards, "step", payloads)
+            session.done = [d for header, _ in replies for d in header["done"]]
+            return _splice(STEP_FIELDS, replies, session.num_envs)
+
+        return await self._run(session, run)
+
+    async def observe(self, session_id: str) -> bytes:
+        session = self.get(session_id)
+
+        async def run(session: Session) -> bytes:
+            if not session.started:
+                raise errors.NotReset("no episode has started in this session; call reset first")
+            replies = await self._fan_out(session.shards, "observe", [None] * len(session.shards))
+            return _splice(OBSERVATION_FIELDS, replies, session.num_envs)
+
+        return await self._run(session, run)
+
+    async def close(self, session_id: str) -> None:
+        """Forget the session and free its environments (also for a failed session)."""
+        session = self.sessions.get(session_id)
+        if session is None:
+            raise errors.SessionNotFound(_unknown(session_id))
+        async with session.lock:
+            if self.sessions.pop(session_id, None) is not None:
+                await _shielded(self._release(session.shards))
+
+    async def close_all(self) -> None:
+        for session_id in list(self.sessions):
+            try:
+                await self.close(session_id)
+            except errors.MultiONError:
+                pass  # a worker that is gone holds nothing to free
+
+    # ------------------------------------------------------------------ lookup and limits
+    def get(self, session_id: str) -> Session:
+        session = self.sessions.get(session_id)
+        if session is None:
+            raise errors.SessionNotFound(_unknown(session_id))
+        if session.failed is not None:
+            raise errors.WorkerFailed(f"session {session_id} is lost: {session.failed}")
+        return session
+
+    def live_sessions(self) -> int:
+        return sum(1 for s in self.sessions.values() if s.failed is None)
+
+    def live_envs(self) -> int:
+        return sum(s.num_envs for s in self.sessions.values() if s.failed is None)
+
+    # ------------------------------------------------------------------ idle reaper
+    async def reap_forever(self) -> None:
+        interval = max(0.05, min(self.settings.idle_timeout_s / 4, 30.0))
+        while True:
+            await asyncio.sleep(interval)
+            try:
+                await self.reap_idle()
+            except Exception:  # noqa: BLE001 - the reaper must outlive any one failure
+                log.exception("reaping idle sessions failed")
+
+    async def reap_idle(self) -> list[str]:
+        """Close the sessions unused for ``idle_timeout_s``; returns their ids."""
+        limit = time.monotonic() - self.settings.idle_timeout_s
+        idle = [s.session_id for s in self.sessions.values() if s.busy == 0 and s.last_used < limit]
+        for session_id in idle:
+            log.info(
+                "closing session %s: idle for over %s s", session_id, self.settings.idle_timeout_s
+            )
+            try:
+                await self.close(session_id)
+            except errors.MultiONError:
+                pass
+            self.reaped += 1
+        return idle
+
+    # ------------------------------------------------------------------ internals
+    async def _create(self, message: CreateSession) -> bytes:
+        session_id = uuid.uuid4().hex
+        shards, start = [], 0
+        for k, (worker, count) in enumerate(self.pool.choose(message.num_envs)):
+            shards.append(Shard(worker, f"{session_id}/{k}", start, count))
+            worker.env_count += count
+            start += count
+        payload = {"config": message.config, "auto_reset": message.auto_reset}
+        payloads = [{**payload, "num_envs": sh.count} for sh in shards]
+        try:
+            replies = await self._fan_out(shards, "create", payloads)
+        except BaseException:
+            await self._release(shards)
+            raise
+        spaces = decode(replies[0][1][0])
+        info = SessionInfo.from_wire(
+            {
+                "session_id": session_id,
+                "num_envs": message.num_envs,
+                "auto_reset": message.auto_reset,
+                **spaces,
+            }
+        )
+        session = Session(
+            session_id, message.num_envs, message.auto_reset, shards, done=[True] * message.num_envs
+        )
+        session.info = encode(info.to_wire())
+        self.sessions[session_id] = session
+        return session.info
+
+    async def _run(
+        self, session: Session, operation: Callable[[Session], Awaitable[bytes]]
+    ) -> bytes:
+        """Run ``operation`` under the session's lock; it completes even if the client leaves."""
+
+        async def locked() -> bytes:
+            async with session.lock:
+                if session.session_id not in self.sessions:
+                    raise errors.SessionNotFound(_unknown(session.session_id))
+                if session.failed is not None:
+                    raise errors.WorkerFailed(
+                        f"session {session.session_id} is lost: {session.failed}"
+                    )
+                session.busy += 1
+                try:
+                    return await operation(session)
+                finally:
+                    session.busy -= 1
+                    session.last_used = time.monotonic()
+
+        session.last_used = time.monotonic()
+        return await _shielded(locked())
+
+    async def _fan_out(self, shards: list[Shard], command: str, payloads: list[Any]) -> list[Reply]:
+        """Send one command per shard concurrently; raise the first error once all answered."""
+        timeout = self.settings.worker_timeout_s
+        results = await asyncio.gather(
+            *(
+                sh.worker.request(command, sh.shard_id, p, timeout)
+                for sh, p in zip(shards, payloads, strict=True)
+            ),
+            return_exceptions=True,
+        )
+        for result in results:
+            if isinstance(result, BaseException):
+                raise result
+            header, _ = result
+            if not header["ok"]:
+                raise errors.error_from_code(header["code"], header["message"])
+        return results  # type: ignore[return-value]
+
+    async def _release(self, shards: list[Shard]) -> None:
+        for shard in shards:
+            if shard.closed:
+                continue
+            shard.closed = True
+            shard.worker.env_count -= shard.count
+            if shard.worker.alive:
+                try:
+                    await shard.worker.request(
+                        "close", shard.shard_id, None, self.settings.worker_timeout_s
+                    )
+                except errors.MultiONError:
+                    pass  # the worker died meanwhile: nothing left to free
+
+    def _worker_died(self, worker: Worker) -> None:
+        log.error("%s", worker.failure)
+        for session in self.sessions.values():
+            if session.failed is None and any(sh.worker is worker for sh in session.shards):
+                session.failed = worker.failure
+                _background(self._release(session.shards))
+
+
+def _check_actions(actions: list[Any], n: int) -> list[int]:
+    """Actions as ints, by the in-process env's rules: integral numbers in 0..3."""
+    if len(actions) != n:
+        raise errors.BadRequest(
+            f"expected {n} action(s), one per environment of the session, got {len(actions)}"
+        )
+    checked = [_action(a) for a in actions]
+    for index, (action, value) in enumerate(zip(actions, checked, strict=True)):
+        if value is None:
+            names = ", ".join(f"{a.value} {a.name}" for a in Action)
+            raise errors.InvalidAction(
+                f"illegal action {action!r} for environment {index}; actions are {names}"
+            )
+    return checked  # type: ignore[return-value]
+
+
+def _action(value: Any) -> int | None:
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, int) and 0 <= value < NUM_ACTIONS:
+        return int(value)
+    return None
+
+
+def _splice(names: tuple[str, ...], replies: list[Reply], n: int) -> bytes:
+    return join_encoded(
+        [(name, n, [parts[i] for _, parts in replies]) for i, name in enumerate(names)]
+    )
+
+
+def _unknown(session_id: str) -> str:
+    return f"no session {session_id!r} (never created, closed, or closed after being idle)"
+
+
+_tasks: set[asyncio.Task[Any]] = set()
+
+
+def _background(coro: Awaitable[Any]) -> None:
+    task = asyncio.ensure_future(coro)
+    _tasks.add(task)  # keep a reference until it is done
+    task.add_done_callback(_tasks.discard)
+
+
+async def _shielded(coro: Awaitable[Any]) -> Any:
+    """Await ``coro`` in its own task: cancelling the caller (a client hanging up) leaves it
+    running to the end, so a worker reply is never left for the next request to read."""
+    task = asyncio.ensure_future(coro)
+    task.add_done_callback(_consume)
+    return await asyncio.shield(task)
+
+
+def _consume(task: asyncio.Task[Any]) -> None:
+    if not task.cancelled():
+        task.exception()

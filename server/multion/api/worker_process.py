@@ -1,0 +1,156 @@
+"""The loop of a simulator worker process (started by ``workers.py`` with the spawn context).
+
+A worker owns *shards*: the environments of one session that were pinned to it. It answers one
+command at a time over its pipe. Requests are pickled tuples ``(command, shard_id, payload)``;
+a reply is a msgpack header ``{"ok": bool, "parts": k, ...}`` followed by ``k`` raw byte
+messages: the msgpack encodings of the per-env items (see ``protocol.encode_items``), which the
+server splices into its HTTP response without decoding them. This module never imports FastAPI.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from typing import Any
+
+from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.task.dataset import DatasetError
+from multion.task.env import EpisodeOverError, MultiONEnv
+from multion_client import errors
+from multion_client.protocol import encode, encode_items, space_to_wire
+
+Reply = tuple[dict[str, Any], list[bytes]]
+
+
+@dataclass
+class Shard:
+    """The environments of one session held by this worker, and their latest outputs."""
+
+    envs: list[MultiONEnv]
+    auto_reset: bool
+    observations: list[dict[str, Any]] = field(default_factory=list)
+    infos: list[dict[str, Any]] = field(default_factory=list)
+
+
+def worker_main(conn: Connection) -> None:
+    """Serve commands until ``shutdown`` or until the server's end of the pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which stops us
+    shards: dict[str, Shard] = {}
+    conn.send_bytes(encode({"ready": True, "pid": os.getpid()}))
+    while True:
+        try:
+            command, shard_id, payload = conn.recv()
+        except (EOFError, OSError):
+            break  # the server is gone
+        if command == "shutdown":
+            break
+        header, parts = handle(shards, command, shard_id, payload)
+        header["parts"] = len(parts)
+        conn.send_bytes(encode(header))
+        for part in parts:
+            conn.send_bytes(part)
+    for shard in shards.values():
+        _close(shard)
+
+
+def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) -> Reply:
+    """Run one command; every failure becomes an error header with a code and a message."""
+    try:
+        if command == "create":
+            return _create(shards, shard_id, payload)
+        shard = shards.get(shard_id)
+        if shard is None:
+            raise errors.SessionNotFound(f"no shard {shard_id} in worker {os.getpid()}")
+        if command == "reset":
+            return _reset(shard, payload["seeds"], payload["options"])
+        if command == "step":
+            return _step(shard, payload["actions"])
+        if command == "observe":
+            return _observations(shard)
+        if command == "close":
+            _close(shards.pop(shard_id))
+            return {"ok": True}, []
+        raise errors.BadRequest(f"unknown worker command {command!r}")
+    except errors.MultiONError as error:
+        return {"ok": False, "code": error.code, "message": error.message}, []
+    except Exception as error:  # noqa: BLE001 - a worker must answer, whatever happened
+        message = f"{command} failed in the simulator: {type(error).__name__}: {error}"
+        return {"ok": False, "code": errors.InternalError.code, "message": message}, []
+
+
+def _create(shards: dict[str, Shard], shard_id: str, payload: dict[str, Any]) -> Reply:
+    try:
+        config, episodes = session_config_from_dict(payload["config"])
+        envs = [MultiONEnv(config, episodes) for _ in range(payload["num_envs"])]
+    except (ConfigError, DatasetError, ValueError, TypeError) as error:
+        raise errors.InvalidConfig(str(error)) from None
+    shards[shard_id] = Shard(envs, payload["auto_reset"])
+    spaces = {
+        "observation_space": space_to_wire(envs[0].observation_space),
+        "action_space": space_to_wire(envs[0].action_space),
+    }
+    return {"ok": True}, [encode(spaces)]
+
+
+def _reset(shard: Shard, seeds: list[int | None], options: list[dict[str, Any] | None]) -> Reply:
+    shard.observations, shard.infos = [], []  # a failed reset leaves nothing to observe
+    results = []
+    for index, (env, seed, option) in enumerate(zip(shard.envs, seeds, options, strict=True)):
+        try:
+            results.append(env.reset(seed=seed, options=option))
+        except (DatasetError, IndexError, KeyError, ValueError, TypeError) as error:
+            text = error.args[0] if isinstance(error, KeyError) and error.args else error
+            raise errors.InvalidEpisode(f"reset of environment {index} failed: {text}") from None
+    shard.observations = [obs for obs, _ in results]
+    shard.infos = [info for _, info in results]
+    return _observations(shard)
+
+
+def _step(shard: Shard, actions: list[Any]) -> Reply:
+    over = [i for i, env in enumerate(shard.envs) if env.episode_over]
+    if over and not shard.auto_reset:
+        raise errors.EpisodeOver(f"the episode of environment(s) {over} is over; call reset")
+    rewards, terminated, truncated = [], [], []
+    for index, (env, action) in enumerate(zip(shard.envs, actions, strict=True)):
+        try:
+            obs, reward, term, trunc, info = env.step(action)
+        except EpisodeOverError as error:
+            raise errors.EpisodeOver(f"environment {index}: {error}") from None
+        except ValueError as error:
+            raise errors.InvalidAction(f"environment {index}: {error}") from None
+        if shard.auto_reset and (term or trunc):
+            # Gymnasium SAME_STEP autoreset: the next episode's first observation, with the
+            # ended episode's last observation and info under final_obs / final_info.
+            final_obs, final_info = obs, info
+            obs, info = env.reset()
+            info = {**info, "final_obs": final_obs, "final_info": final_info}
+        shard.observations[index], shard.infos[index] = obs, info
+        rewards.append(reward)
+        terminated.append(term)
+        truncated.append(trunc)
+    parts = [
+        encode_items(shard.observations),
+        encode_items(rewards),
+        encode_items(terminated),
+        encode_items(truncated),
+        encode_items(shard.infos),
+    ]
+    done = [env.episode_over for env in shard.envs]
+    return {"ok": True, "done": done}, parts
+
+
+def _observations(shard: Shard) -> Reply:
+    if not shard.observations:
+        raise errors.NotReset("no episode has started in this session; call reset first")
+    done = [env.episode_over for env in shard.envs]
+    return {"ok": True, "done": done}, [
+        encode_items(shard.observations),
+        encode_items(shard.infos),
+    ]
+
+
+def _close(shard: Shard) -> None:
+    for env in shard.envs:
+        env.close()

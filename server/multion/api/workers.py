@@ -1,0 +1,188 @@
+"""The pool of simulator worker processes, seen from the server's event loop.
+
+PyBullet holds the GIL while it renders, so environments live in worker processes (started with
+the *spawn* context; one duplex Pipe each) and the event loop only moves bytes. Replies are read
+with ``loop.add_reader`` on the pipe, so awaiting a worker blocks neither the loop nor a thread.
+
+A worker that dies (or does not answer within ``timeout_s`` and is killed) is detected at once:
+pending and later requests for it raise :class:`WorkerFailed`, ``on_death`` is called so the
+sessions pinned to it can be marked failed, and a fresh worker takes its slot.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import multiprocessing
+import os
+import socket
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from typing import Any
+
+from multion.api.worker_process import worker_main
+from multion_client.errors import WorkerFailed
+from multion_client.protocol import decode
+
+Reply = tuple[dict[str, Any], list[bytes]]
+PIPE_BUFFER_BYTES = 8 * 1024 * 1024
+
+
+class Worker:
+    """One simulator process and the server's end of its pipe; it answers one request at a time."""
+
+    def __init__(self, slot: int, generation: int, on_exit: Callable[[Worker], None]) -> None:
+        ctx = multiprocessing.get_context("spawn")
+        self.slot = slot
+        self.generation = generation
+        self.env_count = 0
+        self.alive = True
+        self.failure = ""
+        self._loop = asyncio.get_running_loop()
+        self._on_exit = on_exit
+        self._lock = asyncio.Lock()
+        self._waiter: asyncio.Future[Reply] | None = None
+        self.ready: asyncio.Future[int] = self._loop.create_future()
+        self.conn, child = ctx.Pipe(duplex=True)
+        _widen(self.conn, child)
+        self.process = ctx.Process(
+            target=worker_main, args=(child,), name=f"multion-worker-{slot}", daemon=True
+        )
+        self.process.start()
+        child.close()  # so that the worker's death shows up as EOF on our end
+        self._fd = self.conn.fileno()
+        self._loop.add_reader(self._fd, self._on_readable)
+
+    @property
+    def pid(self) -> int | None:
+        return self.process.pid
+
+    async def request(self, command: str, shard_id: str, payload: Any, timeout_s: float) -> Reply:
+        """Send one command and await its reply (header, raw parts)."""
+        await asyncio.wait_for(asyncio.shield(self.ready), timeout_s)
+        async with self._lock:
+            if not self.alive:
+                raise WorkerFailed(self.failure)
+            self._waiter = self._loop.create_future()
+            try:
+                self.conn.send((command, shard_id, payload))
+            except OSError as error:
+                self._died(f"simulator worker {self.pid} cannot be reached ({error})")
+            try:
+                return await asyncio.wait_for(self._waiter, timeout_s)
+            except asyncio.TimeoutError:
+                self.kill(f"simulator worker {self.pid} did not answer {command} in {timeout_s} s")
+                raise WorkerFailed(self.failure) from None
+            finally:
+                self._waiter = None
+
+    def kill(self, reason: str) -> None:
+        """Stop the process now (no reply expected) and mark the worker failed."""
+        if self.process.is_alive():
+            self.process.kill()
+        self._died(reason)
+
+    async def stop(self, timeout_s: float = 5.0) -> None:
+        """Ask the worker to exit; kill it if it does not."""
+        if self.alive:
+            self._on_exit = _ignore  # a requested exit is not a death to report
+            try:
+                self.conn.send(("shutdown", "", None))
+            except OSError:
+                pass
+            await asyncio.to_thread(self.process.join, timeout_s)
+        self.kill("the server is shutting down")
+
+    # ------------------------------------------------------------------ internals
+    def _on_readable(self) -> None:
+        try:
+            header = decode(self.conn.recv_bytes())
+            # The parts follow the header at once, so these reads do not wait.
+            parts = [self.conn.recv_bytes() for _ in range(int(header.get("parts", 0)))]
+        except (EOFError, OSError):
+            self._died(None)
+            return
+        if header.get("ready"):
+            if not self.ready.done():
+                self.ready.set_result(int(header["pid"]))
+            return
+        if self._waiter is not None and not self._waiter.done():
+            self._waiter.set_result((header, parts))
+
+    def _died(self, reason: str | None) -> None:
+        if not self.alive:
+            return
+        self.alive = False
+        self._loop.remove_reader(self._fd)
+        self.process.join(timeout=1.0)  # it closed its pipe, so it is exiting; reap it
+        self.failure = reason or (
+            f"simulator worker {self.pid} died (exit code {self.process.exitcode}); "
+            "the sessions it held are lost: close them and create new ones"
+        )
+        self.conn.close()
+        error = WorkerFailed(self.failure)
+        for future in (self._waiter, self.ready):
+            if future is not None and not future.done():
+                future.set_exception(error)
+                future.exception()  # mark retrieved: nobody may be waiting on it
+        self._on_exit(self)
+
+
+def _widen(*conns: Connection) -> None:
+    """Ask for big socket buffers, so that a reply of a few images crosses the pipe in a few
+    system calls (the kernel caps the size; a failure only costs speed)."""
+    for conn in conns:
+        try:
+            sock = socket.socket(fileno=os.dup(conn.fileno()))
+        except OSError:
+            continue
+        with sock:
+            for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
+                with contextlib.suppress(OSError):
+                    sock.setsockopt(socket.SOL_SOCKET, option, PIPE_BUFFER_BYTES)
+
+
+def _ignore(worker: Worker) -> None:
+    pass
+
+
+class WorkerPool:
+    """``size`` worker slots; a slot whose worker dies gets a new worker at once."""
+
+    def __init__(self, size: int, start_timeout_s: float) -> None:
+        self.size = size
+        self.start_timeout_s = start_timeout_s
+        self.workers: list[Worker] = []
+        self.on_death: Callable[[Worker], None] = _ignore
+        self.replaced = 0
+        self._stopping = False
+
+    async def start(self) -> None:
+        """Start every worker and wait until each has imported the simulator."""
+        self.workers = [Worker(slot, 0, self._exited) for slot in range(self.size)]
+        await asyncio.wait_for(
+            asyncio.gather(*(w.ready for w in self.workers)), self.start_timeout_s
+        )
+
+    async def stop(self) -> None:
+        self._stopping = True
+        await asyncio.gather(*(worker.stop() for worker in self.workers))
+
+    def choose(self, num_envs: int) -> list[tuple[Worker, int]]:
+        """Spread ``num_envs`` over the least loaded live workers: [(worker, count), ...]."""
+        live = [w for w in self.workers if w.alive]
+        if not live:
+            raise WorkerFailed("no simulator worker is running")
+        load = {id(w): w.env_count for w in live}
+        counts: dict[int, int] = {}
+        for _ in range(num_envs):
+            best = min(live, key=lambda w: (load[id(w)], w.slot))
+            load[id(best)] += 1
+            counts[id(best)] = counts.get(id(best), 0) + 1
+        return [(w, counts[id(w)]) for w in live if id(w) in counts]
+
+    def _exited(self, worker: Worker) -> None:
+        self.on_death(worker)
+        if not self._stopping and self.workers[worker.slot] is worker:
+            self.replaced += 1
+            self.workers[worker.slot] = Worker(worker.slot, worker.generation + 1, self._exited)
