@@ -1,0 +1,230 @@
+"""``explorer``: frontier exploration with a map built from depth, goals recognised by colour.
+
+No oracle: the agent reads RGB, depth, GPS, compass and the current goal category. It keeps a
+top-down map in the start frame (:class:`~.mapping.SemanticMap`): obstacles and free space from
+depth, and the position of *every* goal colour it has seen, not only the current one. That memory
+is the paper's point about maps: when a goal becomes current, the agent often already knows where
+it is and walks straight there instead of exploring again.
+
+Policy, per step:
+
+1. at the start of an episode, turn once around on the spot to look;
+2. if the current goal has been seen, plan to it; FOUND once within ``found_distance`` along the
+   map and in a straight, free line (or in view), which keeps inside the 1.5 m geodesic radius;
+3. otherwise go to the nearest frontier (known free cells next to unknown ones).
+
+Plans are fast-marching fields (:mod:`.navigation`) over the explored part of the map, refreshed
+every ``replan_every`` steps, on arrival, when a step is refused, or when the target changes, so
+the agent's thinking stays a small fraction of the simulator's rendering time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+from scipy import ndimage
+
+from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.baselines.mapping import CameraModel, DepthProjector, SemanticMap, detect_goals
+from multion_agents.baselines.navigation import (
+    Motion,
+    StartFrameGrid,
+    bounding_box,
+    cells_ahead,
+    choose_action,
+    cropped_distance_field,
+)
+from multion_client.constants import Action
+
+_CROSS = ndimage.generate_binary_structure(2, 1)
+
+
+class ExplorerAgent(Agent):
+    """Frontier exploration + colour goal detection + goal memory, all from RGB-D and pose."""
+
+    sensors: ClassVar[tuple[str, ...]] = ("rgb", "depth", "goal", "gps", "compass")
+    config_overrides: ClassVar[ConfigOverrides] = {}
+    cell_size: float = 0.1
+    map_size: int = 401  # ±20 m around the start: any house fits
+    depth_rays: int = 64  # depth is sampled on a 64 × 64 grid of pixels, whatever the resolution
+    found_distance: float = 1.0
+    replan_every: int = 8
+    wall_margin: float = 0.35
+    min_frontier_cells: int = 4
+    camera: CameraModel = CameraModel()
+    motion: Motion = Motion()
+
+    def __init__(self, seed: int = 0) -> None:
+        super().__init__(seed)
+        self.reset()
+
+    def reset(self) -> None:
+        self.grid = StartFrameGrid(self.map_size, self.cell_size)
+        self.map = SemanticMap(self.grid)
+        self._projector: DepthProjector | None = None
+        self._blocked = np.zeros((self.map_size, self.map_size), dtype=bool)
+        self._given_up = np.zeros_like(self._blocked)
+        self._passable = np.ones_like(self._blocked)
+        self._field: np.ndarray | None = None
+        self._target: tuple[str, int] | None = None  # ("goal", category) or ("frontier", -1)
+        self._target_point: np.ndarray | None = None
+        self._since_plan = 0
+        self._spin = self.motion.headings - 1
+        self._stuck = 0
+        self._last_position: np.ndarray | None = None
+        self._last_action: int | None = None
+
+    # ------------------------------------------------------------------ the policy
+    def act(self, observation: Observation) -> int:
+        position = np.asarray(observation["gps"], dtype=np.float64)
+        heading = float(observation["compass"][0])
+        goal = int(observation["goal"])
+        seen_now = self._perceive(observation, position, heading)
+        if (
+            self._last_action == Action.MOVE_FORWARD
+            and self._last_position is not None
+            and np.allclose(position, self._last_position, atol=1e-4)
+        ):
+            ahead = cells_ahead(self.grid, position, heading, self.motion.forward_step)
+            self._blocked[ahead] = True
+            self._field = None
+            self.map.changed = True
+        if self.map.changed:
+            self._refresh_passable()
+        action = self._decide(goal, goal in seen_now, position, heading)
+        self._last_position, self._last_action = position, action
+        return action
+
+    def _decide(self, goal: int, goal_in_view: bool, position: np.ndarray, heading: float) -> int:
+        goal_at = self.map.goal_position(goal)
+        if goal_at is not None:
+            target = ("goal", goal)
+            if self._target != target or self._moved(goal_at):
+                self._field = None
+            self._target, self._target_point = target, goal_at
+            if self._field is None:
+                self._plan(position)
+            if self._close_enough(position, goal_at, goal_in_view):
+                return int(Action.FOUND)
+        else:
+            if self._spin > 0:
+                self._spin -= 1
+                return int(Action.TURN_LEFT)
+            if self._target != ("frontier", -1) or self._needs_frontier_replan(position):
+                self._target, self._target_point = ("frontier", -1), None
+                self._field = None
+            if self._field is None:
+                self._plan(position)
+        return self._step(position, heading)
+
+    def _step(self, position: np.ndarray, heading: float) -> int:
+        assert self._field is not None
+        self._since_plan += 1
+        action = choose_action(
+            self.grid, self._field, self._passable, position, heading, self.motion
+        )
+        if action is None:
+            # a local minimum of the field (map changed under the plan): re-plan, look around
+            self._stuck += 1
+            self._field = None
+            if self._stuck > 3 and self._target == ("frontier", -1):
+                self._give_up_near(position)
+            return int(Action.TURN_LEFT if self.rng.random() < 0.5 else Action.TURN_RIGHT)
+        self._stuck = 0
+        return action
+
+    # ------------------------------------------------------------------ perception
+    def _perceive(self, observation: Observation, position: np.ndarray, heading: float) -> set[int]:
+        depth, rgb = observation["depth"], observation["rgb"]
+        if self._projector is None:
+            stride = max(1, depth.shape[1] // self.depth_rays)
+            self._projector = DepthProjector(depth.shape[:2], self.camera, stride)
+        detections = detect_goals(rgb)
+        self.map.integrate(self._projector, depth, detections, position, heading)
+        self.map.mark_free_disc(position, 0.15)
+        return set(detections)
+
+    # ------------------------------------------------------------------ planning
+    def _refresh_passable(self) -> None:
+        """Passable = not within one cell of a seen obstacle, and not refused by the simulator.
+
+        Optimistic: unknown cells count as passable, since the camera looks where the agent goes.
+        The dilation runs only over the box around the obstacles, to stay cheap every step.
+        """
+        r0, r1, c0, c1 = bounding_box(self.map.obstacle, margin=2)
+        inflated = np.zeros_like(self._blocked)
+        inflated[r0:r1, c0:c1] = ndimage.binary_dilation(self.map.obstacle[r0:r1, c0:c1])
+        self._passable = ~(inflated | self._blocked)
+
+    def _plan(self, position: np.ndarray) -> None:
+        passable = self._passable.copy()
+        # the agent stands where it stands: never let the dilation wall it in
+        row, col = (int(v) for v in self.grid.to_cell(position))
+        passable[row - 1 : row + 2, col - 1 : col + 2] |= ~self._blocked[
+            row - 1 : row + 2, col - 1 : col + 2
+        ]
+        if self._target is not None and self._target[0] == "goal":
+            assert self._target_point is not None
+            sources = self._disc(self._target_point, 0.2)
+        else:
+            sources = self._frontier(passable)
+        known = self.map.explored() | self._disc(position, 1.0)
+        if self._target_point is not None:
+            known |= self._disc(self._target_point, 1.0)
+        box = bounding_box(known, margin=8)
+        self._field = cropped_distance_field(
+            passable, sources, self.cell_size, box, self.wall_margin, slowest=0.3
+        )
+        self._since_plan = 0
+
+    def _frontier(self, passable: np.ndarray) -> np.ndarray:
+        free = self.map.free & passable
+        unknown = ~self.map.explored()
+        frontier = free & ndimage.binary_dilation(unknown, structure=_CROSS) & ~self._given_up
+        labels, count = ndimage.label(frontier, structure=np.ones((3, 3), dtype=bool))
+        if count == 0:
+            return frontier
+        sizes = np.bincount(labels.ravel())
+        sizes[0] = 0
+        return sizes[labels] >= self.min_frontier_cells
+
+    def _needs_frontier_replan(self, position: np.ndarray) -> bool:
+        if self._field is None or self._since_plan >= self.replan_every:
+            return True
+        return float(self.grid.lookup(self._field, position, outside=np.inf)) < 0.3
+
+    def _give_up_near(self, position: np.ndarray) -> None:
+        """Stop aiming at frontier cells around a spot the agent keeps failing to reach."""
+        self._given_up |= self._disc(position, 1.5)
+        self._stuck = 0
+
+    def _moved(self, goal_at: np.ndarray) -> bool:
+        return self._target_point is None or float(np.hypot(*(goal_at - self._target_point))) > 0.2
+
+    def _close_enough(self, position: np.ndarray, goal_at: np.ndarray, in_view: bool) -> bool:
+        assert self._field is not None
+        gap = float(np.hypot(*(goal_at - position)))
+        if gap > self.found_distance:
+            return False
+        along_map = float(self.grid.lookup(self._field, position, outside=np.inf))
+        if along_map > self.found_distance + 0.3:
+            return False
+        return in_view or self._straight_and_free(position, goal_at)
+
+    def _straight_and_free(self, start: np.ndarray, end: np.ndarray) -> bool:
+        t = np.linspace(0.0, 1.0, 12)[:, None]
+        points = (1 - t) * start[None, :] + t * end[None, :]
+        free = self.map.free & self._passable
+        return bool(self.grid.lookup(free, points, outside=False).all())
+
+    def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
+        mask = np.zeros((self.map_size, self.map_size), dtype=bool)
+        cells = int(math.ceil(radius / self.cell_size))
+        row, col = (int(v) for v in self.grid.to_cell(centre))
+        r0, r1 = max(0, row - cells), min(self.map_size, row + cells + 1)
+        c0, c1 = max(0, col - cells), min(self.map_size, col + cells + 1)
+        rr, cc = np.mgrid[r0:r1, c0:c1]
+        mask[r0:r1, c0:c1] = np.hypot(rr - row, cc - col) * self.cell_size <= radius
+        return mask

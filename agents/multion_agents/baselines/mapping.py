@@ -1,0 +1,241 @@
+"""Building a top-down map from what the camera sees: depth → points, colours → goal objects.
+
+Used by the ``explorer`` baseline, which has no oracle. Everything is in the start frame of
+:class:`~multion_agents.baselines.navigation.StartFrameGrid` (x ahead, y left of the start pose),
+where GPS and compass place the agent exactly, so no SLAM is needed.
+
+* :class:`DepthProjector` turns a depth image into 3-D points (planar depth, pinhole camera).
+* :func:`detect_goals` finds the goal cylinders by colour. Goals are pure red, green, blue, cyan,
+  magenta, yellow, black and white; scene colours are muted (saturation ≤ 0.5, value in
+  [0.25, 0.78]), so a pixel whose channels are each either ~0 or bright is a goal.
+* :class:`SemanticMap` accumulates obstacles, free space and where each goal colour was seen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from multion_agents.baselines.navigation import StartFrameGrid
+from multion_client.constants import NUM_CATEGORIES
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """What the agent knows about its camera (SPEC §2)."""
+
+    hfov_deg: float = 79.0
+    height: float = 0.88
+    min_depth: float = 0.5
+    max_depth: float = 5.0
+
+
+# goal colour → category id, by which channels are "on": (red, green, blue)
+_PATTERN_TO_CATEGORY = {
+    (1, 0, 0): 0,  # red
+    (0, 1, 0): 1,  # green
+    (0, 0, 1): 2,  # blue
+    (0, 1, 1): 3,  # cyan
+    (1, 0, 1): 4,  # magenta
+    (1, 1, 0): 5,  # yellow
+    (0, 0, 0): 6,  # black
+    (1, 1, 1): 7,  # white
+}
+_CODE_TO_CATEGORY = np.full(8, -1, dtype=np.int64)  # r·4 + g·2 + b → category
+for (_r, _g, _b), _category in _PATTERN_TO_CATEGORY.items():
+    _CODE_TO_CATEGORY[_r * 4 + _g * 2 + _b] = _category
+
+ON_LEVEL = 140  # lit goal channels are 255 × (0.6 … 1.0) ≥ 153
+OFF_LEVEL = 12  # goal channels that are off render as 0; scene channels are ≥ 0.25 × 0.6 × 255
+
+
+Detections = dict[int, tuple[np.ndarray, np.ndarray]]
+"""Goal category → (rows, cols) of its pixels."""
+
+
+def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
+    """The pixels of each goal colour in an (H, W, 3) uint8 image (categories with enough)."""
+    red, green, blue = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    # channel by channel: much faster than reducing over a last axis of length 3
+    low = np.minimum(np.minimum(red, green), blue)
+    high = np.maximum(np.maximum(red, green), blue)
+    # cheap pre-filter: some channel is off (no scene colour has one), or bright balanced grey
+    rows, cols = np.nonzero((low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= 2)))
+    if len(rows) == 0:
+        return {}
+    pixels = rgb[rows, cols]
+    on = pixels >= ON_LEVEL
+    valid = (on | (pixels <= OFF_LEVEL)).all(axis=-1)
+    code = on[:, 0] * 4 + on[:, 1] * 2 + on[:, 2] * 1
+    labels = np.where(valid, _CODE_TO_CATEGORY[code], -1)
+    counts = np.bincount(labels + 1, minlength=NUM_CATEGORIES + 1)[1:]
+    return {
+        int(c): (rows[labels == c], cols[labels == c])
+        for c in np.flatnonzero(counts >= min_pixels)
+    }
+
+
+class DepthProjector:
+    """Pixel rays of a square pinhole camera; turns planar depth into start-frame 3-D points."""
+
+    def __init__(self, shape: tuple[int, int], camera: CameraModel, stride: int) -> None:
+        height, width = shape
+        self.camera = camera
+        self.stride = stride
+        focal = (width / 2) / math.tan(math.radians(camera.hfov_deg) / 2)
+        rows = np.arange(stride // 2, height, stride)
+        cols = np.arange(stride // 2, width, stride)
+        self.rows, self.cols = rows, cols
+        # per pixel: rightward and upward offsets per metre of depth
+        self.right = ((cols + 0.5 - width / 2) / focal)[None, :].repeat(len(rows), axis=0)
+        self.up = ((height / 2 - rows - 0.5) / focal)[:, None].repeat(len(cols), axis=1)
+
+    def points(
+        self, depth: np.ndarray, position: np.ndarray, heading: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sampled pixels as ``(xy (h, w, 2), height above floor (h, w), metres (h, w))``.
+
+        ``depth`` is the normalised sensor image (H, W, 1) in [0, 1].
+        """
+        cam = self.camera
+        sampled = depth[self.rows][:, self.cols, 0].astype(np.float64)
+        z = cam.min_depth + (cam.max_depth - cam.min_depth) * sampled
+        forward, left = z, -self.right * z
+        c, s = math.cos(heading), math.sin(heading)
+        xy = np.stack(
+            [position[0] + c * forward - s * left, position[1] + s * forward + c * left], axis=-1
+        )
+        return xy, cam.height + self.up * z, z
+
+
+@dataclass(frozen=True)
+class MapSettings:
+    """Heights that separate floor from obstacles, and how far free space is carved."""
+
+    floor_height: float = 0.06
+    obstacle_low: float = 0.08
+    obstacle_high: float = 1.55  # the agent is 1.5 m tall
+    carve_step: float = 0.05
+
+
+class SemanticMap:
+    """Obstacles, free space and goal sightings in a start-frame grid."""
+
+    def __init__(self, grid: StartFrameGrid, settings: MapSettings = MapSettings()) -> None:
+        self.grid = grid
+        self.settings = settings
+        self.obstacle = np.zeros((grid.size, grid.size), dtype=bool)
+        self.free = np.zeros((grid.size, grid.size), dtype=bool)
+        # goal memory: per category, the sum and number of sighted positions (a running mean)
+        self._goal_sum = np.zeros((NUM_CATEGORIES, 2))
+        self._goal_count = np.zeros(NUM_CATEGORIES, dtype=np.int64)
+        self.changed = False
+
+    # ------------------------------------------------------------------ queries
+    def goal_position(self, category: int) -> np.ndarray | None:
+        """The remembered position of a goal colour, or None if it was never seen."""
+        if self._goal_count[category] == 0:
+            return None
+        return self._goal_sum[category] / self._goal_count[category]
+
+    def known_goals(self) -> dict[int, np.ndarray]:
+        return {c: self._goal_sum[c] / n for c, n in enumerate(self._goal_count) if n > 0}
+
+    def explored(self) -> np.ndarray:
+        return self.free | self.obstacle
+
+    # ------------------------------------------------------------------ updates
+    def mark_free_disc(self, position: np.ndarray, radius: float) -> None:
+        """Where the agent stands is free (the camera never sees the floor under its feet)."""
+        cells = int(math.ceil(radius / self.grid.cell_size))
+        offsets = np.arange(-cells, cells + 1) * self.grid.cell_size
+        ox, oy = np.meshgrid(offsets, offsets)
+        keep = np.hypot(ox, oy) <= radius
+        points = position[None, :] + np.stack([ox[keep], oy[keep]], axis=-1)
+        self._set(points, self.free, True)
+
+    def integrate(
+        self,
+        projector: DepthProjector,
+        depth: np.ndarray,
+        detections: Detections,
+        position: np.ndarray,
+        heading: float,
+    ) -> list[int]:
+        """Add one RGB-D frame; returns the goal categories placed from it."""
+        cfg, cam = self.settings, projector.camera
+        xy, height, z = projector.points(depth, position, heading)
+        goal_pixels = np.zeros(depth.shape[:2], dtype=bool)
+        for rows, cols in detections.values():
+            goal_pixels[rows, cols] = True
+        is_goal = goal_pixels[projector.rows][:, projector.cols]
+        saturated = z >= cam.max_depth - 1e-3
+        obstacle = (
+            (height > cfg.obstacle_low) & (height < cfg.obstacle_high) & ~is_goal & ~saturated
+        )
+        floor = (height < cfg.floor_height) & ~saturated
+        before = int(self.obstacle.sum()), int(self.free.sum())
+        self._set(xy[obstacle], self.obstacle, True)
+        self._set(xy[floor], self.free, True)
+        self._carve(projector, xy, obstacle, floor | saturated, position, heading)
+        self.changed = (int(self.obstacle.sum()), int(self.free.sum())) != before
+        return self._remember_goals(projector, depth, detections, position, heading)
+
+    def _carve(
+        self,
+        projector: DepthProjector,
+        xy: np.ndarray,
+        obstacle: np.ndarray,
+        open_: np.ndarray,
+        position: np.ndarray,
+        heading: float,
+    ) -> None:
+        """Free space along each image column, from the agent to the first obstacle it sees."""
+        reach = np.hypot(*(xy - position).transpose(2, 0, 1))
+        obstacle_reach = np.where(obstacle, reach, np.inf).min(axis=0)
+        open_reach = np.where(open_, reach, 0.0).max(axis=0)
+        limit = np.minimum(obstacle_reach - 0.1, open_reach)  # (columns,)
+        step = self.settings.carve_step
+        distances = np.arange(step, float(limit.max(initial=0.0)), step)
+        if len(distances) == 0:
+            return
+        bearings = heading - np.arctan(projector.right[0])  # left of the heading is positive
+        directions = np.stack([np.cos(bearings), np.sin(bearings)], axis=-1)
+        points = position + distances[:, None, None] * directions[None, :, :]
+        self._set(points[distances[:, None] < limit[None, :]], self.free, True)
+
+    def _remember_goals(
+        self,
+        projector: DepthProjector,
+        depth: np.ndarray,
+        detections: Detections,
+        position: np.ndarray,
+        heading: float,
+    ) -> list[int]:
+        cam = projector.camera
+        width = depth.shape[1]
+        focal = (width / 2) / math.tan(math.radians(cam.hfov_deg) / 2)
+        c, s = math.cos(heading), math.sin(heading)
+        placed = []
+        for category, (rows, cols) in detections.items():
+            z = cam.min_depth + (cam.max_depth - cam.min_depth) * depth[rows, cols, 0]
+            reliable = z < cam.max_depth - 1e-3
+            if reliable.sum() < 3:
+                continue  # too far to place; it will be seen again from closer
+            z, cols = z[reliable], cols[reliable]
+            forward = float(np.median(z))
+            left = float(np.median(-(cols + 0.5 - width / 2) / focal * z))
+            point = np.array(
+                [position[0] + c * forward - s * left, position[1] + s * forward + c * left]
+            )
+            self._goal_sum[category] += point
+            self._goal_count[category] += 1
+            placed.append(category)
+        return placed
+
+    def _set(self, points: np.ndarray, layer: np.ndarray, value: bool) -> None:
+        rows, cols = self.grid.to_cell(points)
+        ok = (rows >= 0) & (rows < self.grid.size) & (cols >= 0) & (cols < self.grid.size)
+        layer[rows[ok], cols[ok]] = value

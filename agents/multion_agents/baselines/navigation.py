@@ -1,0 +1,188 @@
+"""Grid planning shared by the planner baselines: a map frame, distance fields, and a step chooser.
+
+Both planners keep a square top-down grid in the *start frame*, the frame of the GPS sensor
+(x ahead, y left of the start pose). The grid is laid out like the oracle map's egocentric crop
+at the first step: row 0 is furthest ahead, column 0 furthest left, the start in the centre
+cell. So the oracle map seen at the start *is* a map in this frame, without any resampling.
+
+Planning is fast marching (scikit-fmm) from the goal cells over the free cells, done once per
+goal and again only when the agent bumps into something the map did not show. Each step the
+agent then looks at the 12 headings it can reach by turning and picks the one whose forward step
+lowers the distance field most, so the actual motion (0.25 m steps, 30° turns) needs no separate
+path-following controller.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import skfmm
+from scipy import ndimage
+
+from multion_client.constants import Action
+
+
+@dataclass(frozen=True)
+class StartFrameGrid:
+    """A ``size`` × ``size`` grid of ``cell_size`` metres centred on the start pose."""
+
+    size: int
+    cell_size: float
+
+    @property
+    def half(self) -> int:
+        return self.size // 2
+
+    def to_cell(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Integer ``(rows, cols)`` of start-frame points ``xy`` (..., 2); may be out of range."""
+        xy = np.asarray(xy, dtype=np.float64)
+        rows = np.rint(self.half - xy[..., 0] / self.cell_size).astype(np.int64)
+        cols = np.rint(self.half - xy[..., 1] / self.cell_size).astype(np.int64)
+        return rows, cols
+
+    def to_xy(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Start-frame ``(x, y)`` of cell centres."""
+        x = (self.half - np.asarray(rows, dtype=np.float64)) * self.cell_size
+        y = (self.half - np.asarray(cols, dtype=np.float64)) * self.cell_size
+        return np.stack([x, y], axis=-1)
+
+    def lookup(self, values: np.ndarray, xy: np.ndarray, outside: float | bool) -> np.ndarray:
+        """``values`` at start-frame points ``xy``; ``outside`` for points off the grid."""
+        rows, cols = self.to_cell(xy)
+        ok = (rows >= 0) & (rows < self.size) & (cols >= 0) & (cols < self.size)
+        out = np.full(rows.shape, outside, dtype=values.dtype)
+        out[ok] = values[rows[ok], cols[ok]]
+        return out
+
+
+def distance_field(
+    free: np.ndarray,
+    sources: np.ndarray,
+    cell_size: float,
+    wall_margin: float = 0.0,
+    slowest: float = 0.5,
+) -> np.ndarray:
+    """Travel distance (metres) from every free cell to the nearest source cell; ``inf`` elsewhere.
+
+    With ``wall_margin`` > 0, cells closer than that to a non-free cell are slower to cross (down
+    to ``slowest`` of full speed right next to it), so paths keep off walls where there is room (a
+    path that hugs a wall collides when the map is a little off) but still squeeze through narrow
+    doors. The result is then a travel time, never less than the plain distance.
+    """
+    sources = sources & free
+    if not sources.any():
+        return np.full(free.shape, np.inf)
+    phi = np.where(sources, -1.0, 1.0)
+    masked = np.ma.MaskedArray(phi, mask=~free)
+    if wall_margin > 0:
+        clearance = ndimage.distance_transform_edt(free) * cell_size
+        speed = np.clip(slowest + (1 - slowest) * clearance / wall_margin, slowest, 1.0)
+        field = skfmm.travel_time(masked, speed, dx=cell_size)
+    else:
+        field = skfmm.distance(masked, dx=cell_size)
+    out = np.asarray(np.ma.filled(field, np.inf), dtype=np.float64)
+    out = np.where(out < 0, 0.0, out)
+    out[sources] = 0.0
+    out[~free] = np.inf
+    return out
+
+
+def cropped_distance_field(
+    free: np.ndarray,
+    sources: np.ndarray,
+    cell_size: float,
+    box: tuple[int, int, int, int],
+    wall_margin: float = 0.0,
+    slowest: float = 0.5,
+) -> np.ndarray:
+    """:func:`distance_field` computed only inside ``box`` = (row0, row1, col0, col1), ``inf``
+    outside: fast marching costs grow with the area, and most of a large map is empty."""
+    r0, r1, c0, c1 = box
+    out = np.full(free.shape, np.inf)
+    out[r0:r1, c0:c1] = distance_field(
+        free[r0:r1, c0:c1], sources[r0:r1, c0:c1], cell_size, wall_margin, slowest
+    )
+    return out
+
+
+def bounding_box(mask: np.ndarray, margin: int) -> tuple[int, int, int, int]:
+    """The smallest box (row0, row1, col0, col1) around ``mask``, grown by ``margin`` cells."""
+    rows, cols = np.nonzero(mask)
+    if len(rows) == 0:
+        return 0, mask.shape[0], 0, mask.shape[1]
+    return (
+        max(0, int(rows.min()) - margin),
+        min(mask.shape[0], int(rows.max()) + margin + 1),
+        max(0, int(cols.min()) - margin),
+        min(mask.shape[1], int(cols.max()) + margin + 1),
+    )
+
+
+def nearest_free(free: np.ndarray, sources: np.ndarray, radius_cells: int) -> np.ndarray:
+    """``sources`` grown by up to ``radius_cells`` and kept on free cells: where to aim when the
+    target itself stands on a cell the map marks as blocked (a goal next to a wall)."""
+    if (sources & free).any() or radius_cells <= 0:
+        return sources & free
+    grown = ndimage.binary_dilation(sources, iterations=radius_cells)
+    return grown & free
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The agent's action magnitudes (paper §3)."""
+
+    forward_step: float = 0.25
+    turn_angle: float = math.radians(30.0)
+
+    @property
+    def headings(self) -> int:
+        return round(2 * math.pi / self.turn_angle)
+
+
+def choose_action(
+    grid: StartFrameGrid,
+    field: np.ndarray,
+    passable: np.ndarray,
+    position: np.ndarray,
+    heading: float,
+    motion: Motion = Motion(),
+    turn_cost: float = 0.02,
+) -> int | None:
+    """The turn or forward step that starts the best one-step move down ``field``.
+
+    Each reachable heading is scored by the field at the end of a forward step in that direction
+    (only if the whole step stays on ``passable`` cells), plus ``turn_cost`` metres per turn
+    needed, so the agent does not spin for a centimetre. Returns None when no step goes downhill.
+    """
+    here = float(grid.lookup(field, position, outside=np.inf))
+    n = motion.headings
+    best_value, best_turns = here - 1e-6, None
+    samples = np.linspace(0.0, 1.0, 6)[1:, None]
+    for k in range(n):
+        turns = k if k <= n // 2 else k - n  # positive: turn left (counter-clockwise)
+        angle = heading + turns * motion.turn_angle
+        step = motion.forward_step * np.array([math.cos(angle), math.sin(angle)])
+        points = position[None, :] + samples * step[None, :]
+        if not grid.lookup(passable, points, outside=False).all():
+            continue
+        value = float(grid.lookup(field, points[-1], outside=np.inf)) + turn_cost * abs(turns)
+        if value < best_value:
+            best_value, best_turns = value, turns
+    if best_turns is None:
+        return None
+    if best_turns == 0:
+        return int(Action.MOVE_FORWARD)
+    return int(Action.TURN_LEFT if best_turns > 0 else Action.TURN_RIGHT)
+
+
+def cells_ahead(
+    grid: StartFrameGrid, position: np.ndarray, heading: float, step: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The grid cells a forward step from ``position`` crosses (to mark after a refused step)."""
+    direction = np.array([math.cos(heading), math.sin(heading)])
+    points = position[None, :] + np.array([0.5 * step, step])[:, None] * direction[None, :]
+    rows, cols = grid.to_cell(points)
+    ok = (rows >= 0) & (rows < grid.size) & (cols >= 0) & (cols < grid.size)
+    return rows[ok], cols[ok]

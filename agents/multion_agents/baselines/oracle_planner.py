@@ -1,0 +1,149 @@
+"""``oracle-planner``: shortest paths on the oracle map (occupancy + goal objects), no learning.
+
+It is the non-learned counterpart of the paper's OracleMap (Occ+Obj) agent: it reads the same
+oracle map, at a finer resolution (0.1 m cells instead of 0.8 m, so doors and furniture gaps are
+resolved) and large enough (401 cells, ±20 m) to hold a whole house from the start pose.
+
+Per episode:
+
+1. the first oracle map is the global map in the start frame (see :mod:`.navigation`);
+2. per goal, a fast-marching distance field is computed from the goal's cells;
+3. each step the agent turns or steps so as to go down the field, using GPS and compass;
+4. a refused forward step marks the cells ahead as blocked and triggers a re-plan;
+5. FOUND once the map distance to the goal is below ``found_distance`` (1.0 m, well inside the
+   1.5 m geodesic success radius, which leaves room for map discretisation).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.baselines.navigation import (
+    Motion,
+    StartFrameGrid,
+    cells_ahead,
+    choose_action,
+    distance_field,
+    nearest_free,
+)
+from multion_client.constants import MAP_FREE, MAP_UNKNOWN, Action
+
+CELL_SIZE = 0.1
+EGO_SIZE = 401
+
+
+class OraclePlannerAgent(Agent):
+    """Fast-marching planner on the oracle map, following the path with GPS + compass."""
+
+    sensors: ClassVar[tuple[str, ...]] = ("goal", "gps", "compass", "oracle_map")
+    config_overrides: ClassVar[ConfigOverrides] = {
+        "maps": {"cell_size": CELL_SIZE, "ego_size": EGO_SIZE}
+    }
+    found_distance: float = 1.0
+    wall_margin: float = 0.3
+    motion: Motion = Motion()
+
+    def __init__(self, seed: int = 0) -> None:
+        super().__init__(seed)
+        self.reset()
+
+    def reset(self) -> None:
+        self._grid: StartFrameGrid | None = None
+        self._layers: np.ndarray | None = None
+        self._passable: np.ndarray | None = None
+        self._field: np.ndarray | None = None
+        self._goal: int | None = None
+        self._last_position: np.ndarray | None = None
+        self._last_action: int | None = None
+        self.replans = 0
+
+    def act(self, observation: Observation) -> int:
+        position = np.asarray(observation["gps"], dtype=np.float64)
+        heading = float(observation["compass"][0])
+        ego = observation["oracle_map"]
+        if self._grid is None:
+            self._start_map(ego)
+        assert self._grid is not None and self._passable is not None
+        if (
+            self._last_action == Action.MOVE_FORWARD
+            and self._last_position is not None
+            and np.allclose(position, self._last_position, atol=1e-4)
+        ):
+            ahead = cells_ahead(self._grid, position, heading, self.motion.forward_step)
+            self._passable[ahead] = False
+            self._field = None
+            self.replans += 1
+        goal = int(observation["goal"])
+        if goal != self._goal:
+            self._goal, self._field = goal, None
+        if self._field is None:
+            self._field = self._plan(goal, ego, position, heading)
+        action = self._next_action(position, heading)
+        self._last_position, self._last_action = position, action
+        return action
+
+    # ------------------------------------------------------------------ internals
+    def _start_map(self, ego: np.ndarray) -> None:
+        size = ego.shape[0]
+        cell = float(self.config_overrides["maps"]["cell_size"])
+        self._grid = StartFrameGrid(size, cell)
+        self._layers = ego.copy()
+        self._passable = ego[..., 0] == MAP_FREE
+
+    def _plan(self, goal: int, ego: np.ndarray, position: np.ndarray, heading: float) -> np.ndarray:
+        """Distance field to the goal's cells, or to the map's frontier while they are unseen."""
+        assert self._grid is not None and self._layers is not None and self._passable is not None
+        sources = self._layers[..., 1] == goal + 1
+        if not sources.any():
+            # the goal lies outside the first crop: add what the agent sees now
+            self._paste(ego, position, heading)
+            sources = self._layers[..., 1] == goal + 1
+        if not sources.any():
+            sources = self._frontier()
+        targets = nearest_free(sources, self._passable, radius_cells=5)
+        return distance_field(self._passable, targets, self._grid.cell_size, self.wall_margin)
+
+    def _next_action(self, position: np.ndarray, heading: float) -> int:
+        assert self._grid is not None and self._field is not None and self._passable is not None
+        here = float(self._grid.lookup(self._field, position, outside=np.inf))
+        goal_visible = bool((self._layers[..., 1] == self._goal + 1).any())  # type: ignore[index]
+        if goal_visible and here <= self.found_distance:
+            return int(Action.FOUND)
+        action = choose_action(
+            self._grid, self._field, self._passable, position, heading, self.motion
+        )
+        if action is None:
+            # stuck in a pocket the 30° headings cannot leave downhill: turn and try again
+            action = int(Action.TURN_LEFT)
+            self._field = None
+        return action
+
+    def _frontier(self) -> np.ndarray:
+        assert self._layers is not None and self._passable is not None
+        unknown = self._layers[..., 0] == MAP_UNKNOWN
+        near_unknown = np.zeros_like(unknown)
+        near_unknown[1:] |= unknown[:-1]
+        near_unknown[:-1] |= unknown[1:]
+        near_unknown[:, 1:] |= unknown[:, :-1]
+        near_unknown[:, :-1] |= unknown[:, 1:]
+        return self._passable & near_unknown
+
+    def _paste(self, ego: np.ndarray, position: np.ndarray, heading: float) -> None:
+        """Write the known cells of an egocentric map taken at ``position``/``heading``."""
+        assert self._grid is not None and self._layers is not None and self._passable is not None
+        grid, half = self._grid, ego.shape[0] // 2
+        rows, cols = np.nonzero(ego[..., 0] != MAP_UNKNOWN)
+        forward = (half - rows) * grid.cell_size
+        left = (half - cols) * grid.cell_size
+        c, s = math.cos(heading), math.sin(heading)
+        points = np.stack(
+            [position[0] + c * forward - s * left, position[1] + s * forward + c * left], axis=-1
+        )
+        r, k = grid.to_cell(points)
+        ok = (r >= 0) & (r < grid.size) & (k >= 0) & (k < grid.size)
+        self._layers[r[ok], k[ok]] = ego[rows[ok], cols[ok]]
+        self._passable[r[ok], k[ok]] = ego[rows[ok], cols[ok], 0] == MAP_FREE
