@@ -57,7 +57,16 @@ class LocalServer:
         return self.process.pid
 
     def start(self) -> LocalServer:
+        """Launch the server and wait until it answers."""
+        return self.launch().wait_ready()
+
+    def launch(self) -> LocalServer:
+        """Launch the server without waiting (start several, then ``wait_ready`` on each)."""
         self.process = subprocess.Popen(self.command, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        return self
+
+    def wait_ready(self) -> LocalServer:
+        assert self.process is not None, "launch() first"
         deadline = time.monotonic() + self.start_timeout_s
         while time.monotonic() < deadline:
             if self.process.poll() is not None:

@@ -125,7 +125,7 @@ def _step(shard: Shard, actions: list[Any]) -> Reply:
             # ended episode's last observation and info under final_obs / final_info.
             final_obs, final_info = obs, info
             obs, info = env.reset()
-            info = {**info, "final_obs": final_obs, "final_info": final_info}
+            info = {"final_obs": final_obs, "final_info": final_info, **info}
         shard.observations[index], shard.infos[index] = obs, info
         rewards.append(reward)
         terminated.append(term)
