@@ -142,6 +142,7 @@ def save_dataset(
     try:
         with os.fdopen(fd, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as handle:
             handle.write(json.dumps(payload, separators=(",", ":")).encode("utf-8"))
+        os.chmod(tmp, 0o644)  # mkstemp makes owner-only files; datasets are meant to be shared
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
