@@ -72,8 +72,7 @@ def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     labels = np.where(valid, _CODE_TO_CATEGORY[code], -1)
     counts = np.bincount(labels + 1, minlength=NUM_CATEGORIES + 1)[1:]
     return {
-        int(c): (rows[labels == c], cols[labels == c])
-        for c in np.flatnonzero(counts >= min_pixels)
+        int(c): (rows[labels == c], cols[labels == c]) for c in np.flatnonzero(counts >= min_pixels)
     }
 
 

@@ -1,0 +1,265 @@
+"""Evaluating an agent on a split: episodes in, per-episode metrics (from the server) out.
+
+The agent runs here, in the client process, and sees only the sensors it asked for; the server
+steps the simulator and is the only authority on metrics (``info["metrics"]`` of the last step).
+The evaluator additionally asks for ``gps`` so it can draw the path afterwards, and hides it
+from agents that did not ask for it.
+
+Which episodes: the packaged dataset of the task and split (or ``dataset``), read locally to know
+its ids and start poses; ``episodes=N`` takes N evenly spaced ones, so every scene is visited.
+Each episode is reset by id on the server, and the agent's random stream is re-seeded from
+``(seed, episode index)``: results do not depend on the number of workers or their order.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+from multion.task.dataset import load_dataset, packaged_dataset_path, task_name
+from multion.task.episode import Episode
+from multion_agents.agent import Agent, agent_class, merge_overrides
+
+EnvFactory = Callable[[dict[str, Any]], gym.Env]
+"""Builds one environment from a config dict (EnvConfig as nested dicts)."""
+
+RECORDED_SENSOR = "gps"
+
+
+@dataclass(frozen=True)
+class EvalSettings:
+    """What to evaluate, and where."""
+
+    agent: str
+    num_goals: int = 3
+    split: str = "val"
+    episodes: int | None = None
+    """How many episodes (evenly spaced over the dataset); None: all of them."""
+    seed: int = 0
+    server: str | None = None
+    """A server URL; None starts a local one."""
+    workers: int = 1
+    dataset: str | None = None
+    image_size: int | None = None
+    """Camera width and height; None keeps the server's default (256, as in the paper)."""
+    max_steps: int | None = None
+    """Step limit override (None: the task's 2500); for quick checks only."""
+
+
+@dataclass
+class EpisodeRecord:
+    """One played episode: the server's metrics, the path walked, and the time spent."""
+
+    index: int
+    episode_id: str
+    scene_id: str
+    metrics: dict[str, Any]
+    path: np.ndarray  # (T + 1, 2) world x, y from the start to the end
+    agent_seconds: float
+    total_seconds: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "episode_id": self.episode_id,
+            "scene_id": self.scene_id,
+            "metrics": self.metrics,
+            "agent_seconds": round(self.agent_seconds, 4),
+            "total_seconds": round(self.total_seconds, 4),
+        }
+
+
+@dataclass
+class EvalResult:
+    settings: EvalSettings
+    config: dict[str, Any]
+    records: list[EpisodeRecord]
+    episodes: list[Episode]
+    server: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+# ---------------------------------------------------------------------- episodes and config
+def select_episodes(settings: EvalSettings) -> list[Episode]:
+    """The evaluated episodes, in order; evenly spaced when fewer than the dataset's."""
+    path = settings.dataset or packaged_dataset_path(settings.num_goals, settings.split)
+    every = load_dataset(path, settings.num_goals)
+    count = len(every) if settings.episodes is None else min(settings.episodes, len(every))
+    if count <= 0:
+        raise ValueError(f"--episodes must be positive, got {settings.episodes}")
+    return [every[i * len(every) // count] for i in range(count)]
+
+
+def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
+    """The environment config the agent is evaluated with, as the server's nested dicts."""
+    sensors = list(dict.fromkeys([*agent.sensors, RECORDED_SENSOR]))
+    config: dict[str, Any] = {
+        "task": {"num_goals": settings.num_goals},
+        "sensors": sensors,
+        "split": settings.split,
+    }
+    if settings.max_steps is not None:
+        config["task"]["max_steps"] = settings.max_steps
+    if settings.dataset is not None:
+        config["dataset"] = str(settings.dataset)
+    if settings.image_size is not None:
+        config["camera"] = {"width": settings.image_size, "height": settings.image_size}
+    return merge_overrides(config, agent.config_overrides)
+
+
+def episode_seed(seed: int, index: int) -> int:
+    """The agent's seed for episode ``index``: independent streams for every episode."""
+    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
+
+
+# ---------------------------------------------------------------------- playing
+def run_episode(
+    env: gym.Env,
+    agent: Agent,
+    episode: Episode,
+    index: int = 0,
+    options: dict[str, Any] | None = None,
+) -> EpisodeRecord:
+    """Play one episode to its end; the env must give ``gps`` (for the recorded path)."""
+    started = time.perf_counter()
+    observation, info = env.reset(options=options or {"episode_id": episode.episode_id})
+    if info.get("episode_id") != episode.episode_id:
+        raise RuntimeError(
+            f"the server played episode {info.get('episode_id')!r} instead of "
+            f"{episode.episode_id!r}: do client and server have the same dataset?"
+        )
+    agent.reset()
+    visible = set(agent.sensors)
+    gps = [np.asarray(observation[RECORDED_SENSOR], dtype=np.float64)]
+    thinking = 0.0
+    done = False
+    while not done:
+        tick = time.perf_counter()
+        action = agent.act({k: v for k, v in observation.items() if k in visible})
+        thinking += time.perf_counter() - tick
+        observation, _, terminated, truncated, info = env.step(action)
+        gps.append(np.asarray(observation[RECORDED_SENSOR], dtype=np.float64))
+        done = terminated or truncated
+    return EpisodeRecord(
+        index=index,
+        episode_id=episode.episode_id,
+        scene_id=episode.scene_id,
+        metrics=dict(info["metrics"]),
+        path=gps_to_world(np.asarray(gps), episode),
+        agent_seconds=thinking,
+        total_seconds=time.perf_counter() - started,
+    )
+
+
+def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
+    """World (x, y) of GPS readings (start frame: x ahead, y left of the start pose)."""
+    c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
+    x0, y0 = episode.start_position[:2]
+    return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
+
+
+def play_all(
+    settings: EvalSettings,
+    episodes: Sequence[Episode],
+    make_env: EnvFactory,
+    progress: bool = True,
+) -> tuple[dict[str, Any], list[EpisodeRecord]]:
+    """Play ``episodes`` with ``settings.workers`` threads, one env and one agent each."""
+    cls = agent_class(settings.agent)
+    config = env_config(settings, cls)
+    # one (env, agent) pair per worker thread, created on first need and handed back after use
+    idle: queue.SimpleQueue[tuple[gym.Env, Agent]] = queue.SimpleQueue()
+    opened: list[gym.Env] = []
+    lock = threading.Lock()
+
+    def play(index: int) -> EpisodeRecord:
+        try:
+            env, agent = idle.get_nowait()
+        except queue.Empty:
+            env, agent = make_env(config), cls(seed=settings.seed)
+            with lock:
+                opened.append(env)
+        try:
+            agent.seed(episode_seed(settings.seed, index))
+            return run_episode(env, agent, episodes[index], index)
+        finally:
+            idle.put((env, agent))
+
+    records: list[EpisodeRecord] = []
+    bar = tqdm(
+        total=len(episodes),
+        desc=f"{settings.agent} {task_name(settings.num_goals)} {settings.split}",
+        unit="ep",
+        disable=not progress,
+    )
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, settings.workers)) as pool:
+            for record in pool.map(play, range(len(episodes))):
+                records.append(record)
+                done = [r.metrics.get("success", 0.0) for r in records]
+                bar.set_postfix(success=f"{100 * float(np.mean(done)):.0f}%")
+                bar.update(1)
+    finally:
+        bar.close()
+        for env in opened:
+            env.close()
+    return config, sorted(records, key=lambda r: r.index)
+
+
+def remote_env_factory(url: str) -> EnvFactory:
+    """Environments served by the MultiON server at ``url``."""
+    from multion_client.env import RemoteEnv
+
+    def make(config: dict[str, Any]) -> gym.Env:
+        return RemoteEnv(url, config)
+
+    return make
+
+
+def local_env_factory() -> EnvFactory:
+    """In-process environments (no server), e.g. for tests and debugging agents."""
+    from multion.api.config_io import session_config_from_dict
+    from multion.task.env import MultiONEnv
+
+    def make(config: dict[str, Any]) -> gym.Env:
+        env_config_, inline = session_config_from_dict(config)
+        return MultiONEnv(env_config_, episodes=inline)
+
+    return make
+
+
+def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
+    """Evaluate against ``settings.server``, or a local server started (and stopped) here."""
+    from multion_client.client import Client
+
+    agent_class(settings.agent)  # fail on a bad agent before starting anything
+    episodes = select_episodes(settings)
+    started = time.perf_counter()
+    if settings.server is not None:
+        with Client(settings.server, retries=1) as client:
+            health = client.health()
+        config, records = play_all(
+            settings, episodes, remote_env_factory(settings.server), progress
+        )
+        server = {"url": settings.server, "local": False, "api_version": health.get("api_version")}
+    else:
+        from multion.api.local_server import LocalServer
+
+        with LocalServer(workers=max(1, settings.workers)) as local:
+            with Client(local.url) as client:
+                health = client.health()
+            config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)
+        server = {"url": None, "local": True, "api_version": health.get("api_version")}
+    return EvalResult(
+        settings, config, records, episodes, server, seconds=time.perf_counter() - started
+    )

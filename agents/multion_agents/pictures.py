@@ -1,0 +1,124 @@
+"""Top-down pictures of played episodes, in the style of the paper's Figure 3.
+
+The scene (floor plan, walls, furniture) comes from :func:`multion.viz.scene_picture`; on top:
+the shortest path through the goals in green, the agent's path in orange, the start as an orange
+square, and the goals as circles in their own colours, numbered in the order they must be found.
+The scene layout and the shortest path are recomputed locally from the episode (the client never
+sees the server's simulator); the agent's path is rebuilt from its GPS readings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim.geodesic import distance_field, shortest_path
+from multion.sim.simulator import Simulator
+from multion.task.episode import Episode
+from multion.viz import PictureFrame, picture_frame, scene_picture, world_to_pixel
+from multion_client.constants import GOAL_RGBA
+
+AGENT_PATH = (245, 130, 20)
+SHORTEST_PATH = (30, 160, 60)
+OUTLINE = (20, 20, 20)
+GOAL_RADIUS = 0.05
+
+
+def shortest_route(simulator: Simulator, episode: Episode) -> list[np.ndarray]:
+    """World points of a shortest path start → g1 → g2 → …, one array per leg."""
+    grid = simulator.load_scene(episode.scene_id)
+    legs = []
+    previous = np.asarray(episode.start_position[:2], dtype=np.float64)
+    for goal in episode.goals:
+        target = np.asarray(goal.position[:2], dtype=np.float64)
+        field = distance_field(grid, target, GOAL_RADIUS)
+        leg = shortest_path(grid, field, previous)
+        legs.append(np.vstack([leg, target[None, :]]))
+        previous = target
+    return legs
+
+
+def episode_picture(
+    episode: Episode,
+    path: np.ndarray,
+    metrics: dict[str, Any],
+    simulator: Simulator | None = None,
+    pixels_per_metre: float = 40,
+) -> Image.Image:
+    """The picture of one episode; ``path`` is the agent's world (x, y) positions, in order."""
+    own = simulator is None
+    sim = simulator or Simulator()
+    try:
+        grid = sim.load_scene(episode.scene_id)
+        route = shortest_route(sim, episode)
+    finally:
+        if own:
+            sim.close()
+    layout = None if is_mesh_scene(episode.scene_id) else layout_for(episode.scene_id)
+    image = scene_picture(layout, grid.navigable, grid.origin, grid.cell_size, pixels_per_metre)
+    frame = picture_frame(grid.navigable, grid.origin, grid.cell_size, pixels_per_metre)
+    draw = ImageDraw.Draw(image)
+    width = max(2, round(pixels_per_metre * 0.06))
+    for leg in route:
+        _polyline(draw, leg, frame, SHORTEST_PATH, width)
+    _polyline(draw, path, frame, AGENT_PATH, width)
+    _start(draw, episode, frame)
+    _goals(draw, episode, frame)
+    _legend(draw, episode, metrics)
+    return image
+
+
+def _polyline(
+    draw: ImageDraw.ImageDraw,
+    points: np.ndarray,
+    frame: PictureFrame,
+    colour: tuple[int, int, int],
+    width: int,
+) -> None:
+    pixels = [world_to_pixel(float(x), float(y), frame) for x, y in points]
+    if len(pixels) >= 2:
+        draw.line(pixels, fill=colour, width=width, joint="curve")
+
+
+def _start(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> None:
+    x, y = world_to_pixel(*episode.start_position[:2], frame)
+    half = frame.pixels_per_metre * 0.15
+    draw.rectangle([x - half, y - half, x + half, y + half], fill=AGENT_PATH, outline=OUTLINE)
+
+
+def _goals(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> None:
+    font = ImageFont.load_default()
+    radius = frame.pixels_per_metre * 0.18
+    for number, goal in enumerate(episode.goals, start=1):
+        x, y = world_to_pixel(*goal.position[:2], frame)
+        fill = _rgb(GOAL_RGBA[goal.category])
+        draw.ellipse([x - radius, y - radius, x + radius, y + radius], fill=fill, outline=OUTLINE)
+        text = str(number)
+        left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
+        ink = (255, 255, 255) if sum(fill) < 300 else OUTLINE
+        draw.text((x - (right - left) / 2 - left, y - (bottom - top) / 2 - top), text, fill=ink)
+
+
+def _legend(draw: ImageDraw.ImageDraw, episode: Episode, metrics: dict[str, Any]) -> None:
+    """Episode id and its headline metrics in the top-left corner."""
+    lines = [
+        episode.episode_id,
+        "success {:.0f}  progress {:.2f}".format(
+            float(metrics.get("success", 0)), float(metrics.get("progress", 0))
+        ),
+        "SPL {:.2f}  PPL {:.2f}  steps {}".format(
+            float(metrics.get("spl", 0)), float(metrics.get("ppl", 0)), metrics.get("steps", "?")
+        ),
+    ]
+    text = "\n".join(lines)
+    left, top, right, bottom = draw.multiline_textbbox((6, 6), text)
+    draw.rectangle([left - 3, top - 3, right + 3, bottom + 3], fill=(255, 255, 255))
+    draw.multiline_text((6, 6), text, fill=OUTLINE)
+
+
+def _rgb(rgba: Sequence[float]) -> tuple[int, int, int]:
+    return (round(255 * rgba[0]), round(255 * rgba[1]), round(255 * rgba[2]))

@@ -1,0 +1,160 @@
+"""Summaries of an evaluation: means with 95% confidence intervals, a table, and result files.
+
+Confidence intervals are percentile bootstrap intervals over episodes (2,000 resamples, fixed
+seed): no normality assumption, and they stay inside [0, 1] for rates such as Success. With few
+episodes they are wide; that is the honest answer.
+
+Files written to the output directory:
+
+* ``metrics.json``: the aggregates and the run's configuration (agent, task, split, episodes,
+  seed, server, environment config, package versions);
+* ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings);
+* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`.pictures`).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from multion.task.dataset import task_name
+from multion_agents.evaluate import EpisodeRecord, EvalResult
+
+# metric key in info["metrics"] → column title (the paper's Table 3 columns)
+HEADLINE: tuple[tuple[str, str], ...] = (
+    ("success", "Success"),
+    ("progress", "Progress"),
+    ("spl", "SPL"),
+    ("ppl", "PPL"),
+)
+CI_METHOD = "percentile bootstrap over episodes, 2000 resamples, 95%"
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A mean and its 95% confidence interval (fractions, not percent)."""
+
+    mean: float
+    low: float
+    high: float
+
+
+def bootstrap(values: Sequence[float], resamples: int = 2000, seed: int = 0) -> Estimate:
+    """Mean of ``values`` with a 95% percentile-bootstrap interval."""
+    data = np.asarray(values, dtype=np.float64)
+    if len(data) == 0:
+        return Estimate(float("nan"), float("nan"), float("nan"))
+    rng = np.random.default_rng(seed)
+    means = data[rng.integers(len(data), size=(resamples, len(data)))].mean(axis=1)
+    low, high = np.percentile(means, [2.5, 97.5])
+    return Estimate(float(data.mean()), float(low), float(high))
+
+
+def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
+    """The aggregate numbers of a run (JSON-ready)."""
+    summary: dict[str, Any] = {"episodes": len(records)}
+    for key, _ in HEADLINE:
+        estimate = bootstrap([float(r.metrics.get(key, 0.0)) for r in records])
+        summary[key] = asdict(estimate)
+    if records:
+        summary["mean_steps"] = float(np.mean([r.metrics.get("steps", 0) for r in records]))
+        summary["mean_collisions"] = float(
+            np.mean([r.metrics.get("collisions", 0) for r in records])
+        )
+        summary["mean_path_length"] = float(
+            np.mean([r.metrics.get("path_length", 0.0) for r in records])
+        )
+        summary["end_reasons"] = dict(Counter(str(r.metrics.get("end_reason")) for r in records))
+        total = sum(r.total_seconds for r in records)
+        summary["agent_time_fraction"] = sum(r.agent_seconds for r in records) / max(total, 1e-9)
+        summary["seconds_per_episode"] = total / len(records)
+    summary["ci_method"] = CI_METHOD
+    return summary
+
+
+def format_table(summary: dict[str, Any], title: str) -> str:
+    """A plain-text table: one row per metric, in percent, with the 95% interval."""
+    lines = [title, f"{'metric':<10}{'mean %':>8}   95% CI (bootstrap)"]
+    for key, name in HEADLINE:
+        e = summary[key]
+        lines.append(
+            f"{name:<10}{100 * e['mean']:>8.1f}   [{100 * e['low']:5.1f}, {100 * e['high']:5.1f}]"
+        )
+    lines.append(f"{'episodes':<10}{summary['episodes']:>8d}")
+    if "mean_steps" in summary:
+        lines.append(f"{'steps':<10}{summary['mean_steps']:>8.1f}   (mean per episode)")
+        reasons = ", ".join(f"{k} {v}" for k, v in sorted(summary["end_reasons"].items()))
+        lines.append(f"{'ended by':<10}  {reasons}")
+        lines.append(
+            f"{'agent time':<10}{100 * summary['agent_time_fraction']:>8.1f}   "
+            f"(% of episode wall time spent in act())"
+        )
+    return "\n".join(lines)
+
+
+def title_of(result: EvalResult) -> str:
+    s = result.settings
+    where = s.server or "local server"
+    return f"{s.agent} on {task_name(s.num_goals)} {s.split} ({where}, seed {s.seed})"
+
+
+def versions() -> dict[str, str]:
+    found = {"python": platform.python_version()}
+    for package in ("multion", "multion-client", "numpy", "pybullet"):
+        try:
+            found[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            found[package] = "not installed"
+    return found
+
+
+def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]:
+    """Write metrics.json, episodes.jsonl and up to ``pictures`` PNGs into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    s = result.settings
+    run = {
+        "agent": s.agent,
+        "task": task_name(s.num_goals),
+        "split": s.split,
+        "episodes": len(result.records),
+        "episodes_requested": s.episodes,
+        "seed": s.seed,
+        "workers": s.workers,
+        "dataset": s.dataset,
+        "server": result.server,
+        "env_config": result.config,
+        "versions": versions(),
+        "seconds": round(result.seconds, 2),
+    }
+    metrics_path = out / "metrics.json"
+    payload = {"run": run, "metrics": summarize(result.records)}
+    metrics_path.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
+    episodes_path = out / "episodes.jsonl"
+    with episodes_path.open("w", encoding="utf-8") as handle:
+        for record in result.records:
+            handle.write(json.dumps(record.to_json()) + "\n")
+    written = [metrics_path, episodes_path]
+    if pictures > 0:
+        from multion.sim.simulator import Simulator
+        from multion_agents.pictures import episode_picture
+
+        by_id = {e.episode_id: e for e in result.episodes}
+        simulator = Simulator()  # one for all pictures: scenes and grids are reused
+        try:
+            for record in result.records[:pictures]:
+                episode = by_id[record.episode_id]
+                image = episode_picture(episode, record.path, record.metrics, simulator)
+                path = out / f"episode-{record.episode_id}.png"
+                image.save(path)
+                written.append(path)
+        finally:
+            simulator.close()
+    return written
