@@ -1,0 +1,79 @@
+"""``multion eval`` end to end: local vs remote server, report files, clear errors."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from multion.api.local_server import LocalServer
+from multion.task.episode import Episode
+from multion_agents import cli_eval
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _run(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser()
+    cli_eval.add_arguments(parser)
+    return cli_eval.run(parser.parse_args(argv))
+
+
+def _episodes(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+
+
+def test_local_and_remote_server_give_the_same_metrics(
+    room_dataset: tuple[Path, list[Episode]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, episodes = room_dataset
+    common = ["--agent", "random-oracle-found", "--task", "1-on", "--dataset", str(path)]
+    common += ["--seed", "5", "--max-steps", "60", "--quiet"]
+    local_out, remote_out = tmp_path / "local", tmp_path / "remote"
+    assert _run([*common, "--out", str(local_out), "--pictures", "2"]) == 0
+    with LocalServer(workers=1) as server:
+        assert _run([*common, "--out", str(remote_out), "--server", server.url]) == 0
+    table = capsys.readouterr().out
+    assert "Success" in table and "95% CI" in table and "episodes" in table
+
+    local, remote = _episodes(local_out), _episodes(remote_out)
+    assert [e["episode_id"] for e in local] == [e.episode_id for e in episodes]
+    assert [e["metrics"] for e in local] == [e["metrics"] for e in remote]
+
+    summary = json.loads((local_out / "metrics.json").read_text())
+    assert summary["run"]["agent"] == "random-oracle-found"
+    assert summary["run"]["seed"] == 5 and summary["run"]["episodes"] == 3
+    assert summary["run"]["server"]["local"] is True
+    assert "goal_distance" in summary["run"]["env_config"]["sensors"]
+    for key in ("success", "progress", "spl", "ppl"):
+        estimate = summary["metrics"][key]
+        assert estimate["low"] <= estimate["mean"] <= estimate["high"]
+
+    pictures = sorted(local_out.glob("episode-*.png"))
+    assert len(pictures) == 2
+    for picture in pictures:
+        assert picture.read_bytes()[:8] == PNG_SIGNATURE
+        with Image.open(picture) as image:
+            image.verify()
+    with Image.open(pictures[0]) as image:  # the agent path is drawn in orange
+        pixels = np.asarray(image.convert("RGB")).reshape(-1, 3)
+    assert (pixels == (245, 130, 20)).all(axis=1).any()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--agent", "rnadom"], "unknown agent 'rnadom'"),
+        (["--agent", "random", "--task", "12-on"], "unknown task '12-on'"),
+        (["--agent", "random", "--episodes", "0"], "--episodes must be positive"),
+        (["--agent", "random", "--split", "nope"], "unknown split 'nope'"),
+        (["--agent", "random", "--server", "http://127.0.0.1:9"], "cannot reach"),
+    ],
+)
+def test_clear_errors(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert _run([*argv, "--quiet"]) == 2
+    assert message in capsys.readouterr().err
