@@ -338,3 +338,22 @@ def test_idle_sessions_are_reaped(small_config: dict[str, Any]) -> None:
             assert (status, code) == (404, "session_not_found")
             health = call(api, "GET", "/v1/health")[1]
             assert health["sessions"] == 0 and health["workers"][0]["envs"] == 0
+
+
+def test_a_silent_worker_is_killed_and_replaced(small_config: dict[str, Any]) -> None:
+    """A worker that stops answering (here: SIGSTOP) fails the request in worker_timeout_s."""
+    settings = ServerSettings(workers=1, worker_timeout_s=3.0)
+    with TestClient(create_app(settings), raise_server_exceptions=False) as api:
+        with session(api, small_config) as sid:
+            assert call(api, "POST", session_path(sid, "reset"), {})[0] == 200
+            os.kill(call(api, "GET", "/v1/health")[1]["workers"][0]["pid"], signal.SIGSTOP)
+            started = time.monotonic()
+            status, code, message = error_of(
+                call(api, "POST", session_path(sid, "step"), {"actions": [1]})
+            )
+            assert (status, code) == (503, "worker_failed") and "did not answer" in message
+            assert 2.5 < time.monotonic() - started < 10
+        _wait_for(lambda: call(api, "GET", "/v1/health")[1]["status"] == "ok")
+        assert call(api, "GET", "/v1/health")[1]["workers_replaced"] == 1
+        with session(api, small_config) as sid:
+            assert call(api, "POST", session_path(sid, "reset"), {})[0] == 200

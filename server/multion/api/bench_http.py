@@ -1,0 +1,216 @@
+"""``multion bench`` (HTTP part): the cost of the client-server API on this machine.
+
+Measures, with local servers on free loopback ports (always stopped at the end):
+
+* steps/s of one environment over HTTP (``RemoteEnv``) vs in-process (``MultiONEnv``) at each
+  resolution (RGB-D, the first episode of the packaged val set, a procedural house);
+* aggregate steps/s of a 4-env ``RemoteVectorEnv`` against ``--workers 2`` vs ``--workers 1``;
+* the server's resident memory (HTTP process + workers) after 50 and after N short episodes.
+
+Timings alternate between the contenders in short blocks, so that background load on the
+machine hits both alike; only ``step`` calls are timed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from multion.api.local_server import LocalServer
+from multion.sim.camera import CameraConfig
+from multion.sim.simulator import Simulator
+from multion.task.dataset import sample_episode
+from multion.task.env import EnvConfig, MultiONEnv
+from multion_client import RemoteEnv, RemoteVectorEnv
+
+BLOCK_STEPS = 20
+MEMORY_SCENE = "room-6x4"
+
+
+def run_http_bench(
+    resolutions: tuple[int, ...] = (256, 128),
+    steps: int = 200,
+    episodes_for_memory: int = 1000,
+    vector_steps: int = 60,
+    vector_resolution: int = 256,
+    verbose: bool = True,
+) -> dict[str, Any]:
+    """Run every measurement, print a small table (``verbose``) and return the numbers."""
+    say = print if verbose else _quiet
+    result: dict[str, Any] = {"cpu_count": os.cpu_count(), "load_average": os.getloadavg()}
+    with contextlib.ExitStack() as stack:
+        one, two = LocalServer(workers=1), LocalServer(workers=2)
+        for server in (one, two):
+            stack.callback(server.stop)
+            server.launch()
+        for server in (one, two):
+            server.wait_ready()
+        say(f"servers up: {one.url} (1 worker), {two.url} (2 workers)")
+        result["single"] = {res: _single_env(one.url, res, steps, say) for res in resolutions}
+        result["vector"] = _vector(one.url, two.url, vector_resolution, vector_steps, say)
+    result["memory"] = _memory(episodes_for_memory, say)
+    if verbose:
+        print_table(result)
+    return result
+
+
+def print_table(result: dict[str, Any]) -> None:
+    load = ", ".join(f"{x:.2f}" for x in result["load_average"])
+    print(f"\nMultiON HTTP benchmark — {result['cpu_count']} CPUs, load average {load} at start")
+    print(f"{'RGB-D':>9} {'in-process':>11} {'HTTP':>8} {'HTTP/in-process':>16}  (target ≥ 0.80)")
+    for res, row in result["single"].items():
+        print(
+            f"{res:>4}x{res:<4} {row['in_process_sps']:>11.1f} {row['http_sps']:>8.1f}"
+            f" {row['ratio']:>16.2f}"
+        )
+    vec = result["vector"]
+    print(
+        f"RemoteVectorEnv, {vec['num_envs']} envs at {vec['resolution']}²: "
+        f"{vec['workers_1_sps']:.1f} steps/s with 1 worker, {vec['workers_2_sps']:.1f} with 2 "
+        f"→ ×{vec['ratio']:.2f} (target ≥ 1.5)"
+    )
+    mem = result["memory"]
+    print(
+        f"server RSS (HTTP process + workers): {mem['rss_mb_early']:.1f} MB after "
+        f"{mem['episodes_early']} episodes, {mem['rss_mb_late']:.1f} MB after "
+        f"{mem['episodes_late']} (growth {mem['growth_mb']:+.1f} MB)"
+    )
+
+
+# ---------------------------------------------------------------------- measurements
+def _single_env(url: str, res: int, steps: int, say: Callable[[str], None]) -> dict[str, float]:
+    config = {"camera": {"width": res, "height": res}}
+    local = MultiONEnv(EnvConfig(camera=CameraConfig(width=res, height=res)))
+    remote = RemoteEnv(url, config)
+    try:
+        envs: dict[str, Any] = {"in_process": local, "http": remote}
+        for env in envs.values():
+            env.reset(options={"episode_index": 0})  # one house: no scene loads while timing
+        rng = np.random.default_rng(res)
+        totals = {name: [0, 0.0] for name in envs}
+        while totals["http"][0] < steps:
+            actions = rng.integers(1, 4, BLOCK_STEPS).tolist()  # moves and turns, no FOUND
+            for name, env in envs.items():
+                count, seconds = _run_block(env, actions)
+                totals[name][0] += count
+                totals[name][1] += seconds
+    finally:
+        local.close()
+        remote.close()
+    row = {f"{name}_sps": count / seconds for name, (count, seconds) in totals.items()}
+    row["ratio"] = row["http_sps"] / row["in_process_sps"]
+    say(f"{res}²: in-process {row['in_process_sps']:.1f}, HTTP {row['http_sps']:.1f} steps/s")
+    return row
+
+
+def _run_block(env: Any, actions: list[int]) -> tuple[int, float]:
+    seconds = 0.0
+    for action in actions:
+        start = time.perf_counter()
+        _, _, terminated, truncated, _ = env.step(action)
+        seconds += time.perf_counter() - start
+        if terminated or truncated:
+            env.reset(options={"episode_index": 0})
+    return len(actions), seconds
+
+
+def _vector(
+    url_1: str, url_2: str, res: int, steps: int, say: Callable[[str], None], num_envs: int = 4
+) -> dict[str, Any]:
+    config = {"camera": {"width": res, "height": res}}
+    vecs = {"workers_1": RemoteVectorEnv([url_1], num_envs, config)}
+    try:
+        vecs["workers_2"] = RemoteVectorEnv([url_2], num_envs, config)
+        for vec in vecs.values():
+            vec.reset(options={"episode_index": 0})
+        rng = np.random.default_rng(0)
+        totals = {name: 0.0 for name in vecs}
+        for _ in range(0, steps, BLOCK_STEPS // 2):
+            block = rng.integers(1, 4, (BLOCK_STEPS // 2, num_envs))
+            for name, vec in vecs.items():
+                start = time.perf_counter()
+                for actions in block:
+                    vec.step(actions)
+                totals[name] += time.perf_counter() - start
+    finally:
+        for vec in vecs.values():
+            vec.close()
+    done = len(range(0, steps, BLOCK_STEPS // 2)) * (BLOCK_STEPS // 2) * num_envs
+    row: dict[str, Any] = {f"{k}_sps": done / v for k, v in totals.items()}
+    row.update(num_envs=num_envs, resolution=res, ratio=row["workers_2_sps"] / row["workers_1_sps"])
+    say(
+        f"vector: 1 worker {row['workers_1_sps']:.1f}, 2 workers {row['workers_2_sps']:.1f} steps/s"
+    )
+    return row
+
+
+def _memory(episodes: int, say: Callable[[str], None], num_envs: int = 8) -> dict[str, Any]:
+    """Short episodes (32² camera, at most 20 steps, FOUND often) on a fresh 1-worker server."""
+    grid = Simulator().load_scene(MEMORY_SCENE)
+    rng = np.random.default_rng(0)
+    pool = [sample_episode(grid, MEMORY_SCENE, 1, rng, f"mem-{i}") for i in range(40)]
+    config = {
+        "task": {"num_goals": 1, "max_steps": 20},
+        "camera": {"width": 32, "height": 32},
+        "episodes": [e.to_dict() for e in pool if e is not None],
+    }
+    early = min(50, episodes)
+    with LocalServer(workers=1) as server:
+        vec = RemoteVectorEnv([server.url], num_envs, config)
+        try:
+            vec.reset(seed=0)
+            ended, rss_early = 0, None
+            while ended < episodes:
+                actions = rng.choice(4, size=num_envs, p=[0.3, 0.4, 0.15, 0.15])
+                _, _, terminated, truncated, _ = vec.step(actions)
+                ended += int(np.sum(terminated | truncated))
+                if rss_early is None and ended >= early:
+                    rss_early = _tree_rss_mb(server.pid)
+            rss_late = _tree_rss_mb(server.pid)
+        finally:
+            vec.close()
+    assert rss_early is not None
+    say(f"memory: {rss_early:.1f} MB after {early} episodes, {rss_late:.1f} MB after {ended}")
+    return {
+        "episodes_early": early,
+        "episodes_late": ended,
+        "rss_mb_early": rss_early,
+        "rss_mb_late": rss_late,
+        "growth_mb": rss_late - rss_early,
+    }
+
+
+# ---------------------------------------------------------------------- helpers
+def _tree_rss_mb(pid: int) -> float:
+    """Resident memory of a process and its children (the simulator workers), in MB."""
+    total_kb = 0
+    for member in [pid, *_children(pid)]:
+        with contextlib.suppress(OSError), open(f"/proc/{member}/status") as handle:
+            for line in handle:
+                if line.startswith("VmRSS:"):
+                    total_kb += int(line.split()[1])
+    return total_kb / 1024
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        with contextlib.suppress(OSError), open(f"/proc/{entry}/stat") as handle:
+            if int(handle.read().rsplit(")", 1)[1].split()[1]) == pid:
+                found.append(int(entry))
+    return found
+
+
+def _quiet(text: str) -> None:
+    pass
+
+
+if __name__ == "__main__":
+    run_http_bench()
