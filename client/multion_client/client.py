@@ -49,6 +49,8 @@ class Client:
         retries: int = 3,
         backoff_s: float = 0.2,
     ) -> None:
+        if retries < 0:
+            raise ValueError(f"retries must be ≥ 0, got {retries}")
         self.base_url = base_url.rstrip("/")
         self.retries = retries
         self.backoff_s = backoff_s

@@ -7,6 +7,10 @@ with ``loop.add_reader`` on the pipe, so awaiting a worker blocks neither the lo
 A worker that dies (or does not answer within ``timeout_s`` and is killed) is detected at once:
 pending and later requests for it raise :class:`WorkerFailed`, ``on_death`` is called so the
 sessions pinned to it can be marked failed, and a fresh worker takes its slot.
+
+As with any use of the spawn context, a script that runs the app in its own process (rather
+than through ``multion serve`` or uvicorn) must guard its entry point with
+``if __name__ == "__main__":``, since each worker re-imports the main module.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from multion_client.protocol import decode
 
 Reply = tuple[dict[str, Any], list[bytes]]
 PIPE_BUFFER_BYTES = 8 * 1024 * 1024
+RESTART_DELAY_S = 5.0
 
 
 class Worker:
@@ -59,7 +64,8 @@ class Worker:
 
     async def request(self, command: str, shard_id: str, payload: Any, timeout_s: float) -> Reply:
         """Send one command and await its reply (header, raw parts)."""
-        await asyncio.wait_for(asyncio.shield(self.ready), timeout_s)
+        if not self.ready.done():  # a fresh replacement still importing the simulator
+            await asyncio.wait_for(asyncio.shield(self.ready), timeout_s)
         async with self._lock:
             if not self.alive:
                 raise WorkerFailed(self.failure)
@@ -183,6 +189,14 @@ class WorkerPool:
 
     def _exited(self, worker: Worker) -> None:
         self.on_death(worker)
+        if self._stopping or self.workers[worker.slot] is not worker:
+            return
+        if worker.ready.done() and worker.ready.exception() is None:
+            self._replace(worker)
+        else:  # it died while starting: retry later rather than respawn in a tight loop
+            asyncio.get_running_loop().call_later(RESTART_DELAY_S, self._replace, worker)
+
+    def _replace(self, worker: Worker) -> None:
         if not self._stopping and self.workers[worker.slot] is worker:
             self.replaced += 1
             self.workers[worker.slot] = Worker(worker.slot, worker.generation + 1, self._exited)
