@@ -24,9 +24,13 @@ class MsgpackResponse(Response):
         return encode(content)
 
 
+def registry_of(request: Request) -> SessionRegistry:
+    return request.app.state.registry
+
+
 # Dependencies are coroutines: FastAPI would run plain functions in a thread pool per request.
 async def get_registry(request: Request) -> SessionRegistry:
-    return request.app.state.registry
+    return registry_of(request)
 
 
 async def get_settings(request: Request) -> ServerSettings:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 
-from multion.api.deps import Message, MsgpackResponse, Registry
+from multion.api.deps import Message, MsgpackResponse, Registry, read_message, registry_of
 from multion_client.protocol import SESSIONS_PATH, CreateSession, Reset, Step
 
 router = APIRouter(prefix=SESSIONS_PATH, tags=["sessions"], default_response_class=MsgpackResponse)
@@ -41,6 +41,9 @@ def _answers(ok: str, *codes: int) -> dict[int | str, dict[str, Any]]:
         answers[code] = {**error, "description": text[code]}
     return answers
 
+
+# reset / step / observe are the per-step hot path: they read the body and the registry
+# directly, because FastAPI's dependency solving costs a noticeable share of a small request.
 
 _OBSERVATIONS = (
     "msgpack map `{observations: [per-env map of arrays], infos: [per-env map]}`; arrays are "
@@ -93,8 +96,9 @@ async def create_session(message: Message, registry: Registry) -> MsgpackRespons
     ),
     responses=_answers(_OBSERVATIONS, 400, 404, 413, 422, 503),
 )
-async def reset(session_id: str, message: Message, registry: Registry) -> MsgpackResponse:
-    return MsgpackResponse(await registry.reset(session_id, Reset.from_wire(message)))
+async def reset(session_id: str, request: Request) -> MsgpackResponse:
+    message = Reset.from_wire(await read_message(request))
+    return MsgpackResponse(await registry_of(request).reset(session_id, message))
 
 
 @router.post(
@@ -123,8 +127,9 @@ async def reset(session_id: str, message: Message, registry: Registry) -> Msgpac
         503,
     ),
 )
-async def step(session_id: str, message: Message, registry: Registry) -> MsgpackResponse:
-    return MsgpackResponse(await registry.step(session_id, Step.from_wire(message)))
+async def step(session_id: str, request: Request) -> MsgpackResponse:
+    message = Step.from_wire(await read_message(request))
+    return MsgpackResponse(await registry_of(request).step(session_id, message))
 
 
 @router.get(
@@ -133,8 +138,8 @@ async def step(session_id: str, message: Message, registry: Registry) -> Msgpack
     description="The observations and infos of the last reset or step, without acting.",
     responses=_answers(_OBSERVATIONS, 404, 409, 503),
 )
-async def observe(session_id: str, registry: Registry) -> MsgpackResponse:
-    return MsgpackResponse(await registry.observe(session_id))
+async def observe(session_id: str, request: Request) -> MsgpackResponse:
+    return MsgpackResponse(await registry_of(request).observe(session_id))
 
 
 @router.delete(
