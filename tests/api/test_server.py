@@ -14,6 +14,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from multion.api.app import create_app
+from multion.api.config_io import ConfigError, env_config_from_dict, env_config_to_dict
 from multion.api.settings import ServerSettings
 from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, build_observation_space
@@ -357,3 +358,20 @@ def test_a_silent_worker_is_killed_and_replaced(small_config: dict[str, Any]) ->
         assert call(api, "GET", "/v1/health")[1]["workers_replaced"] == 1
         with session(api, small_config) as sid:
             assert call(api, "POST", session_path(sid, "reset"), {})[0] == 200
+
+
+def test_settings_read_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MULTION_WORKERS", "3")
+    monkeypatch.setenv("MULTION_IDLE_TIMEOUT_S", "12.5")
+    settings = ServerSettings()
+    assert settings.workers == 3 and settings.idle_timeout_s == 12.5
+
+
+def test_config_dicts_round_trip() -> None:
+    config = EnvConfig(camera=CameraConfig(width=64, height=48), sensors=("rgb", "gps"))
+    assert env_config_from_dict(env_config_to_dict(config)) == config
+    assert env_config_from_dict({}) == EnvConfig()
+    with pytest.raises(ConfigError, match=r"unknown field 'maps\.egosize'"):
+        env_config_from_dict({"maps": {"egosize": 3}})
+    with pytest.raises(ConfigError, match="'navgrid.floor_z' must be a number or null"):
+        env_config_from_dict({"navgrid": {"floor_z": "low"}})
