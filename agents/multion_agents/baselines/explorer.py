@@ -73,6 +73,7 @@ class ExplorerAgent(Agent):
         self._since_plan = 0
         self._spin = self.motion.headings - 1
         self._stuck = 0
+        self._still = 0  # steps since the agent last moved
         self._last_position: np.ndarray | None = None
         self._last_action: int | None = None
 
@@ -93,6 +94,14 @@ class ExplorerAgent(Agent):
             self.map.changed = True
         if self.map.changed:
             self._refresh_passable()
+        moved = self._last_position is None or not np.allclose(position, self._last_position)
+        self._still = 0 if moved else self._still + 1
+        if self._still > 2 * self.motion.headings and self._spin == 0:
+            # turning in place for two full circles: whatever the plan says, it is not working
+            self._still = 0
+            self._field = None
+            if self._target == ("frontier", -1):
+                self._give_up_near(position)
         action = self._decide(goal, goal in seen_now, position, heading)
         self._last_position, self._last_action = position, action
         return action

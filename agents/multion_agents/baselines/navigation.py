@@ -57,6 +57,26 @@ class StartFrameGrid:
         return out
 
 
+def interpolate(grid: StartFrameGrid, field: np.ndarray, xy: np.ndarray) -> float:
+    """Bilinear value of ``field`` at one start-frame point (``inf`` if a corner is ``inf``).
+
+    Nearest-cell lookups make a point on a cell border flip between two values with float
+    rounding, which can make the step chooser swing between two headings forever.
+    """
+    row = grid.half - float(xy[0]) / grid.cell_size
+    col = grid.half - float(xy[1]) / grid.cell_size
+    r0, c0 = math.floor(row), math.floor(col)
+    if not (0 <= r0 < grid.size - 1 and 0 <= c0 < grid.size - 1):
+        return math.inf
+    corners = field[r0 : r0 + 2, c0 : c0 + 2]
+    if not np.isfinite(corners).all():
+        return float(grid.lookup(field, xy, outside=np.inf))
+    fr, fc = row - r0, col - c0
+    top = corners[0, 0] * (1 - fc) + corners[0, 1] * fc
+    bottom = corners[1, 0] * (1 - fc) + corners[1, 1] * fc
+    return float(top * (1 - fr) + bottom * fr)
+
+
 def distance_field(
     free: np.ndarray,
     sources: np.ndarray,
@@ -156,7 +176,7 @@ def choose_action(
     (only if the whole step stays on ``passable`` cells), plus ``turn_cost`` metres per turn
     needed, so the agent does not spin for a centimetre. Returns None when no step goes downhill.
     """
-    here = float(grid.lookup(field, position, outside=np.inf))
+    here = interpolate(grid, field, position)
     n = motion.headings
     best_value, best_turns = here - 1e-6, None
     samples = np.linspace(0.0, 1.0, 6)[1:, None]
@@ -167,7 +187,7 @@ def choose_action(
         points = position[None, :] + samples * step[None, :]
         if not grid.lookup(passable, points, outside=False).all():
             continue
-        value = float(grid.lookup(field, points[-1], outside=np.inf)) + turn_cost * abs(turns)
+        value = interpolate(grid, field, points[-1]) + turn_cost * abs(turns)
         if value < best_value:
             best_value, best_turns = value, turns
     if best_turns is None:
