@@ -14,6 +14,7 @@ machine hits both alike; only ``step`` calls are timed.
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
 import time
 from collections.abc import Callable
@@ -53,6 +54,7 @@ def run_http_bench(
         say(f"servers up: {one.url} (1 worker), {two.url} (2 workers)")
         result["single"] = {res: _single_env(one.url, res, steps, say) for res in resolutions}
         result["vector"] = _vector(one.url, two.url, vector_resolution, vector_steps, say)
+    result["vector"]["machine_headroom"] = _parallel_headroom(vector_resolution, vector_steps)
     result["memory"] = _memory(episodes_for_memory, say)
     if verbose:
         print_table(result)
@@ -73,6 +75,10 @@ def print_table(result: dict[str, Any]) -> None:
         f"RemoteVectorEnv, {vec['num_envs']} envs at {vec['resolution']}²: "
         f"{vec['workers_1_sps']:.1f} steps/s with 1 worker, {vec['workers_2_sps']:.1f} with 2 "
         f"→ ×{vec['ratio']:.2f} (target ≥ 1.5)"
+    )
+    print(
+        f"  (for reference: 2 in-process envs in 2 processes run ×{vec['machine_headroom']:.2f} "
+        "as fast as 1 on this machine now: the most a second worker can add)"
     )
     mem = result["memory"]
     print(
@@ -183,6 +189,41 @@ def _memory(episodes: int, say: Callable[[str], None], num_envs: int = 8) -> dic
         "rss_mb_late": rss_late,
         "growth_mb": rss_late - rss_early,
     }
+
+
+def _parallel_headroom(res: int, steps: int) -> float:
+    """Throughput of in-process envs in 2 processes over 1, without any server: what the
+    machine (its cores, and whatever else runs on it) allows a second worker to add."""
+    ctx = multiprocessing.get_context("spawn")
+    rates = []
+    for count in (1, 2):
+        barrier, results = ctx.Barrier(count), ctx.Queue()
+        procs = [
+            ctx.Process(target=_render_steps, args=(res, steps, barrier, results), daemon=True)
+            for _ in range(count)
+        ]
+        try:
+            for proc in procs:
+                proc.start()
+            seconds = max(results.get(timeout=300) for _ in procs)
+        finally:
+            for proc in procs:
+                proc.join(timeout=10)
+                if proc.is_alive():
+                    proc.kill()
+        rates.append(count * steps / seconds)
+    return rates[1] / rates[0]
+
+
+def _render_steps(res: int, steps: int, barrier: Any, results: Any) -> None:
+    env = MultiONEnv(EnvConfig(camera=CameraConfig(width=res, height=res)))
+    env.reset(options={"episode_index": 0})
+    barrier.wait()  # every process starts timing together
+    start = time.perf_counter()
+    for index in range(steps):
+        env.step(2 + index % 2)
+    results.put(time.perf_counter() - start)
+    env.close()
 
 
 # ---------------------------------------------------------------------- helpers
