@@ -36,6 +36,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--server", default=None, help="server URL, e.g. http://host:8000 (default: start one)"
     )
+    parser.add_argument(
+        "--in-process",
+        action="store_true",
+        help="no server: simulate in this process (to debug or profile an agent)",
+    )
     parser.add_argument("--out", type=Path, default=None, help="directory for the report files")
     parser.add_argument("--seed", type=int, default=0, help="agent seed (default 0)")
     parser.add_argument(
@@ -70,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"unknown split {args.split!r}; splits are {', '.join(SPLITS)}")
     if args.episodes is not None and args.episodes <= 0:
         return _fail(f"--episodes must be positive, got {args.episodes}")
+    if args.in_process and args.server is not None:
+        return _fail("--in-process and --server exclude each other")
     if args.workers <= 0:
         return _fail(f"--workers must be positive, got {args.workers}")
 
@@ -83,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         episodes=args.episodes,
         seed=args.seed,
         server=args.server,
+        in_process=args.in_process,
         workers=args.workers,
         dataset=args.dataset,
         image_size=args.image_size,
@@ -97,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"no episodes to evaluate: {error}")
     except MultiONError as error:
         return _fail(f"the server refused the evaluation: {error}")
+    except RuntimeError as error:  # a local server that did not start, a dataset mismatch
+        return _fail(str(error))
     print(format_table(summarize(result.records), title_of(result)))
     if args.out is not None:
         written = write_report(result, args.out, pictures=args.pictures)

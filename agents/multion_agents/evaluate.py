@@ -48,6 +48,8 @@ class EvalSettings:
     seed: int = 0
     server: str | None = None
     """A server URL; None starts a local one."""
+    in_process: bool = False
+    """Simulate in this process, without any server (for debugging and profiling agents)."""
     workers: int = 1
     dataset: str | None = None
     image_size: int | None = None
@@ -239,13 +241,17 @@ def local_env_factory() -> EnvFactory:
 
 
 def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
-    """Evaluate against ``settings.server``, or a local server started (and stopped) here."""
+    """Evaluate against ``settings.server``, or a local server started (and stopped) here, or
+    in this process with ``settings.in_process``."""
     from multion_client.client import Client
 
     agent_class(settings.agent)  # fail on a bad agent before starting anything
     episodes = select_episodes(settings)
     started = time.perf_counter()
-    if settings.server is not None:
+    if settings.in_process:
+        config, records = play_all(settings, episodes, local_env_factory(), progress)
+        server: dict[str, Any] = {"url": None, "local": False, "in_process": True}
+    elif settings.server is not None:
         with Client(settings.server, retries=1) as client:
             health = client.health()
         config, records = play_all(

@@ -102,7 +102,7 @@ def format_table(summary: dict[str, Any], title: str) -> str:
 
 def title_of(result: EvalResult) -> str:
     s = result.settings
-    where = s.server or "local server"
+    where = "in-process" if s.in_process else s.server or "local server"
     return f"{s.agent} on {task_name(s.num_goals)} {s.split} ({where}, seed {s.seed})"
 
 

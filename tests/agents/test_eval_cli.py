@@ -34,15 +34,18 @@ def test_local_and_remote_server_give_the_same_metrics(
     common = ["--agent", "random-oracle-found", "--task", "1-on", "--dataset", str(path)]
     common += ["--seed", "5", "--max-steps", "60", "--quiet"]
     local_out, remote_out = tmp_path / "local", tmp_path / "remote"
+    in_process_out = tmp_path / "in-process"
     assert _run([*common, "--out", str(local_out), "--pictures", "2"]) == 0
     with LocalServer(workers=1) as server:
         assert _run([*common, "--out", str(remote_out), "--server", server.url]) == 0
+    assert _run([*common, "--out", str(in_process_out), "--in-process", "--pictures", "0"]) == 0
     table = capsys.readouterr().out
     assert "Success" in table and "95% CI" in table and "episodes" in table
 
     local, remote = _episodes(local_out), _episodes(remote_out)
     assert [e["episode_id"] for e in local] == [e.episode_id for e in episodes]
     assert [e["metrics"] for e in local] == [e["metrics"] for e in remote]
+    assert [e["metrics"] for e in local] == [e["metrics"] for e in _episodes(in_process_out)]
 
     summary = json.loads((local_out / "metrics.json").read_text())
     assert summary["run"]["agent"] == "random-oracle-found"
@@ -72,6 +75,7 @@ def test_local_and_remote_server_give_the_same_metrics(
         (["--agent", "random", "--episodes", "0"], "--episodes must be positive"),
         (["--agent", "random", "--split", "nope"], "unknown split 'nope'"),
         (["--agent", "random", "--server", "http://127.0.0.1:9"], "cannot reach"),
+        (["--agent", "random", "--in-process", "--server", "http://x"], "exclude each other"),
     ],
 )
 def test_clear_errors(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:

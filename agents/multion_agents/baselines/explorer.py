@@ -35,10 +35,14 @@ from multion_agents.baselines.navigation import (
     cells_ahead,
     choose_action,
     cropped_distance_field,
+    interpolate,
 )
 from multion_client.constants import Action
 
 _CROSS = ndimage.generate_binary_structure(2, 1)
+GOAL_RADII = (0.2, 0.5, 0.8)
+"""How close to a goal the agent aims, in metres: wider when the nearer cells are unreachable in
+the map (a goal tucked between furniture), still close enough for FOUND."""
 
 
 class ExplorerAgent(Agent):
@@ -53,6 +57,7 @@ class ExplorerAgent(Agent):
     replan_every: int = 8
     wall_margin: float = 0.35
     min_frontier_cells: int = 4
+    close_range: float = 0.6
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
@@ -67,9 +72,12 @@ class ExplorerAgent(Agent):
         self._blocked = np.zeros((self.map_size, self.map_size), dtype=bool)
         self._given_up = np.zeros_like(self._blocked)
         self._passable = np.ones_like(self._blocked)
+        self._visited = np.zeros_like(self._blocked)  # cells the agent's centre has been in
+        self._around_path = np.zeros_like(self._blocked)  # cells within reach of the path
         self._field: np.ndarray | None = None
         self._target: tuple[str, int] | None = None  # ("goal", category) or ("frontier", -1)
         self._target_point: np.ndarray | None = None
+        self._aim = 0  # index into GOAL_RADII
         self._since_plan = 0
         self._spin = self.motion.headings - 1
         self._stuck = 0
@@ -83,34 +91,47 @@ class ExplorerAgent(Agent):
         heading = float(observation["compass"][0])
         goal = int(observation["goal"])
         seen_now = self._perceive(observation, position, heading)
-        if (
-            self._last_action == Action.MOVE_FORWARD
-            and self._last_position is not None
-            and np.allclose(position, self._last_position, atol=1e-4)
-        ):
-            ahead = cells_ahead(self.grid, position, heading, self.motion.forward_step)
-            self._blocked[ahead] = True
-            self._field = None
-            self.map.changed = True
+        self._track_motion(position, heading)
         if self.map.changed:
             self._refresh_passable()
-        moved = self._last_position is None or not np.allclose(position, self._last_position)
-        self._still = 0 if moved else self._still + 1
-        if self._still > 2 * self.motion.headings and self._spin == 0:
-            # turning in place for two full circles: whatever the plan says, it is not working
-            self._still = 0
-            self._field = None
-            if self._target == ("frontier", -1):
-                self._give_up_near(position)
         action = self._decide(goal, goal in seen_now, position, heading)
         self._last_position, self._last_action = position, action
         return action
+
+    def _track_motion(self, position: np.ndarray, heading: float) -> None:
+        """Learn from the last action: refused steps, cells stood in, turning without end."""
+        moved = self._last_position is None or not np.allclose(
+            position, self._last_position, atol=1e-4
+        )
+        if self._last_action == Action.MOVE_FORWARD and not moved:
+            self._blocked[cells_ahead(self.grid, position, heading, self.motion.forward_step)] = (
+                True
+            )
+            self._field = None
+            self.map.changed = True
+        row, col = (int(v) for v in self.grid.to_cell(position))
+        if not self._visited[row, col]:
+            self._visited[row, col] = True
+            self._around_path |= self._disc(position, self.close_range)
+            self.map.changed = True
+        self._still = 0 if moved else self._still + 1
+        if self._still > 2 * self.motion.headings and self._spin == 0:
+            # two full circles without moving: whatever the plan says, it is not working; forget
+            # the refusals around here (the simulator will refuse again if it must)
+            self._still = 0
+            self._field = None
+            self._blocked &= ~self._disc(position, 0.5)
+            self.map.changed = True
+            if self._target == ("frontier", -1):
+                self._give_up_near(position)
 
     def _decide(self, goal: int, goal_in_view: bool, position: np.ndarray, heading: float) -> int:
         goal_at = self.map.goal_position(goal)
         if goal_at is not None:
             target = ("goal", goal)
-            if self._target != target or self._moved(goal_at):
+            if self._target != target:
+                self._aim, self._field = 0, None
+            if self._moved(goal_at):
                 self._field = None
             self._target, self._target_point = target, goal_at
             if self._field is None:
@@ -140,6 +161,9 @@ class ExplorerAgent(Agent):
             self._field = None
             if self._stuck > 3 and self._target == ("frontier", -1):
                 self._give_up_near(position)
+            elif self._stuck > 3:  # cannot get nearer to the goal: aim at a wider ring
+                self._aim = min(self._aim + 1, len(GOAL_RADII) - 1)
+                self._stuck = 0
             return int(Action.TURN_LEFT if self.rng.random() < 0.5 else Action.TURN_RIGHT)
         self._stuck = 0
         return action
@@ -165,33 +189,39 @@ class ExplorerAgent(Agent):
         r0, r1, c0, c1 = bounding_box(self.map.obstacle, margin=2)
         inflated = np.zeros_like(self._blocked)
         inflated[r0:r1, c0:c1] = ndimage.binary_dilation(self.map.obstacle[r0:r1, c0:c1])
-        self._passable = ~(inflated | self._blocked)
+        # where the agent has been is passable, whatever the dilation says
+        self._passable = ~(inflated | self._blocked) | (self._visited & ~self._blocked)
 
     def _plan(self, position: np.ndarray) -> None:
-        passable = self._passable.copy()
-        # the agent stands where it stands: never let the dilation wall it in
-        row, col = (int(v) for v in self.grid.to_cell(position))
-        passable[row - 1 : row + 2, col - 1 : col + 2] |= ~self._blocked[
-            row - 1 : row + 2, col - 1 : col + 2
-        ]
-        if self._target is not None and self._target[0] == "goal":
-            assert self._target_point is not None
-            sources = self._disc(self._target_point, 0.2)
-        else:
-            sources = self._frontier(passable)
         known = self.map.explored() | self._disc(position, 1.0)
         if self._target_point is not None:
             known |= self._disc(self._target_point, 1.0)
         box = bounding_box(known, margin=8)
-        self._field = cropped_distance_field(
-            passable, sources, self.cell_size, box, self.wall_margin, slowest=0.3
-        )
         self._since_plan = 0
+        if self._target is None or self._target[0] != "goal":
+            sources = self._frontier(self._passable)
+            self._field = self._field_to(sources, box)
+            return
+        assert self._target_point is not None
+        while True:
+            self._field = self._field_to(self._disc(self._target_point, GOAL_RADII[self._aim]), box)
+            reachable = np.isfinite(interpolate(self.grid, self._field, position))
+            if reachable or self._aim == len(GOAL_RADII) - 1:
+                return
+            self._aim += 1
+
+    def _field_to(self, sources: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+        return cropped_distance_field(
+            self._passable, sources, self.cell_size, box, self.wall_margin, slowest=0.3
+        )
 
     def _frontier(self, passable: np.ndarray) -> np.ndarray:
         free = self.map.free & passable
         unknown = ~self.map.explored()
-        frontier = free & ndimage.binary_dilation(unknown, structure=_CROSS) & ~self._given_up
+        frontier = free & ndimage.binary_dilation(unknown, structure=_CROSS)
+        # unknown cells right next to the path stay unknown (the camera cannot see the floor at
+        # its feet, nor surfaces nearer than 0.5 m): going there again would show nothing new
+        frontier &= ~self._given_up & ~self._around_path
         labels, count = ndimage.label(frontier, structure=np.ones((3, 3), dtype=bool))
         if count == 0:
             return frontier
@@ -206,7 +236,7 @@ class ExplorerAgent(Agent):
 
     def _give_up_near(self, position: np.ndarray) -> None:
         """Stop aiming at frontier cells around a spot the agent keeps failing to reach."""
-        self._given_up |= self._disc(position, 1.5)
+        self._given_up |= self._disc(position, 1.0)
         self._stuck = 0
 
     def _moved(self, goal_at: np.ndarray) -> bool:
@@ -217,8 +247,9 @@ class ExplorerAgent(Agent):
         gap = float(np.hypot(*(goal_at - position)))
         if gap > self.found_distance:
             return False
-        along_map = float(self.grid.lookup(self._field, position, outside=np.inf))
-        if along_map > self.found_distance + 0.3:
+        # the field measures the way to the ring aimed at; add its radius for the way to the goal
+        along_map = interpolate(self.grid, self._field, position) + GOAL_RADII[self._aim]
+        if along_map > self.found_distance + 0.5:
             return False
         return in_view or self._straight_and_free(position, goal_at)
 

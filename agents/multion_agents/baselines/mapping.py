@@ -171,14 +171,21 @@ class SemanticMap:
             goal_pixels[rows, cols] = True
         is_goal = goal_pixels[projector.rows][:, projector.cols]
         saturated = z >= cam.max_depth - 1e-3
+        # clipped at the near limit: the surface is somewhere closer than 0.5 m, not at 0.5 m;
+        # taken at face value it draws a false wall in an arc around the agent (in doorways)
+        near = z <= cam.min_depth + 1e-3
         obstacle = (
-            (height > cfg.obstacle_low) & (height < cfg.obstacle_high) & ~is_goal & ~saturated
+            (height > cfg.obstacle_low)
+            & (height < cfg.obstacle_high)
+            & ~is_goal
+            & ~saturated
+            & ~near
         )
         floor = (height < cfg.floor_height) & ~saturated
         before = int(self.obstacle.sum()), int(self.free.sum())
         self._set(xy[obstacle], self.obstacle, True)
         self._set(xy[floor], self.free, True)
-        self._carve(projector, xy, obstacle, floor | saturated, position, heading)
+        self._carve(projector, xy, obstacle, near, floor | saturated, position, heading)
         self.changed = (int(self.obstacle.sum()), int(self.free.sum())) != before
         return self._remember_goals(projector, depth, detections, position, heading)
 
@@ -187,13 +194,16 @@ class SemanticMap:
         projector: DepthProjector,
         xy: np.ndarray,
         obstacle: np.ndarray,
+        near: np.ndarray,
         open_: np.ndarray,
         position: np.ndarray,
         heading: float,
     ) -> None:
-        """Free space along each image column, from the agent to the first obstacle it sees."""
+        """Free space along each image column, from the agent to the first obstacle it sees
+        (nothing in a column with a surface nearer than the depth range)."""
         reach = np.hypot(*(xy - position).transpose(2, 0, 1))
         obstacle_reach = np.where(obstacle, reach, np.inf).min(axis=0)
+        obstacle_reach[near.any(axis=0)] = 0.0
         open_reach = np.where(open_, reach, 0.0).max(axis=0)
         limit = np.minimum(obstacle_reach - 0.1, open_reach)  # (columns,)
         step = self.settings.carve_step

@@ -96,12 +96,15 @@ def distance_field(
         return np.full(free.shape, np.inf)
     phi = np.where(sources, -1.0, 1.0)
     masked = np.ma.MaskedArray(phi, mask=~free)
-    if wall_margin > 0:
-        clearance = ndimage.distance_transform_edt(free) * cell_size
-        speed = np.clip(slowest + (1 - slowest) * clearance / wall_margin, slowest, 1.0)
-        field = skfmm.travel_time(masked, speed, dx=cell_size)
-    else:
-        field = skfmm.distance(masked, dx=cell_size)
+    try:
+        if wall_margin > 0:
+            clearance = ndimage.distance_transform_edt(free) * cell_size
+            speed = np.clip(slowest + (1 - slowest) * clearance / wall_margin, slowest, 1.0)
+            field = skfmm.travel_time(masked, speed, dx=cell_size)
+        else:
+            field = skfmm.distance(masked, dx=cell_size)
+    except ValueError:  # no source touches a free non-source cell: nothing to march into
+        field = np.ma.MaskedArray(np.where(sources, 0.0, np.inf), mask=~free)
     out = np.asarray(np.ma.filled(field, np.inf), dtype=np.float64)
     out = np.where(out < 0, 0.0, out)
     out[sources] = 0.0
@@ -200,9 +203,15 @@ def choose_action(
 def cells_ahead(
     grid: StartFrameGrid, position: np.ndarray, heading: float, step: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The grid cells a forward step from ``position`` crosses (to mark after a refused step)."""
+    """The cell a refused forward step would have ended in (empty if it is the agent's own).
+
+    Only the end: marking cells nearer the agent as well can wall it in after a few refusals in
+    different directions, and a step that crosses the true obstacle elsewhere is refused (and
+    marked) in turn.
+    """
     direction = np.array([math.cos(heading), math.sin(heading)])
-    points = position[None, :] + np.array([0.5 * step, step])[:, None] * direction[None, :]
-    rows, cols = grid.to_cell(points)
+    rows, cols = grid.to_cell((position + step * direction)[None, :])
+    here_row, here_col = grid.to_cell(position)
     ok = (rows >= 0) & (rows < grid.size) & (cols >= 0) & (cols < grid.size)
+    ok &= (rows != here_row) | (cols != here_col)
     return rows[ok], cols[ok]

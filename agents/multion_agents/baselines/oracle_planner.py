@@ -68,21 +68,27 @@ class OraclePlannerAgent(Agent):
         if self._grid is None:
             self._start_map(ego)
         assert self._grid is not None and self._passable is not None
-        if (
+        refused = (
             self._last_action == Action.MOVE_FORWARD
             and self._last_position is not None
             and np.allclose(position, self._last_position, atol=1e-4)
-        ):
+        )
+        if refused:
             ahead = cells_ahead(self._grid, position, heading, self.motion.forward_step)
             self._passable[ahead] = False
             self._field = None
             self.replans += 1
+        row, col = (int(v) for v in self._grid.to_cell(position))
+        if not self._passable[row, col]:
+            # the agent stands here, so it is passable, whatever the map's rounding says
+            self._passable[row, col] = True
+            self._field = None
         goal = int(observation["goal"])
         if goal != self._goal:
             self._goal, self._field = goal, None
         if self._field is None:
             self._field = self._plan(goal, ego, position, heading)
-        action = self._next_action(position, heading)
+        action = self._next_action(position, heading, refused)
         self._last_position, self._last_action = position, action
         return action
 
@@ -107,7 +113,7 @@ class OraclePlannerAgent(Agent):
         targets = nearest_free(sources, self._passable, radius_cells=5)
         return distance_field(self._passable, targets, self._grid.cell_size, self.wall_margin)
 
-    def _next_action(self, position: np.ndarray, heading: float) -> int:
+    def _next_action(self, position: np.ndarray, heading: float, refused: bool) -> int:
         assert self._grid is not None and self._field is not None and self._passable is not None
         here = float(self._grid.lookup(self._field, position, outside=np.inf))
         goal_visible = bool((self._layers[..., 1] == self._goal + 1).any())  # type: ignore[index]
@@ -117,9 +123,10 @@ class OraclePlannerAgent(Agent):
             self._grid, self._field, self._passable, position, heading, self.motion
         )
         if action is None:
-            # stuck in a pocket the 30° headings cannot leave downhill: turn and try again
-            action = int(Action.TURN_LEFT)
-            self._field = None
+            # no step goes downhill through cells the map calls free (e.g. right next to
+            # furniture, where the map rounds cells to occupied): probe straight ahead, and turn
+            # after a refused probe; the simulator, not the map, has the last word
+            action = int(Action.TURN_LEFT if refused else Action.MOVE_FORWARD)
         return action
 
     def _frontier(self) -> np.ndarray:
