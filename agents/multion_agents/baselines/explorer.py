@@ -104,9 +104,7 @@ class ExplorerAgent(Agent):
             position, self._last_position, atol=1e-4
         )
         if self._last_action == Action.MOVE_FORWARD and not moved:
-            self._blocked[cells_ahead(self.grid, position, heading, self.motion.forward_step)] = (
-                True
-            )
+            self._blocked[cells_ahead(self.grid, position, heading, self.motion)] = True
             self._field = None
             self.map.changed = True
         row, col = (int(v) for v in self.grid.to_cell(position))
@@ -204,7 +202,8 @@ class ExplorerAgent(Agent):
             return
         assert self._target_point is not None
         while True:
-            self._field = self._field_to(self._disc(self._target_point, GOAL_RADII[self._aim]), box)
+            ring = self._ring(self._target_point, GOAL_RADII[self._aim])
+            self._field = self._field_to(ring, box)
             reachable = np.isfinite(interpolate(self.grid, self._field, position))
             if reachable or self._aim == len(GOAL_RADII) - 1:
                 return
@@ -242,9 +241,29 @@ class ExplorerAgent(Agent):
     def _moved(self, goal_at: np.ndarray) -> bool:
         return self._target_point is None or float(np.hypot(*(goal_at - self._target_point))) > 0.2
 
+    def _ring(self, centre: np.ndarray, radius: float) -> np.ndarray:
+        """Cells within ``radius`` of a goal with a clear line to it: a wider ring must not
+        reach round a wall to the far side, where the goal is near but the way to it long."""
+        ring = self._disc(centre, radius)
+        rows, cols = np.nonzero(ring)
+        cells = self.grid.to_xy(rows, cols)
+        # from each cell towards the goal, stopping a cell short of the goal's own cell
+        gaps = np.hypot(*(cells - centre).T)
+        reach = np.clip(1.0 - self.cell_size / np.maximum(gaps, 1e-9), 0.0, 1.0)
+        t = np.linspace(0.0, 1.0, int(math.ceil(2 * radius / self.cell_size)) + 2)
+        t = t[None, :] * reach[:, None]
+        points = cells[:, None, :] + t[:, :, None] * (centre - cells)[:, None, :]
+        blocked = self.grid.lookup(self.map.obstacle, points, outside=True).any(axis=1)
+        ring[rows[blocked], cols[blocked]] = False
+        return ring
+
     def _close_enough(self, position: np.ndarray, goal_at: np.ndarray, in_view: bool) -> bool:
         assert self._field is not None
         gap = float(np.hypot(*(goal_at - position)))
+        if self._stuck > 0 and gap <= self.found_distance + 0.3:
+            # cannot get any nearer, but in a straight free line this is still well inside the
+            # 1.5 m success radius
+            return self._straight_and_free(position, goal_at)
         if gap > self.found_distance:
             return False
         # the field measures the way to the ring aimed at; add its radius for the way to the goal
@@ -254,9 +273,11 @@ class ExplorerAgent(Agent):
         return in_view or self._straight_and_free(position, goal_at)
 
     def _straight_and_free(self, start: np.ndarray, end: np.ndarray) -> bool:
-        t = np.linspace(0.0, 1.0, 12)[:, None]
+        """Every cell on the segment is seen free floor, up to the goal's own cell."""
+        gap = float(np.hypot(*(end - start)))
+        t = np.linspace(0.0, max(0.0, 1.0 - self.cell_size / max(gap, 1e-9)), 12)[:, None]
         points = (1 - t) * start[None, :] + t * end[None, :]
-        free = self.map.free & self._passable
+        free = (self.map.free | self._visited) & ~self.map.obstacle
         return bool(self.grid.lookup(free, points, outside=False).all())
 
     def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:

@@ -83,13 +83,15 @@ def distance_field(
     cell_size: float,
     wall_margin: float = 0.0,
     slowest: float = 0.5,
+    crawl: np.ndarray | None = None,
 ) -> np.ndarray:
     """Travel distance (metres) from every free cell to the nearest source cell; ``inf`` elsewhere.
 
     With ``wall_margin`` > 0, cells closer than that to a non-free cell are slower to cross (down
     to ``slowest`` of full speed right next to it), so paths keep off walls where there is room (a
     path that hugs a wall collides when the map is a little off) but still squeeze through narrow
-    doors. The result is then a travel time, never less than the plain distance.
+    doors. The result is then a travel time, never less than the plain distance. ``crawl``
+    cells are crossed at a tenth of full speed: passable, but only if nothing else is.
     """
     sources = sources & free
     if not sources.any():
@@ -97,9 +99,13 @@ def distance_field(
     phi = np.where(sources, -1.0, 1.0)
     masked = np.ma.MaskedArray(phi, mask=~free)
     try:
-        if wall_margin > 0:
-            clearance = ndimage.distance_transform_edt(free) * cell_size
-            speed = np.clip(slowest + (1 - slowest) * clearance / wall_margin, slowest, 1.0)
+        if wall_margin > 0 or crawl is not None:
+            speed = np.ones(free.shape)
+            if wall_margin > 0:
+                clearance = ndimage.distance_transform_edt(free) * cell_size
+                speed = np.clip(slowest + (1 - slowest) * clearance / wall_margin, slowest, 1.0)
+            if crawl is not None:
+                speed[crawl] = 0.1
             field = skfmm.travel_time(masked, speed, dx=cell_size)
         else:
             field = skfmm.distance(masked, dx=cell_size)
@@ -164,6 +170,28 @@ class Motion:
         return round(2 * math.pi / self.turn_angle)
 
 
+def snap_heading(heading: float, motion: Motion = Motion()) -> tuple[float, int | None]:
+    """``(angle, index)``: a heading that is a whole number of turns from the start, snapped to
+    ``index * turn_angle`` (index in 0..n-1); other headings are returned as they are.
+
+    Snapping makes one direction give the very same points whichever heading it is computed
+    from; otherwise a point on a cell border can be passable from one side only, and the agent
+    swings between two headings forever.
+    """
+    index = round(heading / motion.turn_angle)
+    if abs(heading - index * motion.turn_angle) < 1e-3:
+        index %= motion.headings
+        return index * motion.turn_angle, index
+    return heading, None
+
+
+def step_points(position: np.ndarray, angle: float, motion: Motion = Motion()) -> np.ndarray:
+    """Five points along the forward step from ``position`` in direction ``angle``; the last is
+    where the step ends."""
+    step = motion.forward_step * np.array([math.cos(angle), math.sin(angle)])
+    return position[None, :] + np.linspace(0.0, 1.0, 6)[1:, None] * step[None, :]
+
+
 def choose_action(
     grid: StartFrameGrid,
     field: np.ndarray,
@@ -181,13 +209,15 @@ def choose_action(
     """
     here = interpolate(grid, field, position)
     n = motion.headings
+    angle, index = snap_heading(heading, motion)
     best_value, best_turns = here - 1e-6, None
-    samples = np.linspace(0.0, 1.0, 6)[1:, None]
     for k in range(n):
         turns = k if k <= n // 2 else k - n  # positive: turn left (counter-clockwise)
-        angle = heading + turns * motion.turn_angle
-        step = motion.forward_step * np.array([math.cos(angle), math.sin(angle)])
-        points = position[None, :] + samples * step[None, :]
+        if index is not None:
+            candidate = ((index + turns) % n) * motion.turn_angle
+        else:
+            candidate = angle + turns * motion.turn_angle
+        points = step_points(position, candidate, motion)
         if not grid.lookup(passable, points, outside=False).all():
             continue
         value = interpolate(grid, field, points[-1]) + turn_cost * abs(turns)
@@ -201,16 +231,17 @@ def choose_action(
 
 
 def cells_ahead(
-    grid: StartFrameGrid, position: np.ndarray, heading: float, step: float
+    grid: StartFrameGrid, position: np.ndarray, heading: float, motion: Motion = Motion()
 ) -> tuple[np.ndarray, np.ndarray]:
     """The cell a refused forward step would have ended in (empty if it is the agent's own).
 
-    Only the end: marking cells nearer the agent as well can wall it in after a few refusals in
-    different directions, and a step that crosses the true obstacle elsewhere is refused (and
-    marked) in turn.
+    Computed exactly as :func:`choose_action` computes the step, so the marked cell is the one
+    it checks. Only the end: marking cells nearer the agent as well can wall it in after a few
+    refusals in different directions, and a step that crosses the true obstacle elsewhere is
+    refused (and marked) in turn.
     """
-    direction = np.array([math.cos(heading), math.sin(heading)])
-    rows, cols = grid.to_cell((position + step * direction)[None, :])
+    angle, _ = snap_heading(heading, motion)
+    rows, cols = grid.to_cell(step_points(position, angle, motion)[-1:])
     here_row, here_col = grid.to_cell(position)
     ok = (rows >= 0) & (rows < grid.size) & (cols >= 0) & (cols < grid.size)
     ok &= (rows != here_row) | (cols != here_col)

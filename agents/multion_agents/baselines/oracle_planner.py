@@ -9,9 +9,13 @@ Per episode:
 1. the first oracle map is the global map in the start frame (see :mod:`.navigation`);
 2. per goal, a fast-marching distance field is computed from the goal's cells;
 3. each step the agent turns or steps so as to go down the field, using GPS and compass;
-4. a refused forward step marks the cells ahead as blocked and triggers a re-plan;
+4. a refused forward step marks the cell it would have entered and triggers a re-plan;
 5. FOUND once the map distance to the goal is below ``found_distance`` (1.0 m, well inside the
    1.5 m geodesic success radius, which leaves room for map discretisation).
+
+A 0.1 m cell is "free" when at least half of it is navigable, so a narrow gap can come out as
+occupied. When the goal is unreachable through free cells, the plan may cross occupied cells,
+at a tenth of the speed: the simulator then says which of them really block.
 """
 
 from __future__ import annotations
@@ -28,9 +32,10 @@ from multion_agents.baselines.navigation import (
     cells_ahead,
     choose_action,
     distance_field,
+    interpolate,
     nearest_free,
 )
-from multion_client.constants import MAP_FREE, MAP_UNKNOWN, Action
+from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
 
 CELL_SIZE = 0.1
 EGO_SIZE = 401
@@ -53,8 +58,10 @@ class OraclePlannerAgent(Agent):
 
     def reset(self) -> None:
         self._grid: StartFrameGrid | None = None
-        self._layers: np.ndarray | None = None
-        self._passable: np.ndarray | None = None
+        self._layers = np.zeros((0, 0, 2), dtype=np.uint8)  # the map, in the start frame
+        self._refused = np.zeros((0, 0), dtype=bool)  # cells a forward step was refused into
+        self._stood = np.zeros((0, 0), dtype=bool)  # cells the agent has stood in
+        self._moves = np.zeros((0, 0), dtype=bool)  # cells the current plan may cross
         self._field: np.ndarray | None = None
         self._goal: int | None = None
         self._last_position: np.ndarray | None = None
@@ -67,22 +74,22 @@ class OraclePlannerAgent(Agent):
         ego = observation["oracle_map"]
         if self._grid is None:
             self._start_map(ego)
-        assert self._grid is not None and self._passable is not None
+        assert self._grid is not None
         refused = (
             self._last_action == Action.MOVE_FORWARD
             and self._last_position is not None
             and np.allclose(position, self._last_position, atol=1e-4)
         )
         if refused:
-            ahead = cells_ahead(self._grid, position, heading, self.motion.forward_step)
-            self._passable[ahead] = False
+            ahead = cells_ahead(self._grid, position, heading, self.motion)
+            self._refused[ahead] = True
             self._field = None
             self.replans += 1
         row, col = (int(v) for v in self._grid.to_cell(position))
-        if not self._passable[row, col]:
-            # the agent stands here, so it is passable, whatever the map's rounding says
-            self._passable[row, col] = True
-            self._field = None
+        if not self._stood[row, col]:
+            self._stood[row, col] = True
+            if not self._moves[row, col]:
+                self._field = None  # the map rounded this cell to occupied: re-plan from here
         goal = int(observation["goal"])
         if goal != self._goal:
             self._goal, self._field = goal, None
@@ -98,50 +105,57 @@ class OraclePlannerAgent(Agent):
         cell = float(self.config_overrides["maps"]["cell_size"])
         self._grid = StartFrameGrid(size, cell)
         self._layers = ego.copy()
-        self._passable = ego[..., 0] == MAP_FREE
+        self._refused = np.zeros((size, size), dtype=bool)
+        self._stood = np.zeros((size, size), dtype=bool)
+        self._moves = np.zeros((size, size), dtype=bool)
 
     def _plan(self, goal: int, ego: np.ndarray, position: np.ndarray, heading: float) -> np.ndarray:
         """Distance field to the goal's cells, or to the map's frontier while they are unseen."""
-        assert self._grid is not None and self._layers is not None and self._passable is not None
+        assert self._grid is not None
         sources = self._layers[..., 1] == goal + 1
         if not sources.any():
             # the goal lies outside the first crop: add what the agent sees now
             self._paste(ego, position, heading)
             sources = self._layers[..., 1] == goal + 1
+        passable = ((self._layers[..., 0] == MAP_FREE) | self._stood) & ~self._refused
         if not sources.any():
-            sources = self._frontier()
-        targets = nearest_free(sources, self._passable, radius_cells=5)
-        return distance_field(self._passable, targets, self._grid.cell_size, self.wall_margin)
+            sources = self._frontier(passable)
+        cell = self._grid.cell_size
+        self._moves = passable
+        field = distance_field(passable, nearest_free(sources, passable, 5), cell, self.wall_margin)
+        if np.isfinite(interpolate(self._grid, field, position)):
+            return field
+        # unreachable through free cells: also cross occupied ones, slowly
+        relaxed = passable | ((self._layers[..., 0] == MAP_OCCUPIED) & ~self._refused)
+        self._moves = relaxed
+        targets = nearest_free(sources, relaxed, 5)
+        return distance_field(relaxed, targets, cell, self.wall_margin, crawl=relaxed & ~passable)
 
     def _next_action(self, position: np.ndarray, heading: float, refused: bool) -> int:
-        assert self._grid is not None and self._field is not None and self._passable is not None
-        here = float(self._grid.lookup(self._field, position, outside=np.inf))
-        goal_visible = bool((self._layers[..., 1] == self._goal + 1).any())  # type: ignore[index]
-        if goal_visible and here <= self.found_distance:
+        assert self._grid is not None and self._field is not None
+        here = interpolate(self._grid, self._field, position)
+        goal_known = bool((self._layers[..., 1] == self._goal + 1).any())  # type: ignore[operator]
+        if goal_known and here <= self.found_distance:
             return int(Action.FOUND)
-        action = choose_action(
-            self._grid, self._field, self._passable, position, heading, self.motion
-        )
+        action = choose_action(self._grid, self._field, self._moves, position, heading, self.motion)
         if action is None:
-            # no step goes downhill through cells the map calls free (e.g. right next to
-            # furniture, where the map rounds cells to occupied): probe straight ahead, and turn
-            # after a refused probe; the simulator, not the map, has the last word
+            # no step goes downhill through the cells the plan may cross: probe straight ahead,
+            # and turn after a refused probe; the simulator, not the map, has the last word
             action = int(Action.TURN_LEFT if refused else Action.MOVE_FORWARD)
         return action
 
-    def _frontier(self) -> np.ndarray:
-        assert self._layers is not None and self._passable is not None
+    def _frontier(self, passable: np.ndarray) -> np.ndarray:
         unknown = self._layers[..., 0] == MAP_UNKNOWN
         near_unknown = np.zeros_like(unknown)
         near_unknown[1:] |= unknown[:-1]
         near_unknown[:-1] |= unknown[1:]
         near_unknown[:, 1:] |= unknown[:, :-1]
         near_unknown[:, :-1] |= unknown[:, 1:]
-        return self._passable & near_unknown
+        return passable & near_unknown
 
     def _paste(self, ego: np.ndarray, position: np.ndarray, heading: float) -> None:
         """Write the known cells of an egocentric map taken at ``position``/``heading``."""
-        assert self._grid is not None and self._layers is not None and self._passable is not None
+        assert self._grid is not None
         grid, half = self._grid, ego.shape[0] // 2
         rows, cols = np.nonzero(ego[..., 0] != MAP_UNKNOWN)
         forward = (half - rows) * grid.cell_size
@@ -153,4 +167,3 @@ class OraclePlannerAgent(Agent):
         r, k = grid.to_cell(points)
         ok = (r >= 0) & (r < grid.size) & (k >= 0) & (k < grid.size)
         self._layers[r[ok], k[ok]] = ego[rows[ok], cols[ok]]
-        self._passable[r[ok], k[ok]] = ego[rows[ok], cols[ok], 0] == MAP_FREE
