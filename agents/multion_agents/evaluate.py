@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -261,7 +262,13 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     else:
         from multion.api.local_server import LocalServer
 
-        with LocalServer(workers=max(1, settings.workers)) as local:
+        # The local server may read the --dataset file's directory (servers refuse other paths).
+        allow = (
+            ["--dataset-dir", str(Path(settings.dataset).resolve().parent)]
+            if settings.dataset is not None
+            else []
+        )
+        with LocalServer(workers=max(1, settings.workers), options=allow) as local:
             with Client(local.url) as client:
                 health = client.health()
             config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)

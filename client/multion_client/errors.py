@@ -63,6 +63,12 @@ class InvalidEpisode(BadRequest):
     code, status = "invalid_episode", 422
 
 
+class PathNotAllowed(BadRequest):
+    """A file path (``dataset``, a mesh ``scene_id``) outside the directories the server may read."""
+
+    code, status = "path_not_allowed", 403
+
+
 class NotFound(MultiONError):
     """No such route."""
 
@@ -135,6 +141,7 @@ ERRORS: dict[str, type[MultiONError]] = {
         InvalidAction,
         InvalidConfig,
         InvalidEpisode,
+        PathNotAllowed,
         NotFound,
         SessionNotFound,
         MethodNotAllowed,
@@ -153,6 +160,7 @@ ERRORS: dict[str, type[MultiONError]] = {
 
 _BY_STATUS: dict[int, type[MultiONError]] = {
     400: BadRequest,
+    403: PathNotAllowed,
     404: NotFound,
     405: MethodNotAllowed,
     409: EpisodeOver,

@@ -36,7 +36,8 @@ def test_local_and_remote_server_give_the_same_metrics(
     local_out, remote_out = tmp_path / "local", tmp_path / "remote"
     in_process_out = tmp_path / "in-process"
     assert _run([*common, "--out", str(local_out), "--pictures", "2"]) == 0
-    with LocalServer(workers=1) as server:
+    # A remote server reads only the dataset directories its operator allows.
+    with LocalServer(workers=1, options=["--dataset-dir", str(path.parent)]) as server:
         assert _run([*common, "--out", str(remote_out), "--server", server.url]) == 0
     assert _run([*common, "--out", str(in_process_out), "--in-process", "--pictures", "0"]) == 0
     table = capsys.readouterr().out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from multion.api.settings import ServerSettings
 
@@ -25,6 +26,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for name, kind, text in _OPTIONS:
         parser.add_argument(f"--{name.replace('_', '-')}", dest=name, type=kind, help=text)
     parser.add_argument(
+        "--dataset-dir",
+        dest="allowed_dataset_dirs",
+        action="append",
+        type=Path,
+        metavar="DIR",
+        help="a directory whose dataset files (and mesh scenes) clients may name in their config; "
+        "repeatable. Default: only the packaged datasets",
+    )
+    parser.add_argument(
         "--log-level",
         default="info",
         choices=["critical", "error", "warning", "info", "debug"],
@@ -36,7 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def settings_from_args(args: argparse.Namespace) -> ServerSettings:
+    """Settings from the options given; the others come from ``MULTION_*`` or the defaults."""
     given = {name: getattr(args, name) for name, _, _ in _OPTIONS}
+    given["allowed_dataset_dirs"] = getattr(args, "allowed_dataset_dirs", None)
     return ServerSettings(**{k: v for k, v in given.items() if v is not None})
 
 

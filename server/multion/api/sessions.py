@@ -8,6 +8,7 @@ workers' replies are spliced into one msgpack response without decoding the arra
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import time
 import uuid
@@ -16,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings
 from multion.api.workers import Reply, Worker, WorkerPool
 from multion_client import errors
@@ -71,6 +73,7 @@ class SessionRegistry:
         self.reaped = 0
         self._pending_sessions = 0
         self._pending_envs = 0
+        self.roots = allowed_roots(settings.allowed_dataset_dirs)
         pool.on_death = self._worker_died
 
     # ------------------------------------------------------------------ operations
@@ -80,6 +83,8 @@ class SessionRegistry:
             session_config_from_dict(message.config)  # fail fast, before any worker is involved
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
+        # Files the config names are on this server's disk: only allowed directories (403).
+        message = dataclasses.replace(message, config=checked_config(message.config, self.roots))
         n, s = message.num_envs, self.settings
         if n > s.max_envs_per_session:
             raise errors.TooManyEnvs(
@@ -107,7 +112,7 @@ class SessionRegistry:
         session = self.get(session_id)
         n = session.num_envs
         seeds = message.seeds or [None] * n
-        options = message.options or [None] * n
+        options = checked_options(list(message.options or [None] * n), self.roots)
         if len(seeds) != n or len(options) != n:
             raise errors.BadRequest(
                 f"reset needs one seed and one options entry per environment ({n}), "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
@@ -23,3 +25,8 @@ class ServerSettings(BaseSettings):
         300.0, gt=0, description="a worker that takes longer to answer is killed and replaced"
     )
     worker_start_timeout_s: float = Field(120.0, gt=0)
+    allowed_dataset_dirs: list[Path] = Field(
+        default_factory=list,
+        description="directories whose dataset files (and mesh scenes) clients may name, besides "
+        "the packaged datasets; empty: packaged datasets only. Env: a JSON list",
+    )
