@@ -29,6 +29,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="run only these parts (repeatable; default: sim and http)",
     )
     parser.add_argument(
+        "--http",
+        default="auto",
+        choices=["auto", "h11", "httptools"],
+        help="HTTP parser of the benchmarked servers (default auto)",
+    )
+    parser.add_argument(
+        "--loop",
+        default="auto",
+        choices=["auto", "asyncio", "uvloop"],
+        help="event loop of the benchmarked servers (default auto)",
+    )
+    parser.add_argument(
         "--steps", type=int, default=300, help="steps per measurement (default 300)"
     )
     parser.add_argument(
@@ -46,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if "http" in parts:
         from multion.api.bench_http import run_http_bench
 
-        run_http_bench()
+        run_http_bench(server_options=["--http", args.http, "--loop", args.loop])
     if "train" in parts:
         from multion_agents.bench_train import run_train_bench
 

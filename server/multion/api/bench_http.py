@@ -40,12 +40,18 @@ def run_http_bench(
     vector_steps: int = 60,
     vector_resolution: int = 256,
     verbose: bool = True,
+    server_options: list[str] | None = None,
 ) -> dict[str, Any]:
-    """Run every measurement, print a small table (``verbose``) and return the numbers."""
+    """Run every measurement, print a small table (``verbose``) and return the numbers.
+
+    ``server_options`` are extra ``multion serve`` arguments, e.g. ``["--http", "h11"]``.
+    """
     say = print if verbose else _quiet
     result: dict[str, Any] = {"cpu_count": os.cpu_count(), "load_average": os.getloadavg()}
+    result["server_options"] = options = list(server_options or [])
     with contextlib.ExitStack() as stack:
-        one, two = LocalServer(workers=1), LocalServer(workers=2)
+        one = LocalServer(workers=1, options=options)
+        two = LocalServer(workers=2, options=options)
         for server in (one, two):
             stack.callback(server.stop)
             server.launch()
@@ -55,7 +61,7 @@ def run_http_bench(
         result["single"] = {res: _single_env(one.url, res, steps, say) for res in resolutions}
         result["vector"] = _vector(one.url, two.url, vector_resolution, vector_steps, say)
     result["vector"]["machine_headroom"] = _parallel_headroom(vector_resolution, vector_steps)
-    result["memory"] = _memory(episodes_for_memory, say)
+    result["memory"] = _memory(episodes_for_memory, say, options)
     if verbose:
         print_table(result)
     return result
@@ -64,6 +70,7 @@ def run_http_bench(
 def print_table(result: dict[str, Any]) -> None:
     load = ", ".join(f"{x:.2f}" for x in result["load_average"])
     print(f"\nMultiON HTTP benchmark — {result['cpu_count']} CPUs, load average {load} at start")
+    print(f"server options: {' '.join(result.get('server_options') or []) or '(defaults)'}")
     print(f"{'RGB-D':>9} {'in-process':>11} {'HTTP':>8} {'HTTP/in-process':>16}  (target ≥ 0.80)")
     for res, row in result["single"].items():
         print(
@@ -155,7 +162,9 @@ def _vector(
     return row
 
 
-def _memory(episodes: int, say: Callable[[str], None], num_envs: int = 8) -> dict[str, Any]:
+def _memory(
+    episodes: int, say: Callable[[str], None], options: list[str], num_envs: int = 8
+) -> dict[str, Any]:
     """Short episodes (32² camera, at most 20 steps, FOUND often) on a fresh 1-worker server."""
     grid = Simulator().load_scene(MEMORY_SCENE)
     rng = np.random.default_rng(0)
@@ -166,7 +175,7 @@ def _memory(episodes: int, say: Callable[[str], None], num_envs: int = 8) -> dic
         "episodes": [e.to_dict() for e in pool if e is not None],
     }
     early = min(50, episodes)
-    with LocalServer(workers=1) as server:
+    with LocalServer(workers=1, options=options) as server:
         vec = RemoteVectorEnv([server.url], num_envs, config)
         try:
             vec.reset(seed=0)

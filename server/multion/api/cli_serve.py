@@ -40,6 +40,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=["critical", "error", "warning", "info", "debug"],
         help="uvicorn log level (default info)",
     )
+    # "auto" takes httptools and uvloop when installed (uvicorn[standard]), else h11 and asyncio;
+    # the explicit choices exist to measure the difference (multion bench --http h11 ...).
+    parser.add_argument(
+        "--http",
+        default="auto",
+        choices=["auto", "h11", "httptools"],
+        help="HTTP parser (default auto: httptools when installed)",
+    )
+    parser.add_argument(
+        "--loop",
+        default="auto",
+        choices=["auto", "asyncio", "uvloop"],
+        help="event loop (default auto: uvloop when installed)",
+    )
     parser.add_argument(
         "--no-access-log", action="store_true", help="do not log every request (faster)"
     )
@@ -70,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
         port=settings.port,
         log_level=args.log_level,
         access_log=not args.no_access_log,
+        http=getattr(args, "http", "auto"),
+        loop=getattr(args, "loop", "auto"),
         timeout_graceful_shutdown=10,
     )
     return 0

@@ -57,6 +57,9 @@ class Worker:
         child.close()  # so that the worker's death shows up as EOF on our end
         self._fd = self.conn.fileno()
         self._loop.add_reader(self._fd, self._on_readable)
+        # uvloop (libuv) makes a watched fd non-blocking; the reads and writes here rely on a
+        # blocking pipe (a reply's parts are read in one go), and readiness works either way.
+        os.set_blocking(self._fd, True)
 
     @property
     def pid(self) -> int | None:
