@@ -61,6 +61,9 @@ class TaskConfig:
     slack_reward: float = -0.01
     goal_radius: float = 0.05
     goal_height: float = 0.75
+    goals_visible: bool = True
+    """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
+    ablation); they still count for FOUND, rewards and the oracle maps."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,9 @@ class EnvConfig:
     split: str = "val"
     dataset: str | None = None
     """A dataset file; None uses the packaged one for (m, split), or samples online for train."""
+    episodes_per_scene: int = 25
+    """Online (train) sampling draws this many episodes in a scene before moving to another:
+    a scene switch rebuilds the PyBullet world, and early training episodes are a few steps."""
 
     def __post_init__(self) -> None:
         unknown = [s for s in self.sensors if s not in SENSORS]
@@ -83,6 +89,8 @@ class EnvConfig:
             raise ValueError(f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
         if not 1 <= self.task.num_goals <= NUM_CATEGORIES:
             raise ValueError(f"num_goals must be in 1..{NUM_CATEGORIES}, got {self.task.num_goals}")
+        if self.episodes_per_scene < 1:
+            raise ValueError(f"episodes_per_scene must be ≥ 1, got {self.episodes_per_scene}")
         if self.maps.ego_size % 2 != 1:
             raise ValueError(f"maps.ego_size must be odd, got {self.maps.ego_size}")
 
@@ -139,6 +147,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self._last_rgb: np.ndarray | None = None
         self._done = True
         self._online_count = 0
+        self._online_scene: str | None = None
 
     # ------------------------------------------------------------------ episodes
     def _default_episodes(self) -> list[Episode] | None:
@@ -160,7 +169,13 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             episode = options["episode"]
             return episode if isinstance(episode, Episode) else Episode.from_dict(episode)
         if self.episodes is None:
-            scene = self._train_scenes[int(self.np_random.integers(len(self._train_scenes)))]
+            if (
+                self._online_scene is None
+                or self._online_count % self.config.episodes_per_scene == 0
+            ):
+                index = int(self.np_random.integers(len(self._train_scenes)))
+                self._online_scene = self._train_scenes[index]
+            scene = self._online_scene
             grid = self.sim.load_scene(scene)
             self._online_count += 1
             episode = sample_episode(
@@ -170,7 +185,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
                 self.np_random,
                 f"train-online-{self._online_count:07d}",
             )
-            if episode is None:
+            if episode is None:  # no valid episode found here: try another scene
+                self._online_scene = None
                 return self._next_episode(options)
             return episode
         if "episode_index" in options:
@@ -220,8 +236,9 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             optimal.append(d)
             previous = np.asarray(episode.goals[index].position[:2])
         assert self.sim.world is not None
+        visible_goals = episode.goals if task.goals_visible else ()
         self.sim.world.place_goals(
-            [(g.position, GOAL_RGBA[g.category]) for g in episode.goals],
+            [(g.position, GOAL_RGBA[g.category]) for g in visible_goals],
             task.goal_radius,
             task.goal_height,
         )
@@ -385,6 +402,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     def _goal_mask(self, segmentation: np.ndarray | None) -> np.ndarray:
         assert segmentation is not None and self.episode is not None and self.sim.world is not None
         mask = np.zeros(segmentation.shape, dtype=np.uint8)
+        if not self.config.task.goals_visible:
+            return mask
         for body, goal in zip(self.sim.world.goal_bodies_in_use, self.episode.goals, strict=True):
             mask[segmentation == body] = goal.category + 1
         return mask

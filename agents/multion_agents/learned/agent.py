@@ -1,0 +1,82 @@
+"""A trained policy as an :class:`~multion_agents.agent.Agent`, so ``multion eval`` runs it
+like any other agent: in the client process, seeing only observations."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import torch
+
+from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
+
+
+class LearnedAgent(Agent):
+    """Acts with a :class:`RecurrentPolicy`; samples from its action distribution (with the
+    agent's own random stream) or, when ``deterministic``, takes the most likely action."""
+
+    policy: ClassVar[RecurrentPolicy | None] = None
+    deterministic: ClassVar[bool] = False
+
+    def __init__(self, seed: int = 0) -> None:
+        super().__init__(seed)
+        if self.policy is None:
+            raise TypeError("LearnedAgent needs a policy: use learned_agent_class(checkpoint)")
+        self._state: State = {}
+        self._prev_action = 0
+        self._start = True
+
+    def reset(self) -> None:
+        assert self.policy is not None
+        self._state = self.policy.initial_state(1)
+        self._prev_action = 0
+        self._start = True
+
+    @torch.no_grad()
+    def act(self, observation: Observation) -> int:
+        assert self.policy is not None
+        batch = {
+            k: v.unsqueeze(0)
+            for k, v in frames_to_tensors(observation, self.policy.sensors).items()
+        }
+        out = self.policy(
+            {k: v.unsqueeze(0) for k, v in batch.items()},
+            torch.tensor([[self._prev_action]]),
+            torch.tensor([[float(self._start)]]),
+            self._state,
+        )
+        self._state, self._start = out.state, False
+        logits = out.logits[0, 0].double()
+        if self.deterministic:
+            action = int(logits.argmax())
+        else:
+            probs = torch.softmax(logits, 0).numpy()
+            action = int(self.rng.choice(len(probs), p=probs / probs.sum()))
+        self._prev_action = action
+        return action
+
+
+def agent_class_for_policy(
+    policy: RecurrentPolicy,
+    config_overrides: ConfigOverrides,
+    deterministic: bool = False,
+    name: str = "LearnedAgent",
+) -> type[LearnedAgent]:
+    """An Agent class bound to ``policy`` (the evaluator builds agents from classes)."""
+    policy.eval()
+    attributes: dict[str, Any] = {
+        "policy": policy,
+        "deterministic": deterministic,
+        "sensors": policy.sensors,
+        "config_overrides": config_overrides,
+    }
+    return type(name, (LearnedAgent,), attributes)
+
+
+def learned_agent_class(checkpoint: str | Path, deterministic: bool = False) -> type[LearnedAgent]:
+    """The Agent class of a training checkpoint (its model, weights and camera size)."""
+    from multion_agents.learned.checkpoint import load_policy
+
+    policy, overrides, spec_name = load_policy(checkpoint)
+    return agent_class_for_policy(policy, overrides, deterministic, name=f"Learned[{spec_name}]")

@@ -1,0 +1,232 @@
+"""The base agent architecture of the paper (§4.1): ``[v_i, v_m, v_g, v_a]`` → GRU → actor, critic.
+
+Every learned agent is a :class:`RecurrentPolicy` with a different :class:`Memory`: the part
+that turns a map or an episodic memory into ``v_m``. A memory keeps its per-episode state (a
+map, a list of past embeddings) in a dict of tensors whose first dimension is the environment;
+**an all-zero state is the empty state**, so the policy clears a finished episode's memory by
+multiplying its state by zero.
+
+Sequences are processed step by step so that the same code serves acting (T = 1) and the PPO
+update, which replays a rollout from the state saved at its start (recurrent mini-batches).
+Everything that does not depend on the state (the CNN over RGB-D, map embeddings) is computed
+for all T·B frames at once.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from gymnasium import spaces
+from torch import Tensor, nn
+from torch.distributions import Categorical
+
+from multion_agents.learned.encoders import ImageEncoder
+from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
+
+State = dict[str, Tensor]
+Batch = dict[str, Tensor]
+
+HIDDEN_SIZE = 512
+GOAL_EMBED_DIM = 32
+ACTION_EMBED_DIM = 32
+NO_ACTION = NUM_ACTIONS
+"""Index of the "no previous action" embedding, used at an episode's first step."""
+
+
+class Memory(nn.Module, ABC):
+    """What distinguishes one agent from another: how ``v_m`` is made.
+
+    ``sensors`` are the observation keys the memory reads when acting; ``train_sensors`` the
+    extra keys it needs only to compute an auxiliary loss during training (e.g. ``goal_mask``).
+    """
+
+    sensors: tuple[str, ...] = ()
+    train_sensors: tuple[str, ...] = ()
+    out_dim: int = 0
+
+    def initial_state(self, batch: int) -> State:
+        """The empty memory of ``batch`` environments (all zeros)."""
+        return {}
+
+    def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:
+        """Per-frame work that does not depend on the state, batched over all T·B frames."""
+        return {}
+
+    @abstractmethod
+    def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
+        """One time step for B environments: ``frame`` holds the step's observations and
+        precomputed tensors, ``query`` the step's ``[v_i, v_g, v_a]``. Returns ``v_m`` (B,
+        out_dim) and the new state."""
+
+    def auxiliary_loss(self, frames: Batch, precomputed: Batch) -> Tensor | None:
+        """A supervised loss added to PPO's (None: none). ``frames`` are T·B flat frames."""
+        return None
+
+
+@dataclass
+class PolicyOutput:
+    logits: Tensor  # (T, B, A)
+    value: Tensor  # (T, B)
+    state: State
+    auxiliary_loss: Tensor | None
+
+
+class RecurrentPolicy(nn.Module):
+    """Actor-critic over RGB-D, goal, previous action and a :class:`Memory` (None: no map)."""
+
+    def __init__(
+        self,
+        observation_space: spaces.Dict,
+        memory: Memory | None,
+        use_rgb: bool = True,
+        use_depth: bool = True,
+    ) -> None:
+        super().__init__()
+        self.use_rgb = use_rgb and "rgb" in observation_space.spaces
+        self.use_depth = use_depth and "depth" in observation_space.spaces
+        self.image_encoder: ImageEncoder | None = None
+        image_dim = 0
+        if self.use_rgb or self.use_depth:
+            key = "rgb" if self.use_rgb else "depth"
+            size = observation_space[key].shape[0]
+            self.image_encoder = ImageEncoder(size, self.use_rgb, self.use_depth)
+            image_dim = self.image_encoder.out_dim
+        self.memory = memory
+        self.goal_embedding = nn.Embedding(NUM_CATEGORIES, GOAL_EMBED_DIM)
+        self.action_embedding = nn.Embedding(NUM_ACTIONS + 1, ACTION_EMBED_DIM)
+        self.query_dim = image_dim + GOAL_EMBED_DIM + ACTION_EMBED_DIM
+        memory_dim = memory.out_dim if memory is not None else 0
+        self.gru = nn.GRUCell(self.query_dim + memory_dim, HIDDEN_SIZE)
+        self.actor = _layer(nn.Linear(HIDDEN_SIZE, NUM_ACTIONS), std=0.01)
+        self.critic = _layer(nn.Linear(HIDDEN_SIZE, 1), std=1.0)
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        """Observation keys read when acting."""
+        own = ("rgb",) * self.use_rgb + ("depth",) * self.use_depth + ("goal",)
+        extra = self.memory.sensors if self.memory is not None else ()
+        return tuple(dict.fromkeys(own + extra))
+
+    @property
+    def train_sensors(self) -> tuple[str, ...]:
+        """Observation keys needed while training (acting sensors plus supervision)."""
+        extra = self.memory.train_sensors if self.memory is not None else ()
+        return tuple(dict.fromkeys(self.sensors + extra))
+
+    def initial_state(self, batch: int) -> State:
+        state = {"hidden": torch.zeros(batch, HIDDEN_SIZE)}
+        if self.memory is not None:
+            state.update({f"memory.{k}": v for k, v in self.memory.initial_state(batch).items()})
+        return state
+
+    def forward(
+        self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State
+    ) -> PolicyOutput:
+        """Run T steps for B environments. ``frames[k]`` is (T, B, ...); ``prev_action`` (T, B)
+        is the action taken before each step (ignored at episode starts); ``episode_start``
+        (T, B) is 1 where a new episode begins, which clears the state."""
+        steps, batch = episode_start.shape
+        flat = {k: v.reshape(steps * batch, *v.shape[2:]) for k, v in frames.items()}
+        starts = episode_start.reshape(-1).bool()
+        previous = torch.where(
+            starts,
+            torch.full_like(starts, NO_ACTION, dtype=torch.long),
+            prev_action.reshape(-1).long(),
+        )
+        parts = []
+        image_features = None
+        if self.image_encoder is not None:
+            image_features, v_i = self.image_encoder(flat.get("rgb"), flat.get("depth"))
+            parts.append(v_i)
+        parts += [self.goal_embedding(flat["goal"].long()), self.action_embedding(previous)]
+        query = torch.cat(parts, dim=1).reshape(steps, batch, -1)
+        precomputed = self.memory.precompute(flat, image_features) if self.memory else {}
+        per_step = {
+            k: v.reshape(steps, batch, *v.shape[1:]) for k, v in {**flat, **precomputed}.items()
+        }
+
+        hidden = state["hidden"]
+        memory_state = {k[len("memory.") :]: v for k, v in state.items() if k.startswith("memory.")}
+        outputs = []
+        for t in range(steps):
+            keep = 1.0 - episode_start[t].float()
+            hidden = hidden * keep[:, None]
+            inputs = query[t]
+            if self.memory is not None:
+                memory_state = {
+                    k: v * keep.view(-1, *[1] * (v.dim() - 1)) for k, v in memory_state.items()
+                }
+                v_m, memory_state = self.memory.step(
+                    {k: v[t] for k, v in per_step.items()}, query[t], memory_state
+                )
+                inputs = torch.cat([inputs, v_m], dim=1)
+            hidden = self.gru(inputs, hidden)
+            outputs.append(hidden)
+        core = torch.stack(outputs)
+        new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
+        auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
+        return PolicyOutput(
+            logits=self.actor(core),
+            value=self.critic(core).squeeze(-1),
+            state=new_state,
+            auxiliary_loss=auxiliary,
+        )
+
+    # cleanrl-style entry points ---------------------------------------------------------
+    def get_value(
+        self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State
+    ) -> Tensor:
+        """V(s) of one step for B environments (inputs without the time dimension)."""
+        out = self(*_one_step(frames, prev_action, episode_start), state)
+        return out.value[0]
+
+    def get_action_and_value(
+        self,
+        frames: Batch,
+        prev_action: Tensor,
+        episode_start: Tensor,
+        state: State,
+        deterministic: bool = False,
+    ) -> tuple[Tensor, Tensor, Tensor, State]:
+        """Sample (or take the most likely) action for one step: action, log-prob, value, state."""
+        out = self(*_one_step(frames, prev_action, episode_start), state)
+        dist = Categorical(logits=out.logits[0])
+        action = out.logits[0].argmax(-1) if deterministic else dist.sample()
+        return action, dist.log_prob(action), out.value[0], out.state
+
+    def evaluate_actions(
+        self,
+        frames: Batch,
+        prev_action: Tensor,
+        episode_start: Tensor,
+        state: State,
+        actions: Tensor,
+    ) -> tuple[Tensor, Tensor, Tensor, Tensor | None]:
+        """Replay a (T, B) sequence: log-probs of ``actions``, entropies, values, auxiliary loss."""
+        out = self(frames, prev_action, episode_start, state)
+        dist = Categorical(logits=out.logits)
+        return dist.log_prob(actions), dist.entropy(), out.value, out.auxiliary_loss
+
+
+def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...]) -> Batch:
+    """Batched numpy observations → tensors (uint8 stays uint8: images are scaled in the CNN)."""
+    return {k: torch.as_tensor(np.asarray(observation[k])) for k in keys}
+
+
+def _one_step(
+    frames: Batch, prev_action: Tensor, episode_start: Tensor
+) -> tuple[Batch, Tensor, Tensor]:
+    return (
+        {k: v.unsqueeze(0) for k, v in frames.items()},
+        prev_action.unsqueeze(0),
+        episode_start.unsqueeze(0),
+    )
+
+
+def _layer(layer: nn.Linear, std: float) -> nn.Linear:
+    nn.init.orthogonal_(layer.weight, std)
+    nn.init.constant_(layer.bias, 0.0)
+    return layer

@@ -1,0 +1,472 @@
+"""PPO and DD-PPO for the MultiON agents, in one file (in the style of cleanrl).
+
+One process trains with PPO. Several processes started by ``torchrun`` train with DD-PPO
+(Wijmans et al. 2020): every rank steps its own environments, computes gradients on its own
+rollouts, and the gradients are averaged with ``all_reduce`` before each optimiser step, so
+the ranks' weights stay identical (gloo on CPU, NCCL on GPU). The same command works on one
+core, one machine or many.
+
+Recurrent mini-batches: the rollout's environments are split into ``minibatches`` groups and
+each group's 128-step sequences are replayed from the state saved at the start of the rollout.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections import deque
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.distributed as dist
+from torch import Tensor, nn
+from tqdm import tqdm
+
+from multion_agents.learned.checkpoint import (
+    CheckpointError,
+    build_policy,
+    load_checkpoint,
+    restore_random_states,
+    save_checkpoint,
+)
+from multion_agents.learned.models import model_spec
+from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
+from multion_agents.learned.rollout_envs import (
+    SUMMARY_METRICS,
+    finished_episodes,
+    make_vector_env,
+    training_env_config,
+)
+from multion_agents.learned.training_log import TrainingLog, plot_learning_curve
+
+
+@dataclass
+class Args:
+    """A training run. Defaults are the paper's PPO hyper-parameters (SPEC §6)."""
+
+    agent: str = "oracle-map"
+    """Model name, one of ``multion_agents.learned.models.MODELS``."""
+    task: str = "1-on"
+    frames: int = 1_000_000
+    """Environment steps to train for, summed over all ranks."""
+    envs: int = 4
+    """Environments per rank."""
+    servers: tuple[str, ...] = ()
+    """MultiON server URLs to step the environments on; empty: local simulator processes."""
+    image_size: int = 256
+    """Camera width = height (the paper: 256)."""
+    seed: int = 1
+    out: str = "runs/train"
+    """Directory for checkpoint.pt, progress.csv, eval.csv, TensorBoard and learning_curve.png."""
+    rollout_steps: int = 128
+    learning_rate: float = 2.5e-4
+    clip: float = 0.2
+    epochs: int = 2
+    minibatches: int = 4
+    """Mini-batches per epoch (at most the number of environments per rank)."""
+    value_coef: float = 0.5
+    entropy_coef: float = 0.01
+    aux_coef: float = 1.0
+    """Weight of a model's auxiliary loss (ObjRecogMap's recogniser)."""
+    max_grad_norm: float = 0.2
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    checkpoint_every: int = 10
+    """Save a checkpoint every N updates (and at the end)."""
+    eval_every: int = 0
+    """Evaluate on val episodes every N frames (0: only at the end if eval_episodes > 0)."""
+    eval_episodes: int = 0
+    """Val episodes per evaluation (evenly spaced over the packaged val set)."""
+    resume: bool = False
+    """Continue from ``out/checkpoint.pt``."""
+    threads: int = 1
+    """torch threads per rank. 1 is fastest when simulator processes share the cores: with
+    more, OpenMP threads spin against the simulators (20× slower steps measured on 2 cores)."""
+    episodes_per_scene: int = 25
+    max_steps: int | None = None
+    """Step limit of *training* episodes (None: the task's 2500); evaluation always uses 2500."""
+    dataset: str | None = None
+    """Train on the episodes of this dataset file instead of sampling train-split episodes."""
+    device: str = "auto"
+    tensorboard: bool = True
+    progress: bool = True
+    extra: dict[str, Any] = field(default_factory=dict)
+    """Free-form notes stored in the checkpoint (e.g. the command line)."""
+
+
+@dataclass
+class Rollout:
+    """``T`` steps of ``E`` environments, everything (T, E, ...) except the initial state."""
+
+    frames: dict[str, Tensor]
+    prev_actions: Tensor
+    starts: Tensor
+    actions: Tensor
+    logprobs: Tensor
+    values: Tensor
+    rewards: Tensor
+    dones: Tensor
+    initial_state: State
+    advantages: Tensor = field(default_factory=lambda: torch.empty(0))
+    returns: Tensor = field(default_factory=lambda: torch.empty(0))
+
+
+def compute_gae(rollout: Rollout, next_value: Tensor, gamma: float, lam: float) -> None:
+    """Generalised advantage estimation; ``dones[t]`` ends the episode after step t."""
+    steps = rollout.rewards.shape[0]
+    advantages = torch.zeros_like(rollout.rewards)
+    last = torch.zeros_like(next_value)
+    for t in reversed(range(steps)):
+        following = next_value if t == steps - 1 else rollout.values[t + 1]
+        alive = 1.0 - rollout.dones[t]
+        delta = rollout.rewards[t] + gamma * following * alive - rollout.values[t]
+        last = delta + gamma * lam * alive * last
+        advantages[t] = last
+    rollout.advantages = advantages
+    rollout.returns = advantages + rollout.values
+
+
+def ppo_update(
+    policy: RecurrentPolicy, optimizer: torch.optim.Optimizer, rollout: Rollout, args: Args
+) -> dict[str, float]:
+    """PPO's clipped-objective update on one rollout; gradients are averaged over DD-PPO ranks."""
+    num_envs = rollout.rewards.shape[1]
+    groups = max(1, min(args.minibatches, num_envs))
+    advantages = rollout.advantages
+    advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    device = next(policy.parameters()).device
+    totals: dict[str, float] = {}
+    updates = 0
+    policy.train()
+    for _ in range(args.epochs):
+        order = torch.randperm(num_envs)
+        for chunk in order.chunk(groups):
+
+            def pick(x: Tensor, chunk: Tensor = chunk) -> Tensor:
+                return x[:, chunk].to(device)
+
+            logprob, entropy, value, aux = policy.evaluate_actions(
+                {k: pick(v) for k, v in rollout.frames.items()},
+                pick(rollout.prev_actions),
+                pick(rollout.starts),
+                {k: v[chunk].to(device) for k, v in rollout.initial_state.items()},
+                pick(rollout.actions),
+            )
+            ratio = torch.exp(logprob - pick(rollout.logprobs))
+            adv = pick(advantages)
+            policy_loss = -torch.min(
+                ratio * adv, ratio.clamp(1 - args.clip, 1 + args.clip) * adv
+            ).mean()
+            old_values, returns = pick(rollout.values), pick(rollout.returns)
+            clipped = old_values + (value - old_values).clamp(-args.clip, args.clip)
+            value_loss = 0.5 * torch.max((value - returns) ** 2, (clipped - returns) ** 2).mean()
+            entropy_mean = entropy.mean()
+            loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy_mean
+            if aux is not None:
+                loss = loss + args.aux_coef * aux
+            optimizer.zero_grad(set_to_none=False)
+            loss.backward()
+            average_gradients(policy)
+            grad_norm = nn.utils.clip_grad_norm_(policy.parameters(), args.max_grad_norm)
+            optimizer.step()
+            stats = {
+                "policy_loss": policy_loss.item(),
+                "value_loss": value_loss.item(),
+                "entropy": entropy_mean.item(),
+                "aux_loss": aux.item() if aux is not None else math.nan,
+                "grad_norm": float(grad_norm),
+                "clip_fraction": ((ratio - 1).abs() > args.clip).float().mean().item(),
+            }
+            for key, value_ in stats.items():
+                totals[key] = totals.get(key, 0.0) + value_
+            updates += 1
+    return {k: v / updates for k, v in totals.items()}
+
+
+# ---------------------------------------------------------------------- distributed
+def init_distributed(device: torch.device) -> tuple[int, int]:
+    """(rank, world size): from torchrun's environment, or (0, 1) for a single process."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world <= 1:
+        return 0, 1
+    if not dist.is_initialized():
+        dist.init_process_group(backend="nccl" if device.type == "cuda" else "gloo")
+    return dist.get_rank(), dist.get_world_size()
+
+
+def average_gradients(policy: nn.Module) -> None:
+    """All-reduce the gradients (one flat buffer) and divide by the number of ranks."""
+    if not (dist.is_available() and dist.is_initialized()) or dist.get_world_size() == 1:
+        return
+    params = [p for p in policy.parameters() if p.requires_grad]
+    for p in params:  # parameters a model did not use this step still take part in the sum
+        if p.grad is None:
+            p.grad = torch.zeros_like(p)
+    flat = torch.cat([p.grad.reshape(-1) for p in params])
+    dist.all_reduce(flat)
+    flat /= dist.get_world_size()
+    offset = 0
+    for p in params:
+        p.grad.copy_(flat[offset : offset + p.numel()].view_as(p))
+        offset += p.numel()
+
+
+def broadcast_parameters(policy: nn.Module) -> None:
+    if dist.is_available() and dist.is_initialized():
+        for tensor in policy.state_dict().values():
+            dist.broadcast(tensor, src=0)
+
+
+def _sum_over_ranks(values: list[float]) -> list[float]:
+    if not (dist.is_available() and dist.is_initialized()):
+        return values
+    tensor = torch.tensor(values, dtype=torch.float64)
+    dist.all_reduce(tensor)
+    return tensor.tolist()
+
+
+# ---------------------------------------------------------------------- the training loop
+def _device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def train(args: Args) -> dict[str, Any]:
+    """Run (or resume) a training run; returns a summary of the last update."""
+    from multion.task.dataset import parse_task
+
+    spec = model_spec(args.agent)
+    num_goals = parse_task(args.task)
+    device = _device(args.device)
+    rank, world = init_distributed(device)
+    torch.set_num_threads(max(1, args.threads))
+    out = Path(args.out)
+    env_config = training_env_config(
+        num_goals,
+        spec.train_sensors,
+        args.image_size,
+        "train",
+        spec.config_overrides,
+        args.max_steps,
+        args.dataset,
+    )
+    env_config["episodes_per_scene"] = args.episodes_per_scene
+    torch.manual_seed(args.seed)  # identical initial weights on every rank
+    policy = build_policy(args.agent, env_config).to(device)
+    optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
+    update, frames = 0, 0
+    checkpoint_path = out / "checkpoint.pt"
+    if args.resume:
+        payload = load_checkpoint(checkpoint_path)
+        if payload["agent"] != args.agent or payload["env_config"] != env_config:
+            raise CheckpointError(
+                f"{checkpoint_path} was trained with agent {payload['agent']!r} and env config "
+                f"{payload['env_config']}; this run asks for {args.agent!r} and {env_config}"
+            )
+        policy.load_state_dict(payload["model"])
+        optimizer.load_state_dict(payload["optimizer"])
+        update, frames = payload["update"], payload["frames"]
+        restore_random_states(payload)
+    broadcast_parameters(policy)
+    torch.manual_seed(args.seed * 7919 + update * 104729 + rank)  # per-rank action sampling
+    frames_per_update = args.rollout_steps * args.envs * world
+    total_updates = math.ceil(args.frames / frames_per_update)
+    servers = tuple(args.servers[rank::world]) or tuple(args.servers)
+    envs = make_vector_env(env_config, args.envs, servers)
+    log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
+    window: deque[dict[str, float]] = deque(maxlen=100)
+    keys = policy.train_sensors
+    try:
+        observation, _ = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
+        state = {k: v.to(device) for k, v in policy.initial_state(args.envs).items()}
+        prev_action = torch.zeros(args.envs, dtype=torch.long)
+        start = torch.ones(args.envs)
+        returns = np.zeros(args.envs)
+        bar = tqdm(
+            total=total_updates * frames_per_update,
+            initial=frames,
+            unit="frame",
+            unit_scale=True,
+            desc=f"train {args.agent} {args.task}",
+            disable=not (args.progress and rank == 0),
+        )
+        summary: dict[str, Any] = {}
+        while update < total_updates:
+            tick = time.perf_counter()
+            initial_state = {k: v.detach().cpu().clone() for k, v in state.items()}
+            steps: dict[str, list[Any]] = {
+                k: [] for k in ("prev", "start", "action", "logprob", "value", "reward", "done")
+            }
+            stored: dict[str, list[Tensor]] = {k: [] for k in keys}
+            sim_seconds = act_seconds = 0.0
+            for _ in range(args.rollout_steps):
+                frame = frames_to_tensors(observation, keys)
+                for k in keys:
+                    stored[k].append(frame[k])
+                act_tick = time.perf_counter()
+                with torch.no_grad():
+                    action, logprob, value, state = policy.get_action_and_value(
+                        {k: v.to(device) for k, v in frame.items()},
+                        prev_action.to(device),
+                        start.to(device),
+                        state,
+                    )
+                act_seconds += time.perf_counter() - act_tick
+                sim_tick = time.perf_counter()
+                observation, reward, terminated, truncated, infos = envs.step(action.cpu().numpy())
+                sim_seconds += time.perf_counter() - sim_tick
+                done = np.logical_or(terminated, truncated)
+                returns += reward
+                for index, metrics in finished_episodes(infos):
+                    window.append({**metrics, "return": float(returns[index])})
+                    returns[index] = 0.0
+                for key, item in (
+                    ("prev", prev_action),
+                    ("start", start),
+                    ("action", action.cpu()),
+                    ("logprob", logprob.cpu()),
+                    ("value", value.cpu()),
+                    ("reward", torch.as_tensor(reward, dtype=torch.float32)),
+                    ("done", torch.as_tensor(done, dtype=torch.float32)),
+                ):
+                    steps[key].append(item)
+                prev_action, start = action.cpu(), torch.as_tensor(done, dtype=torch.float32)
+            with torch.no_grad():
+                frame = frames_to_tensors(observation, keys)
+                next_value = policy.get_value(
+                    {k: v.to(device) for k, v in frame.items()},
+                    prev_action.to(device),
+                    start.to(device),
+                    state,
+                ).cpu()
+            rollout = Rollout(
+                frames={k: torch.stack(v) for k, v in stored.items()},
+                prev_actions=torch.stack(steps["prev"]),
+                starts=torch.stack(steps["start"]),
+                actions=torch.stack(steps["action"]),
+                logprobs=torch.stack(steps["logprob"]),
+                values=torch.stack(steps["value"]),
+                rewards=torch.stack(steps["reward"]),
+                dones=torch.stack(steps["done"]),
+                initial_state=initial_state,
+            )
+            compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
+            update_tick = time.perf_counter()
+            stats = ppo_update(policy, optimizer, rollout, args)
+            update_seconds = time.perf_counter() - update_tick
+            update += 1
+            frames += frames_per_update
+            seconds = time.perf_counter() - tick
+            summary = {
+                "update": update,
+                "frames": frames,
+                "fps": frames_per_update / seconds,
+                "sim_seconds": sim_seconds,
+                "act_seconds": act_seconds,
+                "update_seconds": update_seconds,
+                **_window_means(window),
+                **stats,
+            }
+            bar.update(frames_per_update)
+            if log is not None:
+                log.write("progress", summary)
+                bar.set_postfix(
+                    success=f"{100 * summary['train_success']:.0f}%" if summary["episodes"] else "-"
+                )
+                final = update == total_updates
+                if update % args.checkpoint_every == 0 or final:
+                    _save(checkpoint_path, policy, optimizer, args, env_config, update, frames)
+                due = (
+                    args.eval_every
+                    and frames // args.eval_every != (frames - frames_per_update) // args.eval_every
+                )
+                if args.eval_episodes > 0 and (due or final):
+                    result = evaluate_policy(policy, args, env_config, num_goals)
+                    log.write("eval", {"frames": frames, "update": update, **result})
+                    plot_learning_curve(out, f"{args.agent} on {args.task}")
+        bar.close()
+        if log is not None:
+            plot_learning_curve(out, f"{args.agent} on {args.task}")
+        return summary
+    finally:
+        envs.close()
+        if log is not None:
+            log.close()
+
+
+def _window_means(window: deque[dict[str, float]]) -> dict[str, float]:
+    names = [*SUMMARY_METRICS, "return"]
+    sums = [sum(e.get(k, 0.0) for e in window) for k in names] + [float(len(window))]
+    sums = _sum_over_ranks(sums)
+    count = sums[-1]
+    means = {
+        f"train_{k}": (s / count if count else math.nan)
+        for k, s in zip(names, sums[:-1], strict=True)
+    }
+    return {"episodes": count, **means}
+
+
+def _save(
+    path: Path,
+    policy: RecurrentPolicy,
+    optimizer: torch.optim.Optimizer,
+    args: Args,
+    env_config: dict[str, Any],
+    update: int,
+    frames: int,
+) -> None:
+    save_checkpoint(
+        path,
+        {
+            "model": policy.state_dict(),
+            "optimizer": optimizer.state_dict(),
+            "agent": args.agent,
+            "task": args.task,
+            "env_config": env_config,
+            "args": asdict(args),
+            "update": update,
+            "frames": frames,
+        },
+    )
+
+
+def evaluate_policy(
+    policy: RecurrentPolicy, args: Args, env_config: dict[str, Any], num_goals: int
+) -> dict[str, float]:
+    """Mean val metrics of the current policy over ``args.eval_episodes`` evenly spaced packaged
+    val episodes, played in this process with the task's own step limit."""
+    from multion_agents.evaluate import (
+        EvalSettings,
+        episode_seed,
+        local_env_factory,
+        run_episode,
+        select_episodes,
+    )
+    from multion_agents.learned.agent import agent_class_for_policy
+
+    config = {
+        **env_config,
+        "split": "val",
+        "task": {k: v for k, v in env_config["task"].items() if k != "max_steps"},
+    }
+    config["sensors"] = list(dict.fromkeys([*policy.sensors, "gps"]))
+    config.pop("episodes_per_scene", None)
+    episodes = select_episodes(
+        EvalSettings(agent="", num_goals=num_goals, split="val", episodes=args.eval_episodes)
+    )
+    agent = agent_class_for_policy(policy, {})(seed=args.seed)
+    env = local_env_factory()(config)
+    try:
+        records = []
+        for index, episode in enumerate(episodes):
+            agent.seed(episode_seed(args.seed, index))
+            records.append(run_episode(env, agent, episode, index).metrics)
+    finally:
+        env.close()
+        policy.train()
+    return {k: float(np.mean([r[k] for r in records])) for k in SUMMARY_METRICS}

@@ -1,0 +1,86 @@
+"""Vector environments for training: in-process simulator workers, or MultiON servers.
+
+Both kinds auto-reset with Gymnasium's ``SAME_STEP`` mode: the step that ends an episode
+returns its reward and done flags, the next episode's first observation, and the finished
+episode's metrics in ``infos["final_info"]``. The trainer never sees a step whose action is
+ignored, and the rollout code is the same for local and remote environments.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
+
+from multion_agents.agent import merge_overrides
+
+SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
+
+
+def training_env_config(
+    num_goals: int,
+    sensors: Sequence[str],
+    image_size: int,
+    split: str = "train",
+    overrides: dict[str, dict[str, Any]] | None = None,
+    max_steps: int | None = None,
+    dataset: str | None = None,
+) -> dict[str, Any]:
+    """The env config (nested dicts, the server's wire form) a learned agent trains with."""
+    config: dict[str, Any] = {
+        "task": {"num_goals": num_goals},
+        "camera": {"width": image_size, "height": image_size},
+        "sensors": list(sensors),
+        "split": split,
+    }
+    if max_steps is not None:
+        config["task"]["max_steps"] = max_steps
+    if dataset is not None:
+        config["dataset"] = str(dataset)
+    return merge_overrides(config, overrides or {})
+
+
+def _make_local_env(config: dict[str, Any]) -> gym.Env:
+    # module-level so that spawn-started workers can unpickle it
+    from multion.api.config_io import env_config_from_dict
+    from multion.task.env import MultiONEnv
+
+    return MultiONEnv(env_config_from_dict(config))
+
+
+def make_vector_env(
+    config: dict[str, Any], num_envs: int, servers: Sequence[str] = ()
+) -> VectorEnv:
+    """``num_envs`` environments: on ``servers`` (spread evenly) or in local worker processes."""
+    if servers:
+        from multion_client.vector import RemoteVectorEnv
+
+        counts = [
+            num_envs // len(servers) + (i < num_envs % len(servers)) for i in range(len(servers))
+        ]
+        if min(counts) < 1:
+            raise ValueError(f"{num_envs} envs cannot be spread over {len(servers)} servers")
+        return RemoteVectorEnv(list(servers), counts, config)
+    return AsyncVectorEnv(
+        [functools.partial(_make_local_env, config) for _ in range(num_envs)],
+        context="spawn",
+        autoreset_mode=AutoresetMode.SAME_STEP,
+    )
+
+
+def finished_episodes(infos: dict[str, Any]) -> list[tuple[int, dict[str, float]]]:
+    """(env index, summary metrics) of the episodes that ended at this step."""
+    if "final_info" not in infos:
+        return []
+    final, mask = infos["final_info"], np.asarray(infos["_final_info"], dtype=bool)
+    metrics = final.get("metrics", {})
+    out = []
+    for index in np.flatnonzero(mask):
+        out.append(
+            (int(index), {k: float(metrics[k][index]) for k in SUMMARY_METRICS if k in metrics})
+        )
+    return out

@@ -1,0 +1,116 @@
+"""Training logs: a CSV row per update, TensorBoard scalars, and a learning-curve PNG."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+from typing import Any
+
+CURVE_METRICS = ("success", "progress", "spl", "ppl")
+
+
+class TrainingLog:
+    """Appends to ``progress.csv`` and ``eval.csv`` in ``out`` (resumed runs keep appending)
+    and mirrors every value to TensorBoard under ``out/tensorboard``."""
+
+    def __init__(self, out: Path, tensorboard: bool = True) -> None:
+        self.out = out
+        out.mkdir(parents=True, exist_ok=True)
+        self.writer = None
+        if tensorboard:
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+            except ImportError:  # tensorboard is optional: CSV and PNG still work
+                pass
+            else:
+                self.writer = SummaryWriter(str(out / "tensorboard"))
+
+    def write(self, name: str, row: dict[str, Any]) -> None:
+        """Append ``row`` to ``{name}.csv`` (the first row fixes the columns)."""
+        path = self.out / f"{name}.csv"
+        fresh = not path.exists() or path.stat().st_size == 0
+        if not fresh:
+            with path.open() as handle:
+                columns = next(csv.reader(handle))
+        else:
+            columns = list(row)
+        with path.open("a", newline="") as handle:
+            writer = csv.DictWriter(handle, columns, extrasaction="ignore")
+            if fresh:
+                writer.writeheader()
+            writer.writerow({k: _round(row.get(k, "")) for k in columns})
+        if self.writer is not None:
+            step = int(row["frames"])
+            for key, value in row.items():
+                if key != "frames" and isinstance(value, int | float) and math.isfinite(value):
+                    self.writer.add_scalar(f"{name}/{key}", value, step)
+            self.writer.flush()
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
+
+def read_csv(path: Path) -> list[dict[str, float]]:
+    if not path.exists():
+        return []
+    with path.open() as handle:
+        return [{k: _float(v) for k, v in row.items()} for row in csv.DictReader(handle)]
+
+
+def plot_learning_curve(out: Path, title: str, baseline: dict[str, float] | None = None) -> Path:
+    """``learning_curve.png``: train episode Success/SPL (running means) and val evaluations
+    against frames, with an optional horizontal baseline (e.g. Rand+OracleFound's val success)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    train = [
+        r for r in read_csv(out / "progress.csv") if math.isfinite(r.get("train_success", math.nan))
+    ]
+    evals = read_csv(out / "eval.csv")
+    figure, axis = plt.subplots(figsize=(7, 4), dpi=120)
+    if train:
+        frames = [r["frames"] for r in train]
+        axis.plot(
+            frames,
+            [100 * r["train_success"] for r in train],
+            color="tab:blue",
+            alpha=0.5,
+            label="train Success (last 100 episodes)",
+        )
+    for metric, color in (("success", "tab:orange"), ("spl", "tab:green")):
+        if evals:
+            axis.plot(
+                [r["frames"] for r in evals],
+                [100 * r[metric] for r in evals],
+                "o-",
+                color=color,
+                label=f"val {metric.upper() if metric != 'success' else 'Success'}",
+            )
+    for label, value in (baseline or {}).items():
+        axis.axhline(100 * value, color="gray", linestyle="--", label=label)
+    axis.set_xlabel("frames")
+    axis.set_ylabel("%")
+    axis.set_ylim(0, 100)
+    axis.set_title(title)
+    axis.grid(alpha=0.3)
+    axis.legend(loc="upper left", fontsize=8)
+    figure.tight_layout()
+    path = out / "learning_curve.png"
+    figure.savefig(path)
+    plt.close(figure)
+    return path
+
+
+def _round(value: Any) -> Any:
+    return round(value, 6) if isinstance(value, float) else value
+
+
+def _float(value: str) -> float:
+    try:
+        return float(value)
+    except ValueError:
+        return math.nan
