@@ -58,6 +58,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--max-steps", type=int, default=None, help="step limit per episode (default 2500)"
     )
+    parser.add_argument(
+        "--checkpoint",
+        default=None,
+        help="checkpoint of a learned agent (multion train), e.g. --agent oracle-map "
+        "--checkpoint runs/om/checkpoint.pt",
+    )
+    parser.add_argument(
+        "--deterministic",
+        action="store_true",
+        help="learned agents take the most likely action instead of sampling",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -68,8 +79,11 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         num_goals = parse_task(args.task)
-        agent_class(args.agent)
+        if args.checkpoint is None:
+            agent_class(args.agent)
     except (ValueError, AgentError) as error:
+        if args.checkpoint is None and _is_learned(args.agent):
+            return _fail(f"{args.agent!r} is a learned agent: give its --checkpoint")
         return _fail(str(error))
     if args.split not in SPLITS and args.dataset is None:
         return _fail(f"unknown split {args.split!r}; splits are {', '.join(SPLITS)}")
@@ -95,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
         dataset=args.dataset,
         image_size=args.image_size,
         max_steps=args.max_steps,
+        checkpoint=args.checkpoint,
+        deterministic=args.deterministic,
     )
     try:
         result = evaluate(settings, progress=not args.quiet)
@@ -105,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"no episodes to evaluate: {error}")
     except MultiONError as error:
         return _fail(f"the server refused the evaluation: {error}")
+    except (AgentError, ValueError) as error:  # a bad checkpoint (CheckpointError is a ValueError)
+        return _fail(str(error))
     except RuntimeError as error:  # a local server that did not start, a dataset mismatch
         return _fail(str(error))
     print(format_table(summarize(result.records), title_of(result)))
@@ -112,6 +130,14 @@ def run(args: argparse.Namespace) -> int:
         written = write_report(result, args.out, pictures=args.pictures)
         print(f"wrote {len(written)} files to {args.out}")
     return 0
+
+
+def _is_learned(name: str) -> bool:
+    try:
+        from multion_agents.learned.models import MODELS
+    except ImportError:  # torch is not installed
+        return False
+    return name in MODELS
 
 
 def _fail(message: str) -> int:

@@ -13,6 +13,7 @@ Each episode is reset by id on the server, and the agent's random stream is re-s
 
 from __future__ import annotations
 
+import functools
 import math
 import queue
 import threading
@@ -29,7 +30,7 @@ from tqdm import tqdm
 
 from multion.task.dataset import load_dataset, packaged_dataset_path, task_name
 from multion.task.episode import Episode
-from multion_agents.agent import Agent, agent_class, merge_overrides
+from multion_agents.agent import Agent, AgentError, agent_class, merge_overrides
 
 EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
@@ -57,6 +58,10 @@ class EvalSettings:
     """Camera width and height; None keeps the server's default (256, as in the paper)."""
     max_steps: int | None = None
     """Step limit override (None: the task's 2500); for quick checks only."""
+    checkpoint: str | None = None
+    """A training checkpoint of the learned agent ``agent`` (``multion train``)."""
+    deterministic: bool = False
+    """Learned agents take their most likely action instead of sampling one."""
 
 
 @dataclass
@@ -120,6 +125,30 @@ def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
     return merge_overrides(config, agent.config_overrides)
 
 
+def resolve_agent(settings: EvalSettings) -> type[Agent]:
+    """The agent class: a registered or import-path agent, or a learned one from a checkpoint."""
+    if settings.checkpoint is None:
+        return agent_class(settings.agent)
+    from multion_agents.learned.checkpoint import load_checkpoint
+    from multion_agents.learned.models import MODELS
+
+    if settings.agent not in MODELS:
+        raise AgentError(
+            f"--checkpoint is for learned agents ({', '.join(MODELS)}), not {settings.agent!r}"
+        )
+    trained = load_checkpoint(settings.checkpoint)["agent"]
+    if trained != settings.agent:
+        raise AgentError(f"{settings.checkpoint} holds a {trained!r} agent, not {settings.agent!r}")
+    return _learned_class(settings.checkpoint, settings.deterministic)
+
+
+@functools.cache
+def _learned_class(checkpoint: str, deterministic: bool) -> type[Agent]:
+    from multion_agents.learned.agent import learned_agent_class
+
+    return learned_agent_class(checkpoint, deterministic)
+
+
 def episode_seed(seed: int, index: int) -> int:
     """The agent's seed for episode ``index``: independent streams for every episode."""
     return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
@@ -178,7 +207,7 @@ def play_all(
     progress: bool = True,
 ) -> tuple[dict[str, Any], list[EpisodeRecord]]:
     """Play ``episodes`` with ``settings.workers`` threads, one env and one agent each."""
-    cls = agent_class(settings.agent)
+    cls = resolve_agent(settings)
     config = env_config(settings, cls)
     # one (env, agent) pair per worker thread, created on first need and handed back after use
     idle: queue.SimpleQueue[tuple[gym.Env, Agent]] = queue.SimpleQueue()
@@ -246,7 +275,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     in this process with ``settings.in_process``."""
     from multion_client.client import Client
 
-    agent_class(settings.agent)  # fail on a bad agent before starting anything
+    resolve_agent(settings)  # fail on a bad agent or checkpoint before starting anything
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:

@@ -129,6 +129,8 @@ def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]
         "seed": s.seed,
         "workers": s.workers,
         "dataset": s.dataset,
+        "checkpoint": s.checkpoint,
+        "deterministic": s.deterministic,
         "server": result.server,
         "env_config": result.config,
         "versions": versions(),
