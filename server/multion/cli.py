@@ -13,8 +13,14 @@ import sys
 
 # command name → (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "serve": ("multion.api.cli_serve", "run a MultiON server (FastAPI + uvicorn, msgpack over HTTP)"),
-    "eval": ("multion_agents.cli_eval", "evaluate an agent on a split, locally or against a server"),
+    "serve": (
+        "multion.api.cli_serve",
+        "run a MultiON server (FastAPI + uvicorn, msgpack over HTTP)",
+    ),
+    "eval": (
+        "multion_agents.cli_eval",
+        "evaluate an agent on a split, locally or against a server",
+    ),
     "train": ("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
     "dataset": ("multion.cli_data", "generate or check episode datasets"),
     "scene": ("multion.cli_data", "draw or export scenes"),
@@ -30,13 +36,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
         command = sub.add_parser(name, help=help_text, description=help_text)
+        # An optional dependency (torch for `train`) may be missing at import or only when the
+        # command builds its options; either way only that command becomes unavailable.
         try:
             module = importlib.import_module(module_name)
+            add = getattr(module, f"add_{name}_arguments", None) or module.add_arguments
+            add(command)
         except ModuleNotFoundError as error:
             command.set_defaults(_unavailable=f"`multion {name}` is unavailable: {error}")
             continue
-        add = getattr(module, f"add_{name}_arguments", None) or module.add_arguments
-        add(command)
         command.set_defaults(_run=getattr(module, f"run_{name}", None) or module.run)
     return parser
 
