@@ -49,6 +49,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=1000,
         help="3-ON episodes to generate for the generation timing (default 1000)",
     )
+    train = parser.add_argument_group("training bench (--only train, needs torch)")
+    train.add_argument(
+        "--train-agent", default="oracle-map", help="learned agent (default oracle-map)"
+    )
+    train.add_argument("--train-image-size", type=int, default=64, help="camera size (default 64)")
+    train.add_argument("--train-envs", type=int, default=4, help="local environments (default 4)")
+    train.add_argument(
+        "--train-updates",
+        type=int,
+        default=4,
+        help="PPO updates, the first one not timed (default 4)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,7 +74,9 @@ def run(args: argparse.Namespace) -> int:
     if "train" in parts:
         from multion_agents.bench_train import run_train_bench
 
-        run_train_bench()
+        run_train_bench(
+            args.train_agent, args.train_image_size, args.train_envs, args.train_updates
+        )
     return 0
 
 

@@ -12,6 +12,7 @@ each group's 128-step sequences are replayed from the state saved at the start o
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import time
@@ -215,6 +216,15 @@ def average_gradients(policy: nn.Module) -> None:
         offset += p.numel()
 
 
+def weights_digest(policy: nn.Module) -> str:
+    """SHA-256 of the weights, to check that DD-PPO ranks hold the same model."""
+    digest = hashlib.sha256()
+    for name, tensor in sorted(policy.state_dict().items()):
+        digest.update(name.encode())
+        digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
+
+
 def broadcast_parameters(policy: nn.Module) -> None:
     if dist.is_available() and dist.is_initialized():
         for tensor in policy.state_dict().values():
@@ -392,7 +402,7 @@ def train(args: Args) -> dict[str, Any]:
         bar.close()
         if log is not None:
             plot_learning_curve(out, f"{args.agent} on {args.task}")
-        return summary
+        return {**summary, "weights_sha256": weights_digest(policy)}
     finally:
         envs.close()
         if log is not None:

@@ -1,0 +1,231 @@
+"""PPO / DD-PPO training: every model trains, GAE by hand, resume, DD-PPO ranks in sync, eval."""
+
+from __future__ import annotations
+
+import copy
+import csv
+import math
+import os
+import socket
+from pathlib import Path
+
+import pytest
+import torch
+import torch.multiprocessing as mp
+
+from multion.sim.camera import CameraConfig
+from multion.task.env import EnvConfig, build_observation_space
+from multion_agents.learned.checkpoint import (
+    CheckpointError,
+    load_checkpoint,
+    restore_random_states,
+)
+from multion_agents.learned.models import MODELS
+from multion_agents.learned.ppo import Args, Rollout, _save, compute_gae, ppo_update, train
+
+SIZE = 64
+
+
+def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **changes) -> Args:
+    values = dict(
+        agent=agent,
+        task="1-on",
+        frames=192,
+        envs=2,
+        rollout_steps=32,
+        image_size=SIZE,
+        dataset=str(dataset),
+        max_steps=40,
+        out=str(tmp_path / "run"),
+        progress=False,
+        tensorboard=False,
+    )
+    values.update(changes)
+    return Args(**values)
+
+
+def space_for(name: str):
+    spec = MODELS[name]
+    config = EnvConfig(sensors=spec.train_sensors, camera=CameraConfig(width=SIZE, height=SIZE))
+    return build_observation_space(config)
+
+
+def sample_frames(space, steps: int, batch: int, seed: int = 0) -> dict[str, torch.Tensor]:
+    space.seed(seed)
+    return {
+        k: torch.stack(
+            [
+                torch.stack([torch.as_tensor(space[k].sample()) for _ in range(batch)])
+                for _ in range(steps)
+            ]
+        )
+        for k in space.spaces
+    }
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_every_model_runs_forward_and_backward_on_env_shapes(name: str) -> None:
+    torch.manual_seed(0)
+    space = space_for(name)
+    policy = MODELS[name].build(space)
+    steps, batch = 3, 2
+    frames = sample_frames(space, steps, batch)
+    actions = torch.randint(0, 4, (steps, batch))
+    starts = torch.tensor([[1.0, 1.0], [0.0, 0.0], [0.0, 1.0]])
+    logprob, entropy, value, aux = policy.evaluate_actions(
+        frames, actions, starts, policy.initial_state(batch), actions
+    )
+    assert logprob.shape == entropy.shape == value.shape == (steps, batch)
+    loss = -logprob.mean() + value.pow(2).mean() + (aux if aux is not None else 0.0)
+    loss.backward()
+    assert torch.isfinite(loss)
+    assert policy.actor.weight.grad.abs().sum() > 0
+    assert policy.goal_embedding.weight.grad.abs().sum() > 0
+    if policy.image_encoder is not None:
+        assert policy.image_encoder.embed[1].weight.grad.abs().sum() > 0
+    if policy.memory is not None:  # the memory's parameters learn from the PPO loss
+        grads = [p.grad for p in policy.memory.parameters() if p.grad is not None]
+        assert grads and sum(float(g.abs().sum()) for g in grads) > 0
+
+
+def test_gae_matches_hand_computation() -> None:
+    rewards = torch.tensor([[1.0], [0.0], [2.0]])
+    values = torch.tensor([[0.5], [0.2], [0.1]])
+    dones = torch.tensor([[0.0], [1.0], [0.0]])  # the episode ends after step 1
+    empty = torch.zeros(3, 1)
+    rollout = Rollout({}, empty, empty, empty, empty, values, rewards, dones, {})
+    gamma, lam, next_value = 0.9, 0.8, torch.tensor([0.3])
+    compute_gae(rollout, next_value, gamma, lam)
+    d2 = 2.0 + gamma * 0.3 - 0.1
+    d1 = 0.0 - 0.2  # no bootstrap across the episode end
+    d0 = 1.0 + gamma * 0.2 - 0.5
+    expected = [d0 + gamma * lam * d1, d1, d2]
+    assert rollout.advantages[:, 0].tolist() == pytest.approx(expected)
+    assert rollout.returns[:, 0].tolist() == pytest.approx(
+        [e + v for e, v in zip(expected, [0.5, 0.2, 0.1], strict=True)]
+    )
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_every_model_trains_a_few_hundred_frames(
+    name: str, tmp_path: Path, room_dataset: Path
+) -> None:
+    args = tiny_args(tmp_path, room_dataset, agent=name)
+    summary = train(args)
+    assert summary["frames"] == 192 and summary["update"] == 3
+    for key in ("policy_loss", "value_loss", "entropy"):
+        assert math.isfinite(summary[key])
+    rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
+    assert [int(r["frames"]) for r in rows] == [64, 128, 192]
+    payload = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
+    assert payload["agent"] == name and payload["update"] == 3
+    fresh = copy.deepcopy(MODELS[name].build(space_for(name)))
+    changed = [
+        not torch.equal(fresh.state_dict()[k], v)
+        for k, v in payload["model"].items()
+        if v.is_floating_point()
+    ]
+    assert any(changed)  # the optimiser moved the weights
+
+
+def _rollout(space, seed: int, steps: int = 6, envs: int = 2) -> Rollout:
+    generator = torch.Generator().manual_seed(seed)
+    frames = sample_frames(space, steps, envs, seed)
+    actions = torch.randint(0, 4, (steps, envs), generator=generator)
+    rollout = Rollout(
+        frames=frames,
+        prev_actions=actions.roll(1, 0),
+        starts=torch.zeros(steps, envs),
+        actions=actions,
+        logprobs=torch.full((steps, envs), math.log(0.25)),
+        values=torch.randn(steps, envs, generator=generator),
+        rewards=torch.randn(steps, envs, generator=generator),
+        dones=torch.zeros(steps, envs),
+        initial_state={},
+    )
+    rollout.starts[0] = 1.0
+    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
+    return rollout
+
+
+def test_resume_reproduces_the_next_update_exactly(tmp_path: Path) -> None:
+    """Optimiser moments and random states survive a checkpoint: the update after a resume is
+    bit-identical to the one an uninterrupted run makes on the same rollout."""
+    name, args = "oracle-map", Args(minibatches=2)
+    space = space_for(name)
+    torch.manual_seed(3)
+    policy = MODELS[name].build(space)
+    policy_state = policy.initial_state(2)
+    optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
+    first, second = _rollout(space, 1), _rollout(space, 2)
+    for rollout in (first, second):
+        rollout.initial_state = policy_state
+    ppo_update(policy, optimizer, first, args)
+    path = tmp_path / "checkpoint.pt"
+    _save(path, policy, optimizer, args, {"camera": {"width": SIZE, "height": SIZE}}, 1, 12)
+    ppo_update(policy, optimizer, second, args)
+    uninterrupted = copy.deepcopy(policy.state_dict())
+
+    torch.manual_seed(99)  # a different process state before loading
+    resumed = MODELS[name].build(space)
+    resumed_optimizer = torch.optim.Adam(resumed.parameters(), lr=args.learning_rate, eps=1e-5)
+    payload = load_checkpoint(path)
+    resumed.load_state_dict(payload["model"])
+    resumed_optimizer.load_state_dict(payload["optimizer"])
+    restore_random_states(payload)
+    ppo_update(resumed, resumed_optimizer, second, args)
+    for key, value in resumed.state_dict().items():
+        assert torch.equal(value, uninterrupted[key]), key
+
+
+def test_resume_continues_the_run_and_refuses_another_agent(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    train(tiny_args(tmp_path, room_dataset, frames=64))
+    summary = train(tiny_args(tmp_path, room_dataset, frames=128, resume=True))
+    assert summary["update"] == 2 and summary["frames"] == 128
+    rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
+    assert [int(r["update"]) for r in rows] == [1, 2]
+    with pytest.raises(CheckpointError, match="no-map"):
+        train(tiny_args(tmp_path, room_dataset, agent="no-map", frames=192, resume=True))
+
+
+def test_a_corrupt_checkpoint_is_refused_with_its_path(tmp_path: Path) -> None:
+    path = tmp_path / "checkpoint.pt"
+    path.write_bytes(b"not a checkpoint")
+    with pytest.raises(CheckpointError, match="checkpoint.pt"):
+        load_checkpoint(path)
+
+
+def _ddppo_rank(rank: int, port: int, out: str, dataset: str, results: str) -> None:
+    os.environ.update(
+        MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE="2"
+    )
+    args = tiny_args(Path(out), Path(dataset), frames=256, seed=4)
+    summary = train(args)
+    Path(results, f"rank{rank}.txt").write_text(f"{summary['weights_sha256']} {summary['frames']}")
+    torch.distributed.destroy_process_group()
+
+
+def test_ddppo_two_cpu_ranks_keep_identical_weights(tmp_path: Path, room_dataset: Path) -> None:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    results = tmp_path / "results"
+    results.mkdir()
+    mp.start_processes(
+        _ddppo_rank,
+        args=(port, str(tmp_path), str(room_dataset), str(results)),
+        nprocs=2,
+        start_method="spawn",
+    )
+    rank0 = (results / "rank0.txt").read_text().split()
+    rank1 = (results / "rank1.txt").read_text().split()
+    assert rank0 == rank1  # same weights after every all-reduced update, same frame count
+    assert int(rank0[1]) == 256  # 2 ranks × 2 envs × 32 steps per update, 2 updates
+    torch.manual_seed(4)
+    initial = MODELS["oracle-map"].build(space_for("oracle-map"))
+    from multion_agents.learned.ppo import weights_digest
+
+    assert weights_digest(initial) != rank0[0]
+    assert (tmp_path / "run" / "checkpoint.pt").is_file()  # written by rank 0 only
