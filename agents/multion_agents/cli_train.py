@@ -14,7 +14,9 @@ logs and checkpoints.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from typing import Any
 
 _HYPER = (
     ("rollout-steps", int, "steps per environment between updates"),
@@ -136,6 +138,10 @@ def run(args: argparse.Namespace) -> int:
     ):
         if getattr(args, name) <= 0:
             return _fail(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
+    try:
+        env_overrides = parse_env_overrides(args.env)
+    except ValueError as error:
+        return _fail(str(error))
     settings = Args(
         agent=args.agent,
         task=args.task,
@@ -152,6 +158,7 @@ def run(args: argparse.Namespace) -> int:
         max_steps=args.max_steps,
         episodes_per_scene=args.episodes_per_scene,
         dataset=args.dataset,
+        env_overrides=env_overrides,
         threads=args.threads,
         device=args.device,
         tensorboard=not args.no_tensorboard,
@@ -169,6 +176,24 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['fps']:.0f} frames/s in the last update; run directory {args.out}"
         )
     return 0
+
+
+def parse_env_overrides(items: list[str]) -> dict[str, dict[str, Any]]:
+    """``["task.max_steps=500", ...]`` → ``{"task": {"max_steps": 500}}`` (checked by the env)."""
+    overrides: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        section, dot, name = key.partition(".")
+        if not (sep and dot and section and name):
+            raise ValueError(
+                f"--env {item!r}: expected SECTION.FIELD=VALUE, e.g. task.max_steps=500"
+            )
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        overrides.setdefault(section, {})[name] = value
+    return overrides
 
 
 def _fail(message: str) -> int:

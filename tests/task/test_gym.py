@@ -58,3 +58,19 @@ def test_registered_ids():
     )
     obs, info = env.reset(seed=0)
     assert set(obs) == {"rgb", "depth", "goal"} and "metrics" in info
+
+
+def test_online_train_sampling_stays_in_a_house_for_episodes_per_scene():
+    config = EnvConfig(
+        task=TaskConfig(num_goals=1),
+        split="train",
+        sensors=("goal",),
+        episodes_per_scene=3,
+    )
+    env = MultiONEnv(config)
+    scenes = []
+    for seed in (5, None, None):
+        _, info = env.reset(seed=seed)
+        scenes.append(info["scene_id"])
+    env.close()
+    assert scenes[0].startswith("house-") and len(set(scenes)) == 1

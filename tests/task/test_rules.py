@@ -160,3 +160,11 @@ def test_illegal_action_is_refused():
     # a refused action does not count as a step
     _, _, _, _, info = env.step(FWD)
     assert info["metrics"]["steps"] == 1
+
+
+def test_wrong_found_penalty_is_subtracted_only_from_wrong_founds():
+    env = make_env([(RED, (4.5, 2.0))], wrong_found_penalty=2.5, found_budget=1)
+    env.reset(seed=0)
+    assert env.step(F)[1] == pytest.approx(-0.01 - 2.5)
+    total, (_, reward, terminated, _, _) = run(env, [FWD] * 8 + [F])
+    assert terminated and reward == pytest.approx(3.0 - 0.01)  # a correct FOUND is not penalised

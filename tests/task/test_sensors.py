@@ -9,7 +9,7 @@ from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode, Goal
 from multion.task.maps import MapConfig
-from multion_client.constants import GOAL_CATEGORIES, MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN
+from multion_client.constants import GOAL_CATEGORIES, MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
 
 
 def env_at(start, yaw, goals, sensors, camera=CameraConfig(), maps=MapConfig()):
@@ -134,3 +134,18 @@ def test_seen_goals_are_recorded_for_the_supplement_table():
         _, _, _, _, info = env.step(action)
     assert info["metrics"]["goals_found"] == 1
     assert info["metrics"]["seen_before_current"] == [True]
+
+
+def test_hidden_goals_are_not_rendered_but_still_count():
+    goals = [(5, (3.0, 2.0))]
+    _, shown = env_at((2.0, 2.0), 0.0, goals, ("rgb", "goal_mask"))
+    config = EnvConfig(
+        task=TaskConfig(num_goals=1, goals_visible=False), sensors=("rgb", "goal_mask")
+    )
+    episode = Episode("s", "room-6x4", (2.0, 2.0, 0.0), 0.0, (Goal(5, (3.0, 2.0, 0.0)),))
+    env = MultiONEnv(config, episodes=[episode])
+    hidden, info = env.reset(seed=0)
+    assert shown["goal_mask"][210, 128] == 6 and not hidden["goal_mask"].any()
+    assert not np.array_equal(shown["rgb"][210, 128], hidden["rgb"][210, 128])  # floor, not yellow
+    *_, info = env.step(Action.FOUND)  # 1 m away: still found
+    assert info["metrics"]["success"] == 1.0

@@ -94,7 +94,10 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
             f"{path}: weights do not fit model {payload['agent']!r}: {error}"
         ) from None
     config = payload["env_config"]
-    overrides: ConfigOverrides = {"camera": dict(config.get("camera", {}))}
+    # the sections that shape observations; rewards and episode sources do not matter to eval
+    overrides: ConfigOverrides = {
+        section: dict(config[section]) for section in ("camera", "maps") if section in config
+    }
     for section, values in model_spec(payload["agent"]).config_overrides.items():
         overrides[section] = {**overrides.get(section, {}), **values}
     return policy, overrides, payload["agent"]

@@ -27,6 +27,7 @@ import torch.distributed as dist
 from torch import Tensor, nn
 from tqdm import tqdm
 
+from multion_agents.agent import merge_overrides
 from multion_agents.learned.checkpoint import (
     CheckpointError,
     build_policy,
@@ -90,6 +91,8 @@ class Args:
     episodes_per_scene: int = 25
     max_steps: int | None = None
     """Step limit of *training* episodes (None: the task's 2500); evaluation always uses 2500."""
+    env_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Environment config changes for training, e.g. ``{"task": {"wrong_found_penalty": 2.5}}``."""
     dataset: str | None = None
     """Train on the episodes of this dataset file instead of sampling train-split episodes."""
     device: str = "auto"
@@ -265,6 +268,7 @@ def train(args: Args) -> dict[str, Any]:
         args.max_steps,
         args.dataset,
     )
+    env_config = merge_overrides(env_config, args.env_overrides)
     env_config["episodes_per_scene"] = args.episodes_per_scene
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)

@@ -59,6 +59,9 @@ class TaskConfig:
     """Wrong FOUNDs allowed before one ends the episode (0: the first one ends it)."""
     goal_reward: float = 3.0
     slack_reward: float = -0.01
+    wrong_found_penalty: float = 0.0
+    """Subtracted from the reward of a wrong FOUND (the reference code's FALSE_FOUND_PENALTY,
+    off in the paper's runs)."""
     goal_radius: float = 0.05
     goal_height: float = 0.75
     goals_visible: bool = True
@@ -288,6 +291,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             else:
                 state.found_wrong = True
                 state.wrong_founds += 1
+                reward -= task.wrong_found_penalty
                 if state.wrong_founds > task.found_budget:
                     state.end_reason, terminated = "wrong_found", True
             state.collided = False
