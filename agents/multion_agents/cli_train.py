@@ -90,6 +90,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="step limit of training episodes (default: the task's 2500)",
     )
     parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="change the training env config, e.g. --set task.wrong_found_penalty=2.5 "
+        "--set maps.ego_size=25 (repeatable; values are JSON or strings)",
+    )
+    parser.add_argument(
         "--dataset",
         default=None,
         help="train on this dataset file's episodes (default: sample train-split episodes online)",
@@ -139,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
         if getattr(args, name) <= 0:
             return _fail(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
     try:
-        env_overrides = parse_env_overrides(args.env)
+        env_overrides = parse_env_overrides(args.set)
     except ValueError as error:
         return _fail(str(error))
     settings = Args(
@@ -186,7 +194,7 @@ def parse_env_overrides(items: list[str]) -> dict[str, dict[str, Any]]:
         section, dot, name = key.partition(".")
         if not (sep and dot and section and name):
             raise ValueError(
-                f"--env {item!r}: expected SECTION.FIELD=VALUE, e.g. task.max_steps=500"
+                f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. task.max_steps=500"
             )
         try:
             value = json.loads(raw)
