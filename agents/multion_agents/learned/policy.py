@@ -6,10 +6,10 @@ map, a list of past embeddings) in a dict of tensors whose first dimension is th
 **an all-zero state is the empty state**, so the policy clears a finished episode's memory by
 multiplying its state by zero.
 
-Sequences are processed step by step so that the same code serves acting (T = 1) and the PPO
-update, which replays a rollout from the state saved at its start (recurrent mini-batches).
-Everything that does not depend on the state (the CNN over RGB-D, map embeddings) is computed
-for all T·B frames at once.
+The same code serves acting (T = 1) and the PPO update, which replays a rollout from the state
+saved at its start (recurrent mini-batches). Everything that does not depend on the state (the
+CNN over RGB-D, map embeddings) is computed for all T·B frames at once; memories step through
+time, and the GRU runs fused over the stretches between episode starts.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from torch import Tensor, nn
 from torch.distributions import Categorical
 
 from multion_agents.learned.encoders import ImageEncoder
+from multion_agents.learned.gru import MaskedGRU
 from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
 
 State = dict[str, Tensor]
@@ -99,7 +100,7 @@ class RecurrentPolicy(nn.Module):
         self.action_embedding = nn.Embedding(NUM_ACTIONS + 1, ACTION_EMBED_DIM)
         self.query_dim = image_dim + GOAL_EMBED_DIM + ACTION_EMBED_DIM
         memory_dim = memory.out_dim if memory is not None else 0
-        self.gru = nn.GRUCell(self.query_dim + memory_dim, HIDDEN_SIZE)
+        self.gru = nn.GRU(self.query_dim + memory_dim, HIDDEN_SIZE)
         self.actor = _layer(nn.Linear(HIDDEN_SIZE, NUM_ACTIONS), std=0.01)
         self.critic = _layer(nn.Linear(HIDDEN_SIZE, 1), std=1.0)
 
@@ -148,24 +149,22 @@ class RecurrentPolicy(nn.Module):
             k: v.reshape(steps, batch, *v.shape[1:]) for k, v in {**flat, **precomputed}.items()
         }
 
-        hidden = state["hidden"]
         memory_state = {k[len("memory.") :]: v for k, v in state.items() if k.startswith("memory.")}
-        outputs = []
-        for t in range(steps):
-            keep = 1.0 - episode_start[t].float()
-            hidden = hidden * keep[:, None]
-            inputs = query[t]
-            if self.memory is not None:
+        inputs = query
+        if self.memory is not None:
+            # The memory does not read the GRU state, so its loop runs first, over all steps.
+            memory_out = []
+            for t in range(steps):
+                keep = 1.0 - episode_start[t].float()
                 memory_state = {
                     k: v * keep.view(-1, *[1] * (v.dim() - 1)) for k, v in memory_state.items()
                 }
                 v_m, memory_state = self.memory.step(
                     {k: v[t] for k, v in per_step.items()}, query[t], memory_state
                 )
-                inputs = torch.cat([inputs, v_m], dim=1)
-            hidden = self.gru(inputs, hidden)
-            outputs.append(hidden)
-        core = torch.stack(outputs)
+                memory_out.append(v_m)
+            inputs = torch.cat([query, torch.stack(memory_out)], dim=2)
+        core, hidden = self._recurrent(inputs, episode_start, state["hidden"])
         new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
         auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
         return PolicyOutput(
@@ -174,6 +173,22 @@ class RecurrentPolicy(nn.Module):
             state=new_state,
             auxiliary_loss=auxiliary,
         )
+
+    def _recurrent(
+        self, inputs: Tensor, episode_start: Tensor, hidden: Tensor
+    ) -> tuple[Tensor, Tensor]:
+        """The GRU (``nn.GRU``'s equations and weights) over (T, B, D) inputs, its state cleared
+        where episodes start.
+
+        The input projection runs once for all T steps, and :class:`MaskedGRU` forms the
+        recurrent weight gradient once (autograd through ``nn.GRU`` or ``nn.GRUCell`` on a CPU
+        accumulates a full weight gradient per step, which made PPO updates several times
+        slower)."""
+        gru = self.gru
+        gates_x = nn.functional.linear(inputs, gru.weight_ih_l0, gru.bias_ih_l0)
+        keep = 1.0 - episode_start.to(gates_x.dtype)
+        outputs = MaskedGRU.apply(gates_x, hidden, keep, gru.weight_hh_l0, gru.bias_hh_l0)
+        return outputs, outputs[-1]
 
     # cleanrl-style entry points ---------------------------------------------------------
     def get_value(
