@@ -229,3 +229,37 @@ def test_ddppo_two_cpu_ranks_keep_identical_weights(tmp_path: Path, room_dataset
 
     assert weights_digest(initial) != rank0[0]
     assert (tmp_path / "run" / "checkpoint.pt").is_file()  # written by rank 0 only
+
+
+@pytest.mark.parametrize("name", ["oracle-map", "frmqn", "obj-recog-map", "proj-neural-map"])
+def test_replaying_a_rollout_reproduces_its_log_probs_and_values(name: str) -> None:
+    """The PPO update's sequence replay computes exactly what acting step by step computed
+    (the same states, resets and previous actions), so the first ratio is 1."""
+    torch.manual_seed(1)
+    space = space_for(name)
+    policy = MODELS[name].build(space)
+    steps, batch = 6, 2
+    frames = sample_frames(space, steps, batch, seed=3)
+    starts = torch.zeros(steps, batch)
+    starts[0] = 1.0
+    starts[3, 0] = 1.0
+    state = policy.initial_state(batch)
+    initial = {k: v.clone() for k, v in state.items()}
+    prev = torch.zeros(batch, dtype=torch.long)
+    actions, logprobs, values, prevs = [], [], [], []
+    with torch.no_grad():
+        for t in range(steps):
+            frame = {k: v[t] for k, v in frames.items()}
+            action, logprob, value, state = policy.get_action_and_value(
+                frame, prev, starts[t], state
+            )
+            prevs.append(prev)
+            actions.append(action)
+            logprobs.append(logprob)
+            values.append(value)
+            prev = action
+        replay_logprob, _, replay_value, _ = policy.evaluate_actions(
+            frames, torch.stack(prevs), starts, initial, torch.stack(actions)
+        )
+    assert torch.allclose(replay_logprob, torch.stack(logprobs), atol=1e-5)
+    assert torch.allclose(replay_value, torch.stack(values), atol=1e-5)
