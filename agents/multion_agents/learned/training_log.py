@@ -60,8 +60,9 @@ def read_csv(path: Path) -> list[dict[str, float]]:
 
 
 def plot_learning_curve(out: Path, title: str, baseline: dict[str, float] | None = None) -> Path:
-    """``learning_curve.png``: train episode Success/SPL (running means) and val evaluations
-    against frames, with an optional horizontal baseline (e.g. Rand+OracleFound's val success)."""
+    """``learning_curve.png``: train Success (running mean) and val evaluations against frames,
+    with optional horizontal baselines (e.g. Rand+OracleFound's val Success), and below them
+    the train episodes' mean return."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -71,7 +72,9 @@ def plot_learning_curve(out: Path, title: str, baseline: dict[str, float] | None
         r for r in read_csv(out / "progress.csv") if math.isfinite(r.get("train_success", math.nan))
     ]
     evals = read_csv(out / "eval.csv")
-    figure, axis = plt.subplots(figsize=(7, 4), dpi=120)
+    figure, (axis, lower) = plt.subplots(
+        2, 1, figsize=(7, 6), dpi=120, sharex=True, gridspec_kw={"height_ratios": [2, 1]}
+    )
     if train:
         frames = [r["frames"] for r in train]
         axis.plot(
@@ -92,7 +95,11 @@ def plot_learning_curve(out: Path, title: str, baseline: dict[str, float] | None
             )
     for label, value in (baseline or {}).items():
         axis.axhline(100 * value, color="gray", linestyle="--", label=label)
-    axis.set_xlabel("frames")
+    if train:
+        lower.plot(frames, [r["train_return"] for r in train], color="tab:purple")
+    lower.set_ylabel("train return\n(last 100 episodes)")
+    lower.set_xlabel("frames")
+    lower.grid(alpha=0.3)
     axis.set_ylabel("%")
     axis.set_ylim(0, 100)
     axis.set_title(title)
