@@ -4,7 +4,8 @@ Both measurements use the same environments (same model sensors, image size, num
 environments in local simulator processes, and the packaged 1-ON val episodes, which are grouped
 by scene so scene loading hardly counts):
 
-1. **bare**: the vector env stepped with random actions (simulation only);
+1. **bare**: the vector env stepped with uniformly random actions (simulation only), which is
+   what the freshly initialised policy of the timed updates does too;
 2. **train**: ``multion train`` updates (simulation + policy inference + PPO updates); the first
    update is a warm-up and is not counted.
 
@@ -34,9 +35,9 @@ def bare_rate(config: dict, envs: int, steps: int) -> float:
             vector.step(rng.integers(1, 4, envs))
         tick = time.perf_counter()
         for _ in range(steps):
-            # FOUND is rare, as for a trained agent: episodes are not all a few steps long
-            actions = np.where(rng.random(envs) < 0.02, 0, rng.integers(1, 4, envs))
-            vector.step(actions)
+            # uniform over the 4 actions, like the untrained policy the timed updates start
+            # from: as many wrong FOUNDs, hence episode resets, in both measurements
+            vector.step(rng.integers(0, 4, envs))
         return steps * envs / (time.perf_counter() - tick)
     finally:
         vector.close()
