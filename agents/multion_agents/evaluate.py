@@ -129,24 +129,21 @@ def resolve_agent(settings: EvalSettings) -> type[Agent]:
     """The agent class: a registered or import-path agent, or a learned one from a checkpoint."""
     if settings.checkpoint is None:
         return agent_class(settings.agent)
-    from multion_agents.learned.checkpoint import load_checkpoint
-    from multion_agents.learned.models import MODELS
-
-    if settings.agent not in MODELS:
-        raise AgentError(
-            f"--checkpoint is for learned agents ({', '.join(MODELS)}), not {settings.agent!r}"
-        )
-    trained = load_checkpoint(settings.checkpoint)["agent"]
-    if trained != settings.agent:
-        raise AgentError(f"{settings.checkpoint} holds a {trained!r} agent, not {settings.agent!r}")
-    return _learned_class(settings.checkpoint, settings.deterministic)
+    return _learned_class(settings.agent, settings.checkpoint, settings.deterministic)
 
 
 @functools.cache
-def _learned_class(checkpoint: str, deterministic: bool) -> type[Agent]:
+def _learned_class(agent: str, checkpoint: str, deterministic: bool) -> type[Agent]:
+    # cached: the evaluator resolves the agent more than once, and a checkpoint is read once
     from multion_agents.learned.agent import learned_agent_class
+    from multion_agents.learned.models import MODELS
 
-    return learned_agent_class(checkpoint, deterministic)
+    if agent not in MODELS:
+        raise AgentError(f"--checkpoint is for learned agents ({', '.join(MODELS)}), not {agent!r}")
+    cls = learned_agent_class(checkpoint, deterministic)
+    if cls.model != agent:
+        raise AgentError(f"{checkpoint} holds a {cls.model!r} agent, not {agent!r}")
+    return cls
 
 
 def episode_seed(seed: int, index: int) -> int:

@@ -14,6 +14,7 @@ import time
 import numpy as np
 import pybullet as p
 
+from multion.api.cli_serve import add_http_stack_arguments
 from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.generate import generate_episodes
@@ -28,18 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="append",
         help="run only these parts (repeatable; default: sim and http)",
     )
-    parser.add_argument(
-        "--http",
-        default="auto",
-        choices=["auto", "h11", "httptools"],
-        help="HTTP parser of the benchmarked servers (default auto)",
-    )
-    parser.add_argument(
-        "--loop",
-        default="auto",
-        choices=["auto", "asyncio", "uvloop"],
-        help="event loop of the benchmarked servers (default auto)",
-    )
+    add_http_stack_arguments(parser, " of the benchmarked servers")
     parser.add_argument(
         "--steps", type=int, default=300, help="steps per measurement (default 300)"
     )

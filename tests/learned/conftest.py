@@ -2,29 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 pytest.importorskip("torch")
 
-from multion.sim.simulator import Simulator  # noqa: E402
-from multion.task.dataset import sample_episode, save_dataset  # noqa: E402
-
-ROOM = "room-6x4"
+from multion.task.dataset import save_dataset  # noqa: E402
+from multion.task.episode import Episode  # noqa: E402
 
 
 @pytest.fixture(scope="session")
-def room_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Four 1-goal episodes in the empty room (loads in a fraction of a second)."""
-    grid = Simulator().load_scene(ROOM)
-    rng = np.random.default_rng(5)
-    episodes = []
-    while len(episodes) < 4:
-        episode = sample_episode(grid, ROOM, 1, rng, f"room-train-{len(episodes)}")
-        if episode is not None:
-            episodes.append(episode)
+def room_dataset(
+    tmp_path_factory: pytest.TempPathFactory,
+    room_episodes: Callable[[int, int, str], list[Episode]],
+) -> Path:
+    """Four 1-goal training episodes in the empty room (loads in a fraction of a second)."""
     path = tmp_path_factory.mktemp("learned-data") / "room-1-on.json.gz"
-    save_dataset(path, episodes, 1, "train")
+    save_dataset(path, room_episodes(4, 5, "room-train"), 1, "train")
     return path

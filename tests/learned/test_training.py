@@ -263,3 +263,35 @@ def test_replaying_a_rollout_reproduces_its_log_probs_and_values(name: str) -> N
         )
     assert torch.allclose(replay_logprob, torch.stack(logprobs), atol=1e-5)
     assert torch.allclose(replay_value, torch.stack(values), atol=1e-5)
+
+
+def test_a_checkpoint_is_evaluated_through_the_eval_path(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    from multion_agents.agent import AgentError
+    from multion_agents.evaluate import EvalSettings, evaluate
+
+    train(tiny_args(tmp_path, room_dataset, frames=64))
+    checkpoint = str(tmp_path / "run" / "checkpoint.pt")
+    settings = EvalSettings(
+        agent="oracle-map",
+        num_goals=1,
+        split="train",
+        episodes=2,
+        in_process=True,
+        dataset=str(room_dataset),
+        max_steps=20,
+        checkpoint=checkpoint,
+        deterministic=True,
+    )
+    first, second = evaluate(settings, progress=False), evaluate(settings, progress=False)
+    assert len(first.records) == 2
+    assert first.config["camera"] == {"width": SIZE, "height": SIZE}  # the trained camera
+    assert [r.metrics for r in first.records] == [r.metrics for r in second.records]
+    with pytest.raises(AgentError, match="holds a 'oracle-map' agent"):
+        evaluate(
+            EvalSettings(
+                agent="no-map", num_goals=1, checkpoint=checkpoint, dataset=str(room_dataset)
+            ),
+            progress=False,
+        )

@@ -17,6 +17,8 @@ class LearnedAgent(Agent):
     agent's own random stream) or, when ``deterministic``, takes the most likely action."""
 
     policy: ClassVar[RecurrentPolicy | None] = None
+    model: ClassVar[str] = ""
+    """The registry name of the policy's model (``multion_agents.learned.models``)."""
     deterministic: ClassVar[bool] = False
 
     def __init__(self, seed: int = 0) -> None:
@@ -36,14 +38,13 @@ class LearnedAgent(Agent):
     @torch.no_grad()
     def act(self, observation: Observation) -> int:
         assert self.policy is not None
-        batch = {
-            k: v.unsqueeze(0)
-            for k, v in frames_to_tensors(observation, self.policy.sensors).items()
-        }
-        out = self.policy(
-            {k: v.unsqueeze(0) for k, v in batch.items()},
-            torch.tensor([[self._prev_action]]),
-            torch.tensor([[float(self._start)]]),
+        out = self.policy.step(
+            {
+                k: v.unsqueeze(0)
+                for k, v in frames_to_tensors(observation, self.policy.sensors).items()
+            },
+            torch.tensor([self._prev_action]),
+            torch.tensor([float(self._start)]),
             self._state,
         )
         self._state, self._start = out.state, False
@@ -61,22 +62,23 @@ def agent_class_for_policy(
     policy: RecurrentPolicy,
     config_overrides: ConfigOverrides,
     deterministic: bool = False,
-    name: str = "LearnedAgent",
+    model: str = "",
 ) -> type[LearnedAgent]:
     """An Agent class bound to ``policy`` (the evaluator builds agents from classes)."""
     policy.eval()
     attributes: dict[str, Any] = {
         "policy": policy,
+        "model": model,
         "deterministic": deterministic,
         "sensors": policy.sensors,
         "config_overrides": config_overrides,
     }
-    return type(name, (LearnedAgent,), attributes)
+    return type(f"Learned[{model or 'policy'}]", (LearnedAgent,), attributes)
 
 
 def learned_agent_class(checkpoint: str | Path, deterministic: bool = False) -> type[LearnedAgent]:
     """The Agent class of a training checkpoint (its model, weights and camera size)."""
     from multion_agents.learned.checkpoint import load_policy
 
-    policy, overrides, spec_name = load_policy(checkpoint)
-    return agent_class_for_policy(policy, overrides, deterministic, name=f"Learned[{spec_name}]")
+    policy, overrides, model = load_policy(checkpoint)
+    return agent_class_for_policy(policy, overrides, deterministic, model)

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from multion_agents.agent import ConfigOverrides
+from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.policy import RecurrentPolicy
 
@@ -95,9 +95,6 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         ) from None
     config = payload["env_config"]
     # the sections that shape observations; rewards and episode sources do not matter to eval
-    overrides: ConfigOverrides = {
-        section: dict(config[section]) for section in ("camera", "maps") if section in config
-    }
-    for section, values in model_spec(payload["agent"]).config_overrides.items():
-        overrides[section] = {**overrides.get(section, {}), **values}
+    shaping = {section: config[section] for section in ("camera", "maps") if section in config}
+    overrides = merge_overrides(shaping, model_spec(payload["agent"]).config_overrides)
     return policy, overrides, payload["agent"]

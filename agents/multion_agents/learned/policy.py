@@ -191,25 +191,31 @@ class RecurrentPolicy(nn.Module):
         return outputs, outputs[-1]
 
     # cleanrl-style entry points ---------------------------------------------------------
+    def step(
+        self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State
+    ) -> PolicyOutput:
+        """One time step for B environments (inputs without the time dimension); the
+        output keeps a time dimension of 1."""
+        return self(
+            {k: v.unsqueeze(0) for k, v in frames.items()},
+            prev_action.unsqueeze(0),
+            episode_start.unsqueeze(0),
+            state,
+        )
+
     def get_value(
         self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State
     ) -> Tensor:
-        """V(s) of one step for B environments (inputs without the time dimension)."""
-        out = self(*_one_step(frames, prev_action, episode_start), state)
-        return out.value[0]
+        """V(s) of one step for B environments."""
+        return self.step(frames, prev_action, episode_start, state).value[0]
 
     def get_action_and_value(
-        self,
-        frames: Batch,
-        prev_action: Tensor,
-        episode_start: Tensor,
-        state: State,
-        deterministic: bool = False,
+        self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State
     ) -> tuple[Tensor, Tensor, Tensor, State]:
-        """Sample (or take the most likely) action for one step: action, log-prob, value, state."""
-        out = self(*_one_step(frames, prev_action, episode_start), state)
+        """Sample an action for one step: action, log-prob, value, new state."""
+        out = self.step(frames, prev_action, episode_start, state)
         dist = Categorical(logits=out.logits[0])
-        action = out.logits[0].argmax(-1) if deterministic else dist.sample()
+        action = dist.sample()
         return action, dist.log_prob(action), out.value[0], out.state
 
     def evaluate_actions(
@@ -229,16 +235,6 @@ class RecurrentPolicy(nn.Module):
 def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...]) -> Batch:
     """Batched numpy observations → tensors (uint8 stays uint8: images are scaled in the CNN)."""
     return {k: torch.as_tensor(np.asarray(observation[k])) for k in keys}
-
-
-def _one_step(
-    frames: Batch, prev_action: Tensor, episode_start: Tensor
-) -> tuple[Batch, Tensor, Tensor]:
-    return (
-        {k: v.unsqueeze(0) for k, v in frames.items()},
-        prev_action.unsqueeze(0),
-        episode_start.unsqueeze(0),
-    )
 
 
 def _layer(layer: nn.Linear, std: float) -> nn.Linear:

@@ -40,22 +40,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=["critical", "error", "warning", "info", "debug"],
         help="uvicorn log level (default info)",
     )
-    # "auto" takes httptools and uvloop when installed (uvicorn[standard]), else h11 and asyncio;
-    # the explicit choices exist to measure the difference (multion bench --http h11 ...).
+    add_http_stack_arguments(parser)
+    parser.add_argument(
+        "--no-access-log", action="store_true", help="do not log every request (faster)"
+    )
+
+
+def add_http_stack_arguments(parser: argparse.ArgumentParser, whose: str = "") -> None:
+    """``--http`` and ``--loop``: uvicorn's HTTP parser and event loop (also for the bench).
+
+    "auto" takes httptools and uvloop when installed (uvicorn[standard]), else h11 and asyncio;
+    the explicit choices exist to measure the difference (multion bench --http h11 ...).
+    """
     parser.add_argument(
         "--http",
         default="auto",
         choices=["auto", "h11", "httptools"],
-        help="HTTP parser (default auto: httptools when installed)",
+        help=f"HTTP parser{whose} (default auto: httptools when installed)",
     )
     parser.add_argument(
         "--loop",
         default="auto",
         choices=["auto", "asyncio", "uvloop"],
-        help="event loop (default auto: uvloop when installed)",
-    )
-    parser.add_argument(
-        "--no-access-log", action="store_true", help="do not log every request (faster)"
+        help=f"event loop{whose} (default auto: uvloop when installed)",
     )
 
 
