@@ -25,7 +25,9 @@ def test_scene_picture_bad_id(tmp_path, capsys):
 def test_dataset_check_reports_corrupt_file(tmp_path, capsys):
     bad = tmp_path / "bad.json.gz"
     with gzip.open(bad, "wt") as handle:
-        handle.write('{"format": "multion-episodes", "version": 1, "episodes": [{"episode_id": 1}]}')
+        handle.write(
+            '{"format": "multion-episodes", "version": 1, "episodes": [{"episode_id": 1}]}'
+        )
     assert main(["dataset", "check", str(bad)]) == 1
     err = capsys.readouterr().err
     assert "bad.json.gz" in err and "missing field" in err

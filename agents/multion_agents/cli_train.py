@@ -102,12 +102,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="train on this dataset file's episodes (default: sample train-split episodes online)",
     )
+    parser.add_argument(
+        "--found-prior",
+        type=float,
+        default=None,
+        help="initial probability of FOUND (default: uniform, 0.25, as in the paper)",
+    )
     parser.add_argument("--episodes-per-scene", type=int, default=defaults.episodes_per_scene)
     parser.add_argument(
         "--threads",
         type=int,
         default=defaults.threads,
         help="torch threads per rank (default 1: fastest when simulators share the cores)",
+    )
+    parser.add_argument(
+        "--update-threads",
+        type=int,
+        default=defaults.update_threads,
+        help="torch threads for PPO updates, while simulators wait (default 0: this rank's cores)",
     )
     parser.add_argument("--device", default="auto", help="cpu, cuda or auto")
     parser.add_argument("--no-tensorboard", action="store_true")
@@ -165,9 +177,11 @@ def run(args: argparse.Namespace) -> int:
         eval_episodes=args.eval_episodes,
         max_steps=args.max_steps,
         episodes_per_scene=args.episodes_per_scene,
+        found_prior=args.found_prior,
         dataset=args.dataset,
         env_overrides=env_overrides,
         threads=args.threads,
+        update_threads=args.update_threads,
         device=args.device,
         tensorboard=not args.no_tensorboard,
         progress=not args.quiet,

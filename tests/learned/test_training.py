@@ -21,7 +21,15 @@ from multion_agents.learned.checkpoint import (
     restore_random_states,
 )
 from multion_agents.learned.models import MODELS
-from multion_agents.learned.ppo import Args, Rollout, _save, compute_gae, ppo_update, train
+from multion_agents.learned.ppo import (
+    Args,
+    Rollout,
+    _save,
+    compute_gae,
+    ppo_update,
+    set_found_prior,
+    train,
+)
 
 SIZE = 64
 
@@ -295,3 +303,28 @@ def test_a_checkpoint_is_evaluated_through_the_eval_path(
             ),
             progress=False,
         )
+
+
+def test_found_prior_sets_the_untrained_policys_found_probability() -> None:
+    space = space_for("oracle-map")
+    torch.manual_seed(0)
+    policy = MODELS["oracle-map"].build(space)
+    set_found_prior(policy, 0.02)
+    frames = sample_frames(space, steps=1, batch=64)
+    with torch.no_grad():
+        out = policy(frames, torch.zeros(1, 64), torch.ones(1, 64), policy.initial_state(64))
+    probs = torch.softmax(out.logits[0], dim=-1)
+    assert torch.allclose(probs[:, 0], torch.full((64,), 0.02), atol=0.005)
+    assert torch.allclose(probs[:, 1:], torch.full((64, 3), 0.98 / 3), atol=0.01)
+    for bad in (0.0, 1.0, -0.1):
+        with pytest.raises(ValueError, match="found_prior"):
+            set_found_prior(policy, bad)
+
+
+def test_train_cli_rejects_a_bad_found_prior(tmp_path: Path, capsys) -> None:
+    from multion.cli import main
+
+    code = main(["train", "--found-prior", "1.5", "--frames", "64", "--out", str(tmp_path)])
+    assert code == 2
+    assert "found_prior must be in (0, 1), got 1.5" in capsys.readouterr().err
+    assert not (tmp_path / "checkpoint.pt").exists()

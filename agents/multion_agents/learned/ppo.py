@@ -44,6 +44,9 @@ from multion_agents.learned.rollout_envs import (
     training_env_config,
 )
 from multion_agents.learned.training_log import TrainingLog, plot_learning_curve
+from multion_client.constants import Action
+
+FOUND = int(Action.FOUND)
 
 
 @dataclass
@@ -88,6 +91,13 @@ class Args:
     threads: int = 1
     """torch threads per rank. 1 is fastest when simulator processes share the cores: with
     more, OpenMP threads spin against the simulators (20× slower steps measured on 2 cores)."""
+    update_threads: int = 0
+    """torch threads for the PPO update, while the simulators wait (0: this rank's share of the
+    machine's cores)."""
+    found_prior: float | None = None
+    """Initial probability of FOUND (None: uniform, 1/4, as in the paper). A small value keeps
+    the untrained policy from ending most episodes by a wrong FOUND in its first steps, which
+    otherwise teaches it early that FOUND ends the slack penalty (see docs/learned.md)."""
     episodes_per_scene: int = 25
     max_steps: int | None = None
     """Step limit of *training* episodes (None: the task's 2500); evaluation always uses 2500."""
@@ -132,6 +142,17 @@ def compute_gae(rollout: Rollout, next_value: Tensor, gamma: float, lam: float) 
         advantages[t] = last
     rollout.advantages = advantages
     rollout.returns = advantages + rollout.values
+
+
+def set_found_prior(policy: RecurrentPolicy, probability: float) -> None:
+    """Set the actor's biases so that the untrained policy (near-zero actor weights) calls FOUND
+    with ``probability`` and spreads the rest evenly over the other actions."""
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"found_prior must be in (0, 1), got {probability}")
+    others = policy.actor.bias.numel() - 1
+    with torch.no_grad():
+        policy.actor.bias.fill_(math.log((1.0 - probability) / others))
+        policy.actor.bias[FOUND] = math.log(probability)
 
 
 def ppo_update(
@@ -243,6 +264,11 @@ def _sum_over_ranks(values: list[float]) -> list[float]:
 
 
 # ---------------------------------------------------------------------- the training loop
+def _cores_per_rank() -> int:
+    ranks_here = int(os.environ.get("LOCAL_WORLD_SIZE", "1"))
+    return max(1, len(os.sched_getaffinity(0)) // ranks_here)
+
+
 def _device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -258,6 +284,7 @@ def train(args: Args) -> dict[str, Any]:
     device = _device(args.device)
     rank, world = init_distributed(device)
     torch.set_num_threads(max(1, args.threads))
+    update_threads = args.update_threads or _cores_per_rank()
     out = Path(args.out)
     env_config = training_env_config(
         num_goals,
@@ -272,6 +299,8 @@ def train(args: Args) -> dict[str, Any]:
     env_config["episodes_per_scene"] = args.episodes_per_scene
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)
+    if args.found_prior is not None:
+        set_found_prior(policy, args.found_prior)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
     update, frames = 0, 0
     checkpoint_path = out / "checkpoint.pt"
@@ -371,7 +400,11 @@ def train(args: Args) -> dict[str, Any]:
             )
             compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
             update_tick = time.perf_counter()
-            stats = ppo_update(policy, optimizer, rollout, args)
+            torch.set_num_threads(update_threads)
+            try:
+                stats = ppo_update(policy, optimizer, rollout, args)
+            finally:
+                torch.set_num_threads(max(1, args.threads))
             update_seconds = time.perf_counter() - update_tick
             update += 1
             frames += frames_per_update
