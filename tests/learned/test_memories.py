@@ -13,6 +13,7 @@ from multion_agents.learned import map_ops
 from multion_agents.learned.episodic import FRMQN, SMT, masked_attention
 from multion_agents.learned.learned_maps import EgoMap, ObjRecogMap, recognition_label
 from multion_agents.learned.models import model_spec
+from multion_agents.learned.policy import HIDDEN_SIZE, Memory, RecurrentPolicy
 
 NEW_MODELS = [
     "frmqn",
@@ -124,9 +125,9 @@ def test_reset_mid_sequence_equals_fresh_run(name: str) -> None:
 
 
 def test_frmqn_empty_memory_reads_zeros() -> None:
-    memory = FRMQN(query_dim=10, memory_size=4, key_dim=6, out_dim=8)
+    memory = FRMQN(observation_dim=10, hidden_dim=5, memory_size=4, key_dim=6, out_dim=8)
     state = memory.initial_state(2)
-    read, new_state = memory.step({}, torch.randn(2, 10), state)
+    read, new_state = memory.step({}, torch.randn(2, 15), state)
     assert torch.equal(read, torch.zeros(2, 8))
     assert new_state["valid"].sum(1).tolist() == [1.0, 1.0]
     assert new_state["count"].tolist() == [[1.0], [1.0]]
@@ -142,10 +143,10 @@ def test_masked_attention_ignores_empty_slots() -> None:
 
 
 def test_frmqn_ring_buffer_keeps_the_last_m() -> None:
-    memory = FRMQN(query_dim=3, memory_size=4, key_dim=2, out_dim=2)
+    memory = FRMQN(observation_dim=3, hidden_dim=2, memory_size=4, key_dim=2, out_dim=2)
     state = memory.initial_state(1)
     for _ in range(6):
-        _, state = memory.step({}, torch.randn(1, 3), state)
+        _, state = memory.step({}, torch.randn(1, 5), state)
     assert state["count"].item() == 6 and state["valid"].sum().item() == 4
 
 
@@ -394,3 +395,53 @@ def test_ego_map_attention_over_empty_map() -> None:
         memory.positional_features(relative)
     )
     torch.testing.assert_close(read[0], expected.chunk(2, -1)[1])
+
+
+class _QuerySpy(Memory):
+    """A memory that reads the GRU state and records the queries it is given."""
+
+    reads_hidden = True
+    out_dim = 4
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.queries: list[torch.Tensor] = []
+
+    def step(self, frame, query, state):
+        self.queries.append(query.detach().clone())
+        return query[:, :4], state
+
+
+def test_a_memory_that_reads_hidden_is_queried_with_the_previous_gru_state() -> None:
+    _, space = _space("frmqn")
+    spy = _QuerySpy()
+    policy = RecurrentPolicy(space, spy)
+    frames = _frames(space, steps=4, batch=2)
+    starts = torch.zeros(4, 2)
+    starts[2, 1] = 1.0  # env 1 starts a new episode at step 2
+    initial = {"hidden": torch.randn(2, HIDDEN_SIZE)}
+    with torch.no_grad():
+        out = policy(frames, torch.ones(4, 2), starts, initial)
+    queried = [q[:, -HIDDEN_SIZE:] for q in spy.queries]
+    assert len(queried) == 4
+    torch.testing.assert_close(queried[0], initial["hidden"])
+    for t in (1, 2, 3):
+        expected = _hidden_after(policy, frames, starts, initial, t)
+        if t == 2:
+            expected[1] = 0.0  # cleared by the episode start before the read
+        torch.testing.assert_close(queried[t], expected)
+    torch.testing.assert_close(
+        out.state["hidden"], _hidden_after(policy, frames, starts, initial, 4)
+    )
+
+
+def _hidden_after(policy, frames, starts, initial, steps: int) -> torch.Tensor:
+    """The GRU state after the first ``steps`` steps, from a fresh replay of just those steps."""
+    with torch.no_grad():
+        out = policy(
+            {k: v[:steps] for k, v in frames.items()},
+            torch.ones(steps, 2),
+            starts[:steps],
+            initial,
+        )
+    return out.state["hidden"].clone()

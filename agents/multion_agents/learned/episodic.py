@@ -22,6 +22,7 @@ from torch import Tensor, nn
 from multion_agents.learned.policy import (
     ACTION_EMBED_DIM,
     GOAL_EMBED_DIM,
+    HIDDEN_SIZE,
     Batch,
     Memory,
     State,
@@ -65,21 +66,28 @@ class FRMQN(Memory):
     current embedding and the previous read ("feedback recurrent"); the read and the context
     feed the policy.
 
-    Ours: the query is a linear map of the current ``[v_i, v_g, v_a]`` and of the previous read
-    (kept in the state as ``read``), standing in for the context LSTM, whose role the policy's
-    GRU plays (the memory cannot see the GRU state). The current observation is written after
-    the read, so the read covers the M previous steps; at an episode's first step it is zero.
-    ``v_m`` is the 256-d read.
+    Ours: the policy's GRU is the context recurrence (it took the previous read as input), so
+    the query is a linear map of the current ``[v_i, v_g, v_a]`` and the GRU state ``h_{t-1}``.
+    The current observation is written after the read, so the read covers the M previous
+    steps; at an episode's first step it is zero. ``v_m`` is the 256-d read.
     """
 
+    reads_hidden = True
+
     def __init__(
-        self, query_dim: int, memory_size: int = MEMORY_SIZE, key_dim: int = 128, out_dim: int = 256
+        self,
+        observation_dim: int,
+        hidden_dim: int = HIDDEN_SIZE,
+        memory_size: int = MEMORY_SIZE,
+        key_dim: int = 128,
+        out_dim: int = 256,
     ):
         super().__init__()
         self.memory_size, self.key_dim, self.out_dim = memory_size, key_dim, out_dim
-        self.key = nn.Linear(query_dim, key_dim)
-        self.value = nn.Linear(query_dim, out_dim)
-        self.context = nn.Linear(query_dim + out_dim, key_dim)
+        self.observation_dim = observation_dim
+        self.key = nn.Linear(observation_dim, key_dim)
+        self.value = nn.Linear(observation_dim, out_dim)
+        self.context = nn.Linear(observation_dim + hidden_dim, key_dim)
 
     def initial_state(self, batch: int) -> State:
         m = self.memory_size
@@ -88,19 +96,17 @@ class FRMQN(Memory):
             "values": torch.zeros(batch, m, self.out_dim),
             "valid": torch.zeros(batch, m),
             "count": torch.zeros(batch, 1),
-            "read": torch.zeros(batch, self.out_dim),
         }
 
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
-        context = self.context(torch.cat([query, state["read"]], dim=1))
-        read = masked_attention(context, state["keys"], state["values"], state["valid"])
+        observation = query[:, : self.observation_dim]
+        read = masked_attention(self.context(query), state["keys"], state["values"], state["valid"])
         count = state["count"]
         new_state = {
-            "keys": ring_write(state["keys"], count, self.key(query)),
-            "values": ring_write(state["values"], count, self.value(query)),
+            "keys": ring_write(state["keys"], count, self.key(observation)),
+            "values": ring_write(state["values"], count, self.value(observation)),
             "valid": ring_mark(state["valid"], count),
             "count": count + 1.0,
-            "read": read,
         }
         return read, new_state
 
@@ -186,7 +192,7 @@ def policy_query_dim(observation_space: spaces.Dict) -> int:
 
 
 def build_frmqn(observation_space: spaces.Dict) -> FRMQN:
-    return FRMQN(policy_query_dim(observation_space))
+    return FRMQN(policy_query_dim(observation_space), HIDDEN_SIZE)
 
 
 def build_smt(observation_space: spaces.Dict) -> SMT:

@@ -27,7 +27,7 @@ from torch import Tensor, nn
 from multion_agents.learned import map_ops
 from multion_agents.learned.encoders import EMBED_DIM, NUM_CATEGORY_VALUES, MapCNN
 from multion_agents.learned.episodic import policy_query_dim
-from multion_agents.learned.policy import Batch, Memory, State
+from multion_agents.learned.policy import HIDDEN_SIZE, Batch, Memory, State
 
 CROP_SIZE = 25
 """Side of the egocentric crop read by the map CNN, cells (20 m)."""
@@ -185,14 +185,16 @@ class EgoMap(ProjNeuralMap):
     egocentric map with a conv network and with attention whose query comes from the agent's
     recurrent state, and keys/values from the map's features and cell coordinates.
 
-    Ours: the query is a projection of this step's ``[v_i, v_g, v_a]`` (the memory has no access
-    to the GRU state); keys and values are 1×1 projections of the features of every cell of the
+    Ours: the query is a projection of this step's ``[v_i, v_g, v_a]`` and the GRU state
+    ``h_{t-1}``; keys and values are 1×1 projections of the features of every cell of the
     global map max-pooled 2 × 2 (32 × 32 cells of 1.6 m: full resolution made this model 2×
     slower than ProjNeuralMap) plus a learned encoding (Fourier features) of the cell's position
     relative to the agent;
     cells never written (all-zero features) are ignored, and an empty map reads as zeros. The
     attention read is concatenated with the crop CNN's output and projected to 256.
     """
+
+    reads_hidden = True
 
     def __init__(
         self,
@@ -263,4 +265,4 @@ def build_proj_neural_map(observation_space: spaces.Dict) -> ProjNeuralMap:
 
 
 def build_ego_map(observation_space: spaces.Dict) -> EgoMap:
-    return EgoMap(observation_space, policy_query_dim(observation_space))
+    return EgoMap(observation_space, policy_query_dim(observation_space) + HIDDEN_SIZE)

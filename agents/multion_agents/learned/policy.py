@@ -47,6 +47,10 @@ class Memory(nn.Module, ABC):
     sensors: tuple[str, ...] = ()
     train_sensors: tuple[str, ...] = ()
     out_dim: int = 0
+    reads_hidden: bool = False
+    """True: ``step``'s query is ``[v_i, v_g, v_a, h_{t-1}]``, with the GRU state before the step
+    (zero at an episode's first step), as in FRMQN and EgoMap, whose reads are queried by the
+    agent's recurrent state. The memory and the GRU then advance together, one step at a time."""
 
     def initial_state(self, batch: int) -> State:
         """The empty memory of ``batch`` environments (all zeros)."""
@@ -150,21 +154,36 @@ class RecurrentPolicy(nn.Module):
         }
 
         memory_state = {k[len("memory.") :]: v for k, v in state.items() if k.startswith("memory.")}
-        inputs = query
-        if self.memory is not None:
+        hidden = state["hidden"]
+        if self.memory is None:
+            core, hidden = self._recurrent(query, episode_start, hidden)
+        elif self.memory.reads_hidden:
+            cores = []
+            for t in range(steps):
+                keep = 1.0 - episode_start[t].float()
+                memory_state = _clear(memory_state, keep)
+                hidden = hidden * keep[:, None]
+                v_m, memory_state = self.memory.step(
+                    {k: v[t] for k, v in per_step.items()},
+                    torch.cat([query[t], hidden], dim=1),
+                    memory_state,
+                )
+                step_core, hidden = self._recurrent(
+                    torch.cat([query[t], v_m], dim=1)[None], episode_start[t : t + 1], hidden
+                )
+                cores.append(step_core[0])
+            core = torch.stack(cores)
+        else:
             # The memory does not read the GRU state, so its loop runs first, over all steps.
             memory_out = []
             for t in range(steps):
-                keep = 1.0 - episode_start[t].float()
-                memory_state = {
-                    k: v * keep.view(-1, *[1] * (v.dim() - 1)) for k, v in memory_state.items()
-                }
+                memory_state = _clear(memory_state, 1.0 - episode_start[t].float())
                 v_m, memory_state = self.memory.step(
                     {k: v[t] for k, v in per_step.items()}, query[t], memory_state
                 )
                 memory_out.append(v_m)
             inputs = torch.cat([query, torch.stack(memory_out)], dim=2)
-        core, hidden = self._recurrent(inputs, episode_start, state["hidden"])
+            core, hidden = self._recurrent(inputs, episode_start, hidden)
         new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
         auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
         return PolicyOutput(
@@ -235,6 +254,11 @@ class RecurrentPolicy(nn.Module):
 def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...]) -> Batch:
     """Batched numpy observations → tensors (uint8 stays uint8: images are scaled in the CNN)."""
     return {k: torch.as_tensor(np.asarray(observation[k])) for k in keys}
+
+
+def _clear(memory_state: State, keep: Tensor) -> State:
+    """Empty the memory of environments whose ``keep`` (B,) is 0 (an all-zero state is empty)."""
+    return {k: v * keep.view(-1, *[1] * (v.dim() - 1)) for k, v in memory_state.items()}
 
 
 def _layer(layer: nn.Linear, std: float) -> nn.Linear:
