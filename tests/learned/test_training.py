@@ -118,9 +118,10 @@ def test_gae_matches_hand_computation() -> None:
 def test_every_model_trains_a_few_hundred_frames(
     name: str, tmp_path: Path, room_dataset: Path
 ) -> None:
-    args = tiny_args(tmp_path, room_dataset, agent=name)
+    args = tiny_args(tmp_path, room_dataset, agent=name, update_threads=2)
     summary = train(args)
     assert summary["frames"] == 192 and summary["update"] == 3
+    assert torch.get_num_threads() == args.threads  # the update's threads are given back
     for key in ("policy_loss", "value_loss", "entropy"):
         assert math.isfinite(summary[key])
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
