@@ -96,4 +96,11 @@ def run_train_bench(
         "  training time split   "
         + ", ".join(f"{k} {100 * result[f'{k}_share']:.0f}%" for k in ("sim", "act", "update"))
     )
+    learner_ms = 1000 * (parts["act"] + parts["update"]) / frames
+    budget_ms = 1000 * 0.3 / bare
+    result["learner_ms_per_frame"] = learner_ms
+    print(
+        f"  learner time          {learner_ms:8.2f} ms/frame (acting + updating; the 30% target "
+        f"leaves {budget_ms:.2f} ms/frame)"
+    )
     return result
