@@ -329,3 +329,15 @@ def test_train_cli_rejects_a_bad_found_prior(tmp_path: Path, capsys) -> None:
     assert code == 2
     assert "found_prior must be in (0, 1), got 1.5" in capsys.readouterr().err
     assert not (tmp_path / "checkpoint.pt").exists()
+
+
+def test_training_bench_measures_both_rates_in_one_run(capsys) -> None:
+    from multion_agents.bench_train import run_train_bench
+
+    result = run_train_bench("no-map", image_size=36, envs=2, updates=2)
+    assert result["bare_fps"] > 0 and result["train_fps"] > 0
+    assert result["ratio"] == pytest.approx(result["train_fps"] / result["bare_fps"])
+    shares = [result[f"{k}_share"] for k in ("sim", "act", "update")]
+    assert all(0 < s < 1 for s in shares) and sum(shares) <= 1.0 + 1e-6
+    assert result["learner_ms_per_frame"] > 0
+    assert "ratio train / bare" in capsys.readouterr().out
