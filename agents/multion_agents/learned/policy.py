@@ -9,7 +9,8 @@ multiplying its state by zero.
 The same code serves acting (T = 1) and the PPO update, which replays a rollout from the state
 saved at its start (recurrent mini-batches). Everything that does not depend on the state (the
 CNN over RGB-D, map embeddings) is computed for all T·B frames at once; memories step through
-time, and the GRU runs fused over the stretches between episode starts.
+time, and the GRU runs fused over the whole sequence, except beside a memory that reads the GRU
+state (FRMQN, EgoMap), with which it advances step by step.
 """
 
 from __future__ import annotations
