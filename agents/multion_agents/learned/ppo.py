@@ -283,8 +283,9 @@ def train(args: Args) -> dict[str, Any]:
     num_goals = parse_task(args.task)
     device = _device(args.device)
     rank, world = init_distributed(device)
-    torch.set_num_threads(max(1, args.threads))
+    act_threads = max(1, args.threads)
     update_threads = args.update_threads or _cores_per_rank()
+    torch.set_num_threads(act_threads)
     out = Path(args.out)
     env_config = training_env_config(
         num_goals,
@@ -404,7 +405,7 @@ def train(args: Args) -> dict[str, Any]:
             try:
                 stats = ppo_update(policy, optimizer, rollout, args)
             finally:
-                torch.set_num_threads(max(1, args.threads))
+                torch.set_num_threads(act_threads)
             update_seconds = time.perf_counter() - update_tick
             update += 1
             frames += frames_per_update
