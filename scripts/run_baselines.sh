@@ -1,18 +1,37 @@
 #!/usr/bin/env bash
-# Re-run the baseline table of docs/baselines.md (one eval at a time, at low priority).
-#   bash scripts/run_baselines.sh [AGENT ...]     # default: all four agents
-# Episode counts per agent are those of the table; each run writes runs/baselines/AGENT-Mon/.
+# Re-run the evaluation runs behind docs/baselines.md (one eval at a time, at low priority),
+# then regenerate the doc's tables and figures from them:
+#   bash scripts/run_baselines.sh RUNS_DIR [AGENT ...]    # default: all four agents
+#   .venv/bin/multion report RUNS_DIR/* --out docs --doc baselines
+# Each run writes RUNS_DIR/AGENT-Mon/ (and RUNS_DIR/random-3on-budgetB/ for the found-budget
+# table). Episode counts per agent are set below; random-oracle-found never calls a wrong FOUND,
+# so the found-budget runs use `random`, which does.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-declare -A EPISODES=([random]=1000 [random-oracle-found]=1000 [oracle-planner]=200 [explorer]=100)
+runs=${1:?usage: bash scripts/run_baselines.sh RUNS_DIR [AGENT ...]}
+shift
+declare -A EPISODES=([random]=200 [random-oracle-found]=200 [oracle-planner]=100 [explorer]=50)
+BUDGETS=(1 3 10)
 agents=("$@")
-[ ${#agents[@]} -gt 0 ] || agents=(oracle-planner explorer random random-oracle-found)
+[ ${#agents[@]} -gt 0 ] || agents=(random random-oracle-found oracle-planner explorer)
+
+evaluate() {  # evaluate OUT_NAME EPISODES ARGS...
+  local name=$1 episodes=$2 start
+  shift 2
+  start=$(date +%s)
+  nice -n 15 .venv/bin/multion eval --split val --episodes "$episodes" --in-process --seed 0 \
+    --out "$runs/$name" --quiet "$@"
+  echo "$name: $episodes episodes in $(( $(date +%s) - start )) s"
+}
+
 for agent in "${agents[@]}"; do
-  for m in 3 2 1; do
-    start=$(date +%s)
-    nice -n 15 .venv/bin/multion eval --agent "$agent" --task "$m-on" --split val \
-      --episodes "${EPISODES[$agent]}" --in-process --seed 0 \
-      --out "runs/baselines/$agent-${m}on" --quiet
-    echo "$agent $m-on: ${EPISODES[$agent]} episodes in $(( $(date +%s) - start )) s"
+  for m in 1 2 3; do
+    evaluate "$agent-${m}on" "${EPISODES[$agent]}" --agent "$agent" --task "$m-on"
   done
+  if [ "$agent" = random ]; then
+    for budget in "${BUDGETS[@]}"; do
+      evaluate "random-3on-budget$budget" "${EPISODES[random]}" --agent random --task 3-on \
+        --set "task.found_budget=$budget"
+    done
+  fi
 done

@@ -5,6 +5,7 @@ Examples::
     multion eval --agent oracle-planner --task 3-on --split val --episodes 50 --out runs/op
     multion eval --agent explorer --server http://127.0.0.1:8000 --episodes 20
     multion eval --agent my_package.agents:MyAgent --episodes 10
+    multion eval --agent random --task 3-on --set task.found_budget=3 --out runs/rand-budget3
 
 Without ``--server`` a server is started on a free loopback port for the run and stopped after.
 """
@@ -69,12 +70,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="learned agents take the most likely action instead of sampling",
     )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="change the environment config, e.g. --set task.found_budget=3 "
+        "--set maps.ego_size=25 --set camera.hfov=90 (repeatable; values are JSON or strings; "
+        "recorded in metrics.json)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
     from multion.task.dataset import DatasetError, parse_task
-    from multion_agents.agent import AgentError, agent_class
+    from multion_agents.agent import AgentError
+    from multion_agents.config_overrides import parse_env_overrides
+    from multion_agents.evaluate import check_overrides
+    from multion_agents.registry import agent_class
     from multion_client.errors import MultiONError, ServerUnavailable
 
     try:
@@ -93,9 +106,14 @@ def run(args: argparse.Namespace) -> int:
         return _fail("--in-process and --server exclude each other")
     if args.workers <= 0:
         return _fail(f"--workers must be positive, got {args.workers}")
+    try:
+        env_overrides = parse_env_overrides(args.set)
+        check_overrides(env_overrides)
+    except ValueError as error:
+        return _fail(str(error))
 
     from multion_agents.evaluate import EvalSettings, evaluate
-    from multion_agents.report import format_table, summarize, title_of, write_report
+    from multion_agents.report.run_summary import format_table, summarize, title_of, write_report
 
     settings = EvalSettings(
         agent=args.agent,
@@ -111,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
         max_steps=args.max_steps,
         checkpoint=args.checkpoint,
         deterministic=args.deterministic,
+        env_overrides=env_overrides,
     )
     try:
         result = evaluate(settings, progress=not args.quiet)

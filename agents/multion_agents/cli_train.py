@@ -14,9 +14,7 @@ logs and checkpoints.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from typing import Any
 
 _HYPER = (
     ("rollout-steps", int, "steps per environment between updates"),
@@ -133,6 +131,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from multion.task.dataset import parse_task
+    from multion_agents.config_overrides import parse_env_overrides
     from multion_agents.learned.checkpoint import CheckpointError
     from multion_agents.learned.models import MODELS
     from multion_agents.learned.ppo import Args, train
@@ -198,24 +197,6 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['fps']:.0f} frames/s in the last update; run directory {args.out}"
         )
     return 0
-
-
-def parse_env_overrides(items: list[str]) -> dict[str, dict[str, Any]]:
-    """``["task.max_steps=500", ...]`` → ``{"task": {"max_steps": 500}}`` (checked by the env)."""
-    overrides: dict[str, dict[str, Any]] = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        section, dot, name = key.partition(".")
-        if not (sep and dot and section and name):
-            raise ValueError(
-                f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. task.max_steps=500"
-            )
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            value = raw
-        overrides.setdefault(section, {})[name] = value
-    return overrides
 
 
 def _fail(message: str) -> int:

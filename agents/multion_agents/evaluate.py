@@ -14,6 +14,7 @@ Each episode is reset by id on the server, and the agent's random stream is re-s
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
 import queue
 import threading
@@ -30,7 +31,8 @@ from tqdm import tqdm
 
 from multion.task.dataset import load_dataset, packaged_dataset_path, task_name
 from multion.task.episode import Episode
-from multion_agents.agent import Agent, AgentError, agent_class, merge_overrides
+from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
+from multion_agents.registry import agent_class
 
 EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
@@ -62,6 +64,8 @@ class EvalSettings:
     """A training checkpoint of the learned agent ``agent`` (``multion train``)."""
     deterministic: bool = False
     """Learned agents take their most likely action instead of sampling one."""
+    env_overrides: ConfigOverrides = field(default_factory=dict)
+    """Environment config changes (``--set task.found_budget=3``), applied after the agent's."""
 
 
 @dataclass
@@ -95,21 +99,37 @@ class EvalResult:
     episodes: list[Episode]
     server: dict[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
+    resolved_config: dict[str, Any] = field(default_factory=dict)
+    """Every field of the environment config, defaults included (what the report compares)."""
+    dataset_sha256: str = ""
+    """Fingerprint of the dataset file the episodes came from."""
 
 
 # ---------------------------------------------------------------------- episodes and config
 def select_episodes(settings: EvalSettings) -> list[Episode]:
     """The evaluated episodes, in order; evenly spaced when fewer than the dataset's."""
-    path = settings.dataset or packaged_dataset_path(settings.num_goals, settings.split)
-    every = load_dataset(path, settings.num_goals)
+    every = load_dataset(dataset_file(settings), settings.num_goals)
     count = len(every) if settings.episodes is None else min(settings.episodes, len(every))
     if count <= 0:
         raise ValueError(f"--episodes must be positive, got {settings.episodes}")
     return [every[i * len(every) // count] for i in range(count)]
 
 
+def dataset_file(settings: EvalSettings) -> Path:
+    """The dataset file the evaluated episodes are read from."""
+    return Path(settings.dataset or packaged_dataset_path(settings.num_goals, settings.split))
+
+
+def dataset_sha256(path: Path) -> str:
+    """SHA-256 of a dataset file: tells runs over different dataset versions apart."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
-    """The environment config the agent is evaluated with, as the server's nested dicts."""
+    """The environment config the agent is evaluated with, as the server's nested dicts.
+
+    The agent's ``config_overrides`` are applied first, then the user's ``env_overrides``, so an
+    explicit ``--set`` wins (and is recorded in ``metrics.json``)."""
     sensors = list(dict.fromkeys([*agent.sensors, RECORDED_SENSOR]))
     config: dict[str, Any] = {
         "task": {"num_goals": settings.num_goals},
@@ -122,7 +142,24 @@ def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
         config["dataset"] = str(settings.dataset)
     if settings.image_size is not None:
         config["camera"] = {"width": settings.image_size, "height": settings.image_size}
-    return merge_overrides(config, agent.config_overrides)
+    config = merge_overrides(config, agent.config_overrides)
+    return merge_overrides(config, settings.env_overrides)
+
+
+def check_overrides(overrides: ConfigOverrides) -> None:
+    """Refuse ``--set`` fields that other options own (the task's m is ``--task``)."""
+    if "num_goals" in overrides.get("task", {}):
+        raise ValueError("--set task.num_goals: give the number of goals with --task instead")
+    for section, values in overrides.items():
+        if not isinstance(values, dict):
+            raise ValueError(f"--set {section}: expected SECTION.FIELD=VALUE")
+
+
+def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
+    """Every field of ``config`` with defaults filled in; a ConfigError names a bad field."""
+    from multion.api.config_io import env_config_from_dict, env_config_to_dict
+
+    return env_config_to_dict(env_config_from_dict(config))
 
 
 def resolve_agent(settings: EvalSettings) -> type[Agent]:
@@ -272,7 +309,9 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     in this process with ``settings.in_process``."""
     from multion_client.client import Client
 
-    resolve_agent(settings)  # fail on a bad agent or checkpoint before starting anything
+    # fail on a bad agent, checkpoint or config before starting anything
+    check_overrides(settings.env_overrides)
+    resolved = resolve_config(env_config(settings, resolve_agent(settings)))
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:
@@ -300,5 +339,12 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
             config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)
         server = {"url": None, "local": True, "api_version": health.get("api_version")}
     return EvalResult(
-        settings, config, records, episodes, server, seconds=time.perf_counter() - started
+        settings,
+        config,
+        records,
+        episodes,
+        server,
+        seconds=time.perf_counter() - started,
+        resolved_config=resolved,
+        dataset_sha256=dataset_sha256(dataset_file(settings)),
     )

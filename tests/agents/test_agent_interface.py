@@ -11,8 +11,9 @@ import pytest
 
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode, Goal
-from multion_agents.agent import AGENT_NAMES, Agent, AgentError, agent_class, make_agent
+from multion_agents.agent import Agent, AgentError
 from multion_agents.evaluate import EvalSettings, env_config, run_episode
+from multion_agents.registry import AGENT_NAMES, agent_class, make_agent
 from multion_client.constants import Action
 
 

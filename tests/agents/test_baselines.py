@@ -12,10 +12,11 @@ from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode, Goal
 from multion.task.maps import MapConfig
-from multion_agents.agent import Agent, make_agent
+from multion_agents.agent import Agent
 from multion_agents.baselines.mapping import detect_goals
 from multion_agents.baselines.navigation import StartFrameGrid
 from multion_agents.evaluate import gps_to_world, run_episode
+from multion_agents.registry import make_agent
 from multion_client.constants import GOAL_RGBA, Action
 
 

@@ -1,4 +1,4 @@
-"""Summaries of an evaluation: means with 95% confidence intervals, a table, and result files.
+"""Summaries of one evaluation: means with 95% confidence intervals, a table, and result files.
 
 Confidence intervals are percentile bootstrap intervals over episodes (2,000 resamples, fixed
 seed): no normality assumption, and they stay inside [0, 1] for rates such as Success. With few
@@ -7,7 +7,8 @@ episodes they are wide; that is the honest answer.
 Files written to the output directory:
 
 * ``metrics.json``: the aggregates and the run's configuration (agent, task, split, episodes,
-  seed, server, environment config, package versions);
+  seed, server, the ``--set`` overrides, the environment config as sent and with every default
+  filled in, the dataset file's SHA-256, package versions);
 * ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings);
 * ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`.pictures`).
 """
@@ -15,7 +16,9 @@ Files written to the output directory:
 from __future__ import annotations
 
 import json
+import os
 import platform
+import tempfile
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -116,6 +119,18 @@ def versions() -> dict[str, str]:
     return found
 
 
+def write_atomically(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file, so readers never see half a file."""
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
 def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]:
     """Write metrics.json, episodes.jsonl and up to ``pictures`` PNGs into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
@@ -132,17 +147,22 @@ def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]
         "checkpoint": s.checkpoint,
         "deterministic": s.deterministic,
         "server": result.server,
+        "max_steps": s.max_steps,
+        "image_size": s.image_size,
+        "env_overrides": s.env_overrides,
         "env_config": result.config,
+        "resolved_config": result.resolved_config,
+        "dataset_sha256": result.dataset_sha256,
         "versions": versions(),
         "seconds": round(result.seconds, 2),
     }
+    # episodes first: a metrics.json is only ever next to the complete episodes it summarizes
+    episodes_path = out / "episodes.jsonl"
+    lines = "".join(json.dumps(record.to_json()) + "\n" for record in result.records)
+    write_atomically(episodes_path, lines)
     metrics_path = out / "metrics.json"
     payload = {"run": run, "metrics": summarize(result.records)}
-    metrics_path.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
-    episodes_path = out / "episodes.jsonl"
-    with episodes_path.open("w", encoding="utf-8") as handle:
-        for record in result.records:
-            handle.write(json.dumps(record.to_json()) + "\n")
+    write_atomically(metrics_path, json.dumps(payload, indent=2) + "\n")
     written = [metrics_path, episodes_path]
     if pictures > 0:
         from multion.sim.simulator import Simulator
