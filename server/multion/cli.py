@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "evaluate an agent on a split, locally or against a server",
     ),
     "train": ("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
+    "report": ("multion_agents.cli_report", "tables and figures of the paper from eval runs"),
     "dataset": ("multion.cli_data", "generate or check episode datasets"),
     "scene": ("multion.cli_data", "draw or export scenes"),
     "bench": ("multion.bench", "measure simulator, server and training speed"),

@@ -1,7 +1,6 @@
 """Summaries of one evaluation: means with 95% confidence intervals, a table, and result files.
 
-Confidence intervals are percentile bootstrap intervals over episodes (2,000 resamples, fixed
-seed): no normality assumption, and they stay inside [0, 1] for rates such as Success. With few
+Confidence intervals are percentile bootstrap intervals over episodes (:mod:`.stats`). With few
 episodes they are wide; that is the honest answer.
 
 Files written to the output directory:
@@ -10,18 +9,16 @@ Files written to the output directory:
   seed, server, the ``--set`` overrides, the environment config as sent and with every default
   filled in, the dataset file's SHA-256, package versions);
 * ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings);
-* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`.pictures`).
+* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion_agents.pictures`).
 """
 
 from __future__ import annotations
 
 import json
-import os
 import platform
-import tempfile
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -30,35 +27,8 @@ import numpy as np
 
 from multion.task.dataset import task_name
 from multion_agents.evaluate import EpisodeRecord, EvalResult
-
-# metric key in info["metrics"] → column title (the paper's Table 3 columns)
-HEADLINE: tuple[tuple[str, str], ...] = (
-    ("success", "Success"),
-    ("progress", "Progress"),
-    ("spl", "SPL"),
-    ("ppl", "PPL"),
-)
-CI_METHOD = "percentile bootstrap over episodes, 2000 resamples, 95%"
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """A mean and its 95% confidence interval (fractions, not percent)."""
-
-    mean: float
-    low: float
-    high: float
-
-
-def bootstrap(values: Sequence[float], resamples: int = 2000, seed: int = 0) -> Estimate:
-    """Mean of ``values`` with a 95% percentile-bootstrap interval."""
-    data = np.asarray(values, dtype=np.float64)
-    if len(data) == 0:
-        return Estimate(float("nan"), float("nan"), float("nan"))
-    rng = np.random.default_rng(seed)
-    means = data[rng.integers(len(data), size=(resamples, len(data)))].mean(axis=1)
-    low, high = np.percentile(means, [2.5, 97.5])
-    return Estimate(float(data.mean()), float(low), float(high))
+from multion_agents.report.files import write_atomically
+from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap
 
 
 def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
@@ -117,18 +87,6 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             found[package] = "not installed"
     return found
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file, so readers never see half a file."""
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]:

@@ -1,0 +1,71 @@
+"""``multion report``: the paper's tables and figures from ``multion eval`` run directories.
+
+Examples::
+
+    multion report runs/random-3on runs/explorer-3on --out reports/3on
+    multion report runs/baselines --out reports/baselines       # every run under runs/baselines
+    multion report runs/baselines/* --out docs --doc baselines  # regenerate docs/baselines.md
+
+Writes Table 3 (Success, Progress, SPL, PPL with 95% intervals and the paper's numbers), the
+seen / not-seen analysis, the found-budget table (runs differing in ``task.found_budget``),
+paired comparisons of agents played on the same episodes, and two figures, as Markdown with
+CSV and PNG files beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "runs",
+        nargs="+",
+        type=Path,
+        metavar="RUN_DIR",
+        help="`multion eval --out` directories, or directories holding several of them",
+    )
+    parser.add_argument("--out", type=Path, required=True, help="directory for the report files")
+    parser.add_argument(
+        "--doc",
+        default=None,
+        metavar="NAME",
+        help="update the generated part of OUT/NAME.md (between its marker comments) and put "
+        "its files in OUT/NAME/, e.g. --out docs --doc baselines",
+    )
+    parser.add_argument("--no-figures", action="store_true", help="tables only (no matplotlib)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from multion_agents.report.document import DocumentError, Layout, write_report
+    from multion_agents.report.paper import paper_results
+    from multion_agents.report.runs import RunError, load_runs
+
+    if args.doc is not None and (not args.doc or "/" in args.doc or args.doc.startswith(".")):
+        return _fail(f"--doc {args.doc!r}: give a document name like 'baselines', not a path")
+    if args.out.exists() and not args.out.is_dir():
+        return _fail(f"--out {args.out}: exists and is not a directory")
+    try:
+        runs = load_runs(args.runs)
+    except RunError as error:
+        return _fail(str(error))
+    command = "multion report " + shlex.join(
+        [*map(str, args.runs), "--out", str(args.out)]
+        + (["--doc", args.doc] if args.doc else [])
+        + (["--no-figures"] if args.no_figures else [])
+    )
+    layout = Layout.for_output(args.out, args.doc)
+    try:
+        written = write_report(runs, paper_results(), layout, command, not args.no_figures)
+    except DocumentError as error:
+        return _fail(str(error))
+    print(f"{len(runs)} runs → {layout.markdown} (+ {len(written) - 1} files in {layout.assets})")
+    return 0
+
+
+def _fail(message: str) -> int:
+    print(f"multion report: {message}", file=sys.stderr)
+    return 2

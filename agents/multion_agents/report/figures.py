@@ -1,0 +1,117 @@
+"""The report's figures (PNG, matplotlib without pyplot, so nothing global and no display).
+
+* ``metrics-vs-m.png``: Success, Progress, SPL and PPL against m per agent with 95% interval
+  bars, the paper's numbers dotted where the agent has a counterpart (the paper's main finding:
+  performance falls as m grows);
+* ``episode-lengths.png``: the distribution of episode lengths (steps) per agent, one panel
+  per task.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from multion_agents.report.paper import PaperResults
+from multion_agents.report.runs import Run
+from multion_agents.report.stats import HEADLINE, bootstrap
+from multion_agents.report.tables import display_order
+
+DPI = 110
+
+
+def metrics_vs_m(
+    runs: Sequence[Run], labels: Sequence[str], paper: PaperResults, path: Path
+) -> Path:
+    """Each headline metric against m, one line per agent label, interval bars."""
+    by_label: dict[str, list[Run]] = defaultdict(list)
+    for i in display_order(runs, labels, paper):
+        by_label[labels[i]].append(runs[i])
+    tasks = sorted({run.num_goals for run in runs})
+    figure = Figure(figsize=(10, 7.2), dpi=DPI, layout="constrained")
+    axes = figure.subplots(2, 2, sharex=True).ravel()
+    colours = _colours(len(by_label))
+    for axis, (key, name) in zip(axes, HEADLINE, strict=True):
+        for colour, (label, members) in zip(colours, by_label.items(), strict=True):
+            members = sorted(members, key=lambda run: run.num_goals)
+            m = np.array([run.num_goals for run in members])
+            estimates = [bootstrap(run.values(key)) for run in members]
+            mean = np.array([100 * e.mean for e in estimates])
+            error = np.array(
+                [
+                    [100 * (e.mean - e.low) for e in estimates],
+                    [100 * (e.high - e.mean) for e in estimates],
+                ]
+            )
+            axis.errorbar(
+                m, mean, yerr=error, color=colour, marker="o", capsize=4, label=label, lw=1.8
+            )
+            theirs = [
+                paper.table3_row(run.agent, run.num_goals)
+                for run in members
+                if run.found_budget == 0
+            ]
+            if theirs and all(theirs):
+                axis.plot(
+                    m,
+                    [row[key] for row in theirs if row],
+                    color=colour,
+                    ls=":",
+                    marker="o",
+                    mfc="white",
+                    label=f"{paper.counterpart(members[0].agent)} (paper, MP3D test)",
+                )
+        axis.set_title(name)
+        axis.set_ylim(-3, 103)
+        axis.set_xticks(tasks, [f"{m}-ON" for m in tasks])
+        axis.set_ylabel(f"{name} (%)")
+        axis.grid(alpha=0.3)
+    handles, names = axes[0].get_legend_handles_labels()
+    figure.legend(handles, names, loc="outside lower center", ncols=min(3, len(names)), fontsize=9)
+    figure.suptitle("Performance against the number of goals m (95% bootstrap intervals)")
+    figure.savefig(path)
+    return path
+
+
+def episode_lengths(
+    runs: Sequence[Run], labels: Sequence[str], paper: PaperResults, path: Path
+) -> Path:
+    """Box plots of episode length (steps) per agent label, one panel per task."""
+    tasks = sorted({run.num_goals for run in runs})
+    order = display_order(runs, labels, paper)
+    all_labels = list(dict.fromkeys(labels[i] for i in order))
+    colours = dict(zip(all_labels, _colours(len(all_labels)), strict=True))
+    figure = Figure(
+        figsize=(4.2 * len(tasks), 1.2 + 0.45 * len(all_labels)), dpi=DPI, layout="constrained"
+    )
+    axes = np.atleast_1d(figure.subplots(1, len(tasks), sharey=True, sharex=True))
+    for axis, m in zip(axes, tasks, strict=True):
+        members = [i for i in order if runs[i].num_goals == m]
+        steps = [np.maximum(runs[i].values("steps"), 1) for i in members]
+        positions = [all_labels.index(labels[i]) for i in members]
+        boxes = axis.boxplot(
+            steps, positions=positions, vert=False, widths=0.6, patch_artist=True, whis=(5, 95)
+        )
+        for patch, i in zip(boxes["boxes"], members, strict=True):
+            patch.set_facecolor(colours[labels[i]])
+            patch.set_alpha(0.6)
+        axis.set_xscale("log")
+        axis.set_title(f"{m}-ON")
+        axis.set_xlabel("episode length (steps, log scale)")
+        axis.grid(alpha=0.3, axis="x")
+    axes[0].set_yticks(range(len(all_labels)), all_labels, fontsize=9)
+    axes[0].set_ylim(len(all_labels) - 0.5, -0.5)
+    figure.suptitle("Episode lengths: box 25–75%, line median, whiskers 5–95%, dots beyond")
+    figure.savefig(path)
+    return path
+
+
+def _colours(count: int) -> list[tuple[float, ...]]:
+    from matplotlib import colormaps
+
+    palette = colormaps["tab10"] if count <= 10 else colormaps["tab20"]
+    return [palette(i % palette.N) for i in range(count)]

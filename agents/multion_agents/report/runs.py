@@ -1,0 +1,230 @@
+"""Reading ``multion eval`` output directories (``metrics.json`` + ``episodes.jsonl``) for reports.
+
+A :class:`Run` is one agent on one task under one set of *conditions*: the things that must be
+equal for two runs to be compared (split, dataset file, found budget, other ``--set`` changes,
+step limit, camera size). Runs written before ``multion eval`` recorded a field get its default.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from multion.task.dataset import parse_task
+from multion.task.env import TaskConfig
+from multion_agents.report.stats import HEADLINE
+
+METRICS_FILE = "metrics.json"
+EPISODES_FILE = "episodes.jsonl"
+DEFAULT_FOUND_BUDGET = TaskConfig().found_budget
+
+
+class RunError(ValueError):
+    """A directory that is not a readable ``multion eval`` run; the message names it."""
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    episode_id: str
+    scene_id: str
+    metrics: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Run:
+    """One evaluation run, as read back from its directory."""
+
+    path: Path
+    agent: str
+    num_goals: int
+    split: str
+    dataset: str
+    """The dataset file's SHA-256 (12 hex digits), or its path for runs that predate it."""
+    found_budget: int
+    other_settings: str
+    """Everything else that changes the task, as ``field=value, ...`` ('' when nothing)."""
+    seed: int
+    multion_version: str
+    episodes: tuple[EpisodeResult, ...]
+    checkpoint: str = ""
+    """The learned agent's checkpoint (a run directory name), '' for the baselines."""
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def agent_label(self) -> str:
+        """The agent, with its checkpoint's run directory for learned agents."""
+        return f"{self.agent} ({self.checkpoint})" if self.checkpoint else self.agent
+
+    @property
+    def count(self) -> int:
+        return len(self.episodes)
+
+    def conditions(self) -> dict[str, str]:
+        """What must match for runs to be compared (shown when it differs between runs)."""
+        return {
+            "split": self.split,
+            "dataset": self.dataset,
+            "found budget": str(self.found_budget),
+            "settings": self.other_settings or "default",
+        }
+
+    def values(self, metric: str, episode_ids: Sequence[str] | None = None) -> np.ndarray:
+        """Per-episode values of a metric, in episode order or in the order of ``episode_ids``."""
+        if episode_ids is None:
+            chosen = self.episodes
+        else:
+            by_id = {e.episode_id: e for e in self.episodes}
+            chosen = tuple(by_id[i] for i in episode_ids)
+        return np.array([float(e.metrics.get(metric, 0.0)) for e in chosen], dtype=np.float64)
+
+    def episode_ids(self) -> list[str]:
+        return [e.episode_id for e in self.episodes]
+
+
+def expand_run_dirs(paths: Sequence[Path]) -> list[Path]:
+    """Run directories among ``paths``: a path holding no run itself but run subdirectories
+    (e.g. ``runs/baselines``) stands for all of them. Raises :class:`RunError` otherwise."""
+    found: list[Path] = []
+    for path in paths:
+        if not path.is_dir():
+            raise RunError(f"{path}: not a directory (give `multion eval --out` directories)")
+        if (path / METRICS_FILE).exists() or (path / EPISODES_FILE).exists():
+            found.append(path)
+            continue
+        children = sorted(p.parent for p in path.glob(f"*/{METRICS_FILE}"))
+        if not children:
+            raise RunError(
+                f"{path}: no {METRICS_FILE} here or in its subdirectories "
+                "(is this a `multion eval --out` directory?)"
+            )
+        found.extend(children)
+    unique = list(dict.fromkeys(p.resolve() for p in found))
+    if len(unique) < len(found):
+        raise RunError("the same run directory is given twice")
+    return found
+
+
+def load_run(path: Path) -> Run:
+    """Read one run directory; a :class:`RunError` says what is missing or malformed."""
+    metrics_path, episodes_path = path / METRICS_FILE, path / EPISODES_FILE
+    for required in (metrics_path, episodes_path):
+        if not required.is_file():
+            raise RunError(
+                f"{path}: no {required.name} (is this a `multion eval --out` directory?)"
+            )
+    try:
+        payload = json.loads(metrics_path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise RunError(f"{metrics_path}: not valid JSON ({error})") from None
+    run = payload.get("run") if isinstance(payload, dict) else None
+    if not isinstance(run, dict):
+        raise RunError(f"{metrics_path}: no 'run' section (not written by `multion eval`?)")
+    for key in ("agent", "task", "split"):
+        if not isinstance(run.get(key), str):
+            raise RunError(f"{metrics_path}: 'run.{key}' is missing or not a string")
+    try:
+        num_goals = parse_task(run["task"])
+    except ValueError as error:
+        raise RunError(f"{metrics_path}: {error}") from None
+    episodes = _read_episodes(episodes_path, num_goals)
+    if isinstance(run.get("episodes"), int) and run["episodes"] != len(episodes):
+        raise RunError(
+            f"{path}: metrics.json says {run['episodes']} episodes but {EPISODES_FILE} has "
+            f"{len(episodes)} (an interrupted or mixed-up run?)"
+        )
+    resolved = run.get("resolved_config") or {}
+    task = {**(run.get("env_config") or {}).get("task", {}), **resolved.get("task", {})}
+    return Run(
+        path=path,
+        agent=run["agent"],
+        num_goals=num_goals,
+        split=run["split"],
+        dataset=_dataset_label(run),
+        found_budget=int(task.get("found_budget", DEFAULT_FOUND_BUDGET)),
+        other_settings=_other_settings(run),
+        seed=int(run.get("seed", 0)),
+        multion_version=str((run.get("versions") or {}).get("multion", "unknown")),
+        episodes=episodes,
+        checkpoint=_checkpoint_label(run),
+    )
+
+
+def load_runs(paths: Sequence[Path]) -> list[Run]:
+    """All runs under ``paths`` (see :func:`expand_run_dirs`), in the order given."""
+    return [load_run(path) for path in expand_run_dirs(paths)]
+
+
+def _read_episodes(path: Path, num_goals: int) -> tuple[EpisodeResult, ...]:
+    episodes: list[EpisodeResult] = []
+    seen: set[str] = set()
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as error:
+        raise RunError(f"{path}: not UTF-8 text ({error})") from None
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            item = json.loads(line)
+        except json.JSONDecodeError as error:
+            raise RunError(f"{path}, line {number}: not valid JSON ({error})") from None
+        metrics = item.get("metrics") if isinstance(item, dict) else None
+        if not isinstance(metrics, dict) or not isinstance(item.get("episode_id"), str):
+            raise RunError(f"{path}, line {number}: expected an object with episode_id and metrics")
+        missing = [key for key, _ in HEADLINE if not isinstance(metrics.get(key), (int, float))]
+        if missing:
+            raise RunError(f"{path}, line {number}: metrics lack {', '.join(missing)}")
+        seen_flags = metrics.get("seen_before_current")
+        if seen_flags is not None and len(seen_flags) != num_goals - 1:
+            raise RunError(
+                f"{path}, line {number}: seen_before_current has {len(seen_flags)} entries, "
+                f"expected {num_goals - 1} for {num_goals} goals"
+            )
+        if item["episode_id"] in seen:
+            raise RunError(f"{path}, line {number}: episode {item['episode_id']} appears twice")
+        seen.add(item["episode_id"])
+        episodes.append(EpisodeResult(item["episode_id"], str(item.get("scene_id", "")), metrics))
+    if not episodes:
+        raise RunError(f"{path}: no episodes")
+    return tuple(episodes)
+
+
+def _dataset_label(run: dict[str, Any]) -> str:
+    if run.get("dataset_sha256"):
+        return str(run["dataset_sha256"])[:12]
+    return str(run.get("dataset") or "packaged (no checksum recorded)")
+
+
+def _checkpoint_label(run: dict[str, Any]) -> str:
+    if not run.get("checkpoint"):
+        return ""
+    checkpoint = Path(str(run["checkpoint"]))
+    label = checkpoint.parent.name or checkpoint.name
+    return f"{label}, deterministic" if run.get("deterministic") else label
+
+
+def _other_settings(run: dict[str, Any]) -> str:
+    """The run's task-changing options besides the split, dataset and found budget."""
+    changed: dict[str, Any] = {}
+    for section, values in (run.get("env_overrides") or {}).items():
+        for name, value in values.items():
+            changed[f"{section}.{name}"] = value
+    changed.pop("task.found_budget", None)
+    sent = run.get("env_config") or {}
+    max_steps = (sent.get("task") or {}).get("max_steps")
+    if max_steps is not None:  # --max-steps
+        changed["task.max_steps"] = max_steps
+    # --image-size (recorded since `multion eval --set`; older runs only have the config sent,
+    # which also holds the agent's own camera changes)
+    width = run["image_size"] if "image_size" in run else (sent.get("camera") or {}).get("width")
+    if width is not None:
+        changed["camera.width"] = width
+    return ", ".join(f"{key}={value}" for key, value in sorted(changed.items()))

@@ -1,0 +1,454 @@
+"""The report's tables, computed from runs: Table 3, seen / not seen, found budget, paired.
+
+Each builder returns a :class:`Table`: Markdown cells for reading, plain records (numbers in
+percent) for the CSV file beside it, and notes. Runs are never merged: two runs that differ in
+their conditions (split, dataset, found budget, other settings) get rows of their own, labelled
+by what differs, and a note says so.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from multion.task.dataset import task_name
+from multion_agents.report.paper import PaperResults
+from multion_agents.report.runs import Run
+from multion_agents.report.stats import (
+    CI_METHOD,
+    HEADLINE,
+    Estimate,
+    bootstrap,
+    independent_difference,
+    paired_difference,
+)
+
+
+@dataclass
+class Table:
+    name: str
+    """File stem of the CSV (``table3`` → ``table3.csv``)."""
+    title: str
+    header: list[str]
+    rows: list[list[str]] = field(default_factory=list)
+    records: list[dict[str, Any]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+# ---------------------------------------------------------------------- labels and order
+def run_labels(runs: Sequence[Run]) -> list[str]:
+    """A row label per run: the agent, plus each condition in which the run differs from most
+    runs (e.g. ``random (found budget 3)``), plus the directory name if still not unique."""
+    usual = _usual_conditions(runs)
+    labels = []
+    for run in runs:
+        differing = [
+            f"{key} {value}"
+            for key, value in run.conditions().items()
+            if value != usual[run.num_goals][key]
+        ]
+        labels.append(run.agent_label + (f" ({'; '.join(differing)})" if differing else ""))
+    clashes = Counter((label, run.num_goals) for label, run in zip(labels, runs, strict=True))
+    return [
+        f"{label} [{run.name}]" if clashes[(label, run.num_goals)] > 1 else label
+        for label, run in zip(labels, runs, strict=True)
+    ]
+
+
+def _usual_conditions(runs: Sequence[Run]) -> dict[int, dict[str, str]]:
+    """Per m, the most common value of each condition (the dataset file differs with m)."""
+    usual: dict[int, dict[str, str]] = {}
+    for m in {run.num_goals for run in runs}:
+        usual[m] = {}
+        for key in runs[0].conditions():
+            pool = runs if key != "dataset" else [r for r in runs if r.num_goals == m]
+            usual[m][key] = Counter(r.conditions()[key] for r in pool).most_common(1)[0][0]
+    return usual
+
+
+def display_order(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> list[int]:
+    """Run indices sorted by agent (the paper's order first, then as given), label, m."""
+    known = list(paper.agents)
+    first_seen: dict[str, int] = {}
+    for run in runs:
+        first_seen.setdefault(run.agent, len(first_seen))
+
+    def key(i: int) -> tuple[int, int, str, int]:
+        agent = runs[i].agent
+        rank = known.index(agent) if agent in known else len(known)
+        return (rank, first_seen[agent], labels[i], runs[i].num_goals)
+
+    return sorted(range(len(runs)), key=key)
+
+
+# ---------------------------------------------------------------------- formatting
+def percent(estimate: Estimate) -> str:
+    """``mean [low, high]`` in percent."""
+    if estimate.mean != estimate.mean:  # NaN: no episodes
+        return "–"
+    return f"{100 * estimate.mean:.1f} [{100 * estimate.low:.1f}, {100 * estimate.high:.1f}]"
+
+
+def signed(estimate: Estimate) -> str:
+    """A difference in percentage points, bold when its interval excludes zero."""
+    if estimate.mean != estimate.mean:
+        return "–"
+    text = f"{100 * estimate.mean:+.1f} [{100 * estimate.low:+.1f}, {100 * estimate.high:+.1f}]"
+    return f"**{text}**" if estimate.excludes_zero() else text
+
+
+def _record(estimate: Estimate, prefix: str) -> dict[str, float]:
+    return {
+        f"{prefix}": round(100 * estimate.mean, 4),
+        f"{prefix}_low": round(100 * estimate.low, 4),
+        f"{prefix}_high": round(100 * estimate.high, 4),
+    }
+
+
+def _task(run: Run) -> str:
+    return task_name(run.num_goals).upper()
+
+
+# ---------------------------------------------------------------------- Table 3
+def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table:
+    """Agents × m: Success, Progress, SPL, PPL with 95% intervals, the paper's beside them."""
+    names = [name for _, name in HEADLINE]
+    table = Table(
+        "table3",
+        "Table 3: Success, Progress, SPL and PPL (%) by agent and task",
+        ["agent", "task", "episodes", *(f"{n} %" for n in names), "paper S / P / SPL / PPL"],
+    )
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        estimates = {key: bootstrap(run.values(key)) for key, _ in HEADLINE}
+        theirs = paper.table3_row(run.agent, run.num_goals) if run.found_budget == 0 else None
+        paper_cell = (
+            " / ".join(f"{theirs[key]:.0f}" for key, _ in HEADLINE)
+            + f" ({paper.counterpart(run.agent)})"
+            if theirs
+            else ""
+        )
+        table.rows.append(
+            [
+                labels[i],
+                _task(run),
+                str(run.count),
+                *(percent(estimates[key]) for key, _ in HEADLINE),
+                paper_cell,
+            ]
+        )
+        record: dict[str, Any] = {
+            "agent": labels[i],
+            "task": task_name(run.num_goals),
+            "run": run.name,
+            "episodes": run.count,
+            **run.conditions(),
+        }
+        for key, _ in HEADLINE:
+            record.update(_record(estimates[key], key))
+            record[f"paper_{key}"] = theirs[key] if theirs else None
+        table.records.append(record)
+    table.notes.append(f"Intervals: {CI_METHOD}.")
+    if any(row[-1] for row in table.rows):
+        table.notes.append(
+            f"Paper columns: {paper.table3['source']}. {paper.setting} Not comparable in "
+            "absolute terms: other buildings, other simulator, test set."
+        )
+    table.notes.extend(mismatch_notes(runs))
+    return table
+
+
+def mismatch_notes(runs: Sequence[Run]) -> list[str]:
+    """One note per way in which the runs differ: conditions, episode counts, versions."""
+    notes = []
+    for key in runs[0].conditions():
+        groups: dict[str, list[str]] = defaultdict(list)
+        values_per_m: dict[int, set[str]] = defaultdict(set)
+        for run in runs:
+            value = run.conditions()[key]
+            # the dataset file is per task: only several datasets for one m are a mismatch
+            groups[f"{value} ({_task(run)})" if key == "dataset" else value].append(run.name)
+            values_per_m[run.num_goals].add(value)
+        if key == "dataset":
+            differs = any(len(values) > 1 for values in values_per_m.values())
+        else:
+            differs = len(groups) > 1
+        if differs:
+            listing = "; ".join(f"{value}: {', '.join(names)}" for value, names in groups.items())
+            notes.append(f"**Runs differ in {key}**, shown as separate rows: {listing}.")
+    counts: dict[int, list[str]] = defaultdict(list)
+    for run in runs:
+        counts[run.count].append(run.name)
+    if len(counts) > 1:
+        listing = "; ".join(
+            f"{count}: {', '.join(names)}" for count, names in sorted(counts.items(), reverse=True)
+        )
+        notes.append(f"**Episode counts differ** (intervals widen with fewer): {listing}.")
+    versions = {run.multion_version for run in runs}
+    if len(versions) > 1:
+        notes.append(f"**Runs were made with different multion versions**: {sorted(versions)}.")
+    return notes
+
+
+# ---------------------------------------------------------------------- seen / not seen
+def seen_not_seen(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """Success of reaching goal k (k ≥ 2) after goal k-1 was found, split by whether goal k
+    was seen before goal k-1 was found (the supplement's backtracking analysis)."""
+    table = Table(
+        "seen-not-seen",
+        "Goal k found after goal k-1: seen before vs not seen (%)",
+        ["agent", "task", "goal k", "seen", "not seen", "improvement (points)", "paper seen / not"],
+    )
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        if run.num_goals < 2:
+            continue
+        if any("seen_before_current" not in e.metrics for e in run.episodes):
+            table.notes.append(f"{run.name}: no per-episode seen_before_current; left out.")
+            continue
+        for k in range(2, run.num_goals + 1):
+            seen, unseen = seen_split(run, k)
+            table.rows.append(_seen_row(table, run, labels[i], k, seen, unseen, paper))
+    if not table.rows:
+        return None
+    table.notes[:0] = [
+        "Among the episodes in which goal k-1 was found, the share that also found goal k, "
+        "split by whether goal k had been seen (in view, within the camera's range, unoccluded) "
+        "before goal k-1 was found; n is the number of such episodes. An agent that remembers "
+        "what it saw should do better on seen goals. "
+        f"Intervals: {CI_METHOD}; the improvement's interval resamples both groups independently.",
+    ]
+    if any(row[-1] for row in table.rows):
+        table.notes.append(f"Paper columns: {paper.seen_not_seen['source']}. {paper.setting}")
+    return table
+
+
+def seen_split(run: Run, goal: int) -> tuple[list[float], list[float]]:
+    """1.0 / 0.0 (goal ``goal`` found or not) for the episodes in which goal ``goal - 1`` was
+    found, split into those where ``goal`` was seen before that and those where it was not."""
+    seen: list[float] = []
+    unseen: list[float] = []
+    for episode in run.episodes:
+        found = int(episode.metrics.get("goals_found", 0))
+        if found < goal - 1:
+            continue  # the agent never got to look for this goal
+        flags = episode.metrics["seen_before_current"]
+        (seen if flags[goal - 2] else unseen).append(float(found >= goal))
+    return seen, unseen
+
+
+def _seen_row(
+    table: Table,
+    run: Run,
+    label: str,
+    k: int,
+    seen: list[float],
+    unseen: list[float],
+    paper: PaperResults,
+) -> list[str]:
+    seen_estimate, unseen_estimate = bootstrap(seen), bootstrap(unseen)
+    improvement = independent_difference(seen, unseen)
+    theirs = paper.seen_row(run.agent, run.num_goals, k) if run.found_budget == 0 else None
+    table.records.append(
+        {
+            "agent": label,
+            "task": task_name(run.num_goals),
+            "run": run.name,
+            "goal": k,
+            "seen_episodes": len(seen),
+            "not_seen_episodes": len(unseen),
+            **_record(seen_estimate, "seen"),
+            **_record(unseen_estimate, "not_seen"),
+            **_record(improvement, "improvement"),
+            "paper_seen": theirs["seen"] if theirs else None,
+            "paper_not_seen": theirs["not_seen"] if theirs else None,
+        }
+    )
+    return [
+        label,
+        _task(run),
+        str(k),
+        f"{percent(seen_estimate)} (n={len(seen)})",
+        f"{percent(unseen_estimate)} (n={len(unseen)})",
+        signed(improvement),
+        f"{theirs['seen']:.0f} / {theirs['not_seen']:.0f}" if theirs else "",
+    ]
+
+
+# ---------------------------------------------------------------------- found budget
+BUDGET_METRICS = ("progress", "success", "ppl", "spl")  # the paper's column order
+
+
+def found_budget(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """Runs of one agent and task that differ only in ``task.found_budget``, side by side."""
+    groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        conditions = run.conditions()
+        key = (
+            run.agent_label,
+            str(run.num_goals),
+            *(v for k, v in conditions.items() if k != "found budget"),
+        )
+        groups[key].append(i)
+    names = dict(HEADLINE)
+    table = Table(
+        "found-budget",
+        "Found budget: wrong FOUNDs allowed before one ends the episode (%)",
+        [
+            "agent",
+            "task",
+            "found budget",
+            "episodes",
+            *(f"{names[key]} %" for key in BUDGET_METRICS),
+            "paper P / S / PPL / SPL",
+        ],
+    )
+    for members in groups.values():
+        if len({runs[i].found_budget for i in members}) < 2:
+            continue
+        for i in sorted(members, key=lambda i: runs[i].found_budget):
+            run = runs[i]
+            estimates = {key: bootstrap(run.values(key)) for key in BUDGET_METRICS}
+            theirs = paper.budget_row(run.agent, run.num_goals, run.found_budget)
+            table.rows.append(
+                [
+                    run.agent_label,
+                    _task(run),
+                    str(run.found_budget),
+                    str(run.count),
+                    *(percent(estimates[key]) for key in BUDGET_METRICS),
+                    " / ".join(f"{theirs[key]:.0f}" for key in BUDGET_METRICS) if theirs else "",
+                ]
+            )
+            record: dict[str, Any] = {
+                "agent": labels[i],
+                "task": task_name(run.num_goals),
+                "run": run.name,
+                "found_budget": run.found_budget,
+                "episodes": run.count,
+            }
+            for key in BUDGET_METRICS:
+                record.update(_record(estimates[key], key))
+                record[f"paper_{key}"] = theirs[key] if theirs else None
+            table.records.append(record)
+    if not table.rows:
+        return None
+    table.notes.append(
+        "Rows of one agent and task whose runs differ only in `task.found_budget` "
+        f"(`multion eval --set task.found_budget=N`). Intervals: {CI_METHOD}."
+    )
+    if any(row[-1] for row in table.rows):
+        table.notes.append(f"Paper columns: {paper.found_budget['source']}. {paper.setting}")
+    return table
+
+
+# ---------------------------------------------------------------------- paired comparisons
+def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """For two runs over the same episodes under the same conditions: A − B per metric, with a
+    paired bootstrap interval over the episodes both played."""
+    names = [name for _, name in HEADLINE]
+    table = Table(
+        "paired",
+        "Paired comparisons on the same episodes: A − B (percentage points)",
+        ["A", "B", "task", "common episodes", *(f"Δ {n}" for n in names)],
+    )
+    groups: dict[tuple[Any, ...], list[int]] = defaultdict(list)
+    for i in display_order(runs, labels, paper):
+        groups[(runs[i].num_goals, *runs[i].conditions().values())].append(i)
+    for members in groups.values():
+        for position, i in enumerate(members):
+            for j in members[position + 1 :]:
+                a, b = runs[i], runs[j]
+                in_b = set(b.episode_ids())
+                common = [e for e in a.episode_ids() if e in in_b]
+                if not common:
+                    table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
+                    continue
+                differences = {
+                    key: paired_difference(a.values(key, common), b.values(key, common))
+                    for key, _ in HEADLINE
+                }
+                table.rows.append(
+                    [
+                        labels[i],
+                        labels[j],
+                        _task(a),
+                        str(len(common)),
+                        *(signed(differences[key]) for key, _ in HEADLINE),
+                    ]
+                )
+                record: dict[str, Any] = {
+                    "a": labels[i],
+                    "b": labels[j],
+                    "task": task_name(a.num_goals),
+                    "run_a": a.name,
+                    "run_b": b.name,
+                    "common_episodes": len(common),
+                }
+                for key, _ in HEADLINE:
+                    record.update(_record(differences[key], f"diff_{key}"))
+                table.records.append(record)
+    if not table.rows:
+        return None
+    table.notes[:0] = [
+        "Pairs of runs under the same conditions (task, split, dataset, found budget, settings), "
+        "compared on the episodes both played. Each cell is the mean of A − B over those "
+        "episodes with a 95% paired bootstrap interval (episodes resampled jointly for A and B); "
+        "**bold**: the interval excludes 0, i.e. the difference is significant at about the 5% "
+        "level (one interval per cell, not corrected for the number of comparisons)."
+    ]
+    return table
+
+
+# ---------------------------------------------------------------------- the runs themselves
+def run_list(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table:
+    """Which directories went into the report, and their conditions."""
+    table = Table(
+        "runs",
+        "Runs",
+        [
+            "run",
+            "agent",
+            "task",
+            "episodes",
+            "split",
+            "dataset",
+            "found budget",
+            "settings",
+            "seed",
+        ],
+    )
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        conditions = run.conditions()
+        row = [
+            run.name,
+            labels[i],
+            _task(run),
+            str(run.count),
+            conditions["split"],
+            conditions["dataset"],
+            conditions["found budget"],
+            conditions["settings"],
+            str(run.seed),
+        ]
+        table.rows.append(row)
+        table.records.append(dict(zip(table.header, row, strict=True)))
+    table.notes.append("dataset: the first 12 hex digits of the dataset file's SHA-256 (per task).")
+    return table
+
+
+def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
+    """Every table the runs allow, in the report's order."""
+    labels = run_labels(runs)
+    built = [
+        table3(runs, labels, paper),
+        seen_not_seen(runs, labels, paper),
+        found_budget(runs, labels, paper),
+        paired(runs, labels, paper),
+        run_list(runs, labels, paper),
+    ]
+    return [table for table in built if table is not None]
