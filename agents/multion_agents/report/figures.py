@@ -94,7 +94,12 @@ def episode_lengths(
         steps = [np.maximum(runs[i].values("steps"), 1) for i in members]
         positions = [all_labels.index(labels[i]) for i in members]
         boxes = axis.boxplot(
-            steps, positions=positions, vert=False, widths=0.6, patch_artist=True, whis=(5, 95)
+            steps,
+            positions=positions,
+            orientation="horizontal",
+            widths=0.6,
+            patch_artist=True,
+            whis=(5, 95),
         )
         for patch, i in zip(boxes["boxes"], members, strict=True):
             patch.set_facecolor(colours[labels[i]])

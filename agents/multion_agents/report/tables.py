@@ -45,7 +45,7 @@ def run_labels(runs: Sequence[Run]) -> list[str]:
     labels = []
     for run in runs:
         differing = [
-            f"{key} {value}"
+            value if key == "settings" else f"{key} {value}"
             for key, value in run.conditions().items()
             if value != usual[run.num_goals][key]
         ]
@@ -210,13 +210,16 @@ def seen_not_seen(runs: Sequence[Run], labels: Sequence[str], paper: PaperResult
             continue
         for k in range(2, run.num_goals + 1):
             seen, unseen = seen_split(run, k)
-            table.rows.append(_seen_row(table, run, labels[i], k, seen, unseen, paper))
+            if seen or unseen:
+                table.rows.append(_seen_row(table, run, labels[i], k, seen, unseen, paper))
+            else:
+                table.notes.append(f"{labels[i]} on {_task(run)} never found goal {k - 1}.")
     if not table.rows:
         return None
     table.notes[:0] = [
         "Among the episodes in which goal k-1 was found, the share that also found goal k, "
-        "split by whether goal k had been seen (in view, within the camera's range, unoccluded) "
-        "before goal k-1 was found; n is the number of such episodes. An agent that remembers "
+        "split by whether goal k had been seen (in the field of view, within the map's view "
+        "distance, with a clear line of sight) before goal k-1 was found; n is the number of such episodes. An agent that remembers "
         "what it saw should do better on seen goals. "
         f"Intervals: {CI_METHOD}; the improvement's interval resamples both groups independently.",
     ]
