@@ -15,6 +15,7 @@ CSV and PNG files beside it.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import shlex
 import sys
 from pathlib import Path
@@ -46,6 +47,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.doc is not None and (not args.doc or "/" in args.doc or args.doc.startswith(".")):
         return _fail(f"--doc {args.doc!r}: give a document name like 'baselines', not a path")
+    if not args.no_figures and not has_matplotlib():
+        return _fail(
+            "the figures need matplotlib: pip install 'multion[report]' (scripts/setup.sh does), "
+            "or pass --no-figures for the tables alone"
+        )
     if args.out.exists() and not args.out.is_dir():
         return _fail(f"--out {args.out}: exists and is not a directory")
     try:
@@ -64,6 +70,10 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(error))
     print(f"{len(runs)} runs → {layout.markdown} (+ {len(written) - 1} files in {layout.assets})")
     return 0
+
+
+def has_matplotlib() -> bool:
+    return importlib.util.find_spec("matplotlib") is not None
 
 
 def _fail(message: str) -> int:

@@ -247,3 +247,17 @@ def test_eval_set_errors(capsys: pytest.CaptureFixture[str]) -> None:
     ]:
         assert run_eval(["--agent", "random", "--quiet", *argv]) == 2
         assert message in capsys.readouterr().err
+
+
+def test_missing_matplotlib_is_named(
+    report_runs: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    monkeypatch.setattr(cli_report, "has_matplotlib", lambda: False)
+    run = str(report_runs / "oracle-planner-1on")
+    assert report([run, "--out", str(tmp_path / "a")]) == 2
+    assert "pip install 'multion[report]'" in capsys.readouterr().err
+    assert report([run, "--out", str(tmp_path / "b"), "--no-figures"]) == 0
+    assert (tmp_path / "b" / "table3.csv").exists()

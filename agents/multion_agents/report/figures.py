@@ -35,10 +35,12 @@ def metrics_vs_m(
     figure = Figure(figsize=(10, 7.2), dpi=DPI, layout="constrained")
     axes = figure.subplots(2, 2, sharex=True).ravel()
     colours = _colours(len(by_label))
+    # agents are drawn side by side around each m, so equal values do not hide each other
+    shifts = 0.05 * (np.arange(len(by_label)) - (len(by_label) - 1) / 2)
     for axis, (key, name) in zip(axes, HEADLINE, strict=True):
-        for colour, (label, members) in zip(colours, by_label.items(), strict=True):
+        for colour, shift, (label, members) in zip(colours, shifts, by_label.items(), strict=True):
             members = sorted(members, key=lambda run: run.num_goals)
-            m = np.array([run.num_goals for run in members])
+            m = np.array([run.num_goals for run in members]) + shift
             estimates = [bootstrap(run.values(key)) for run in members]
             mean = np.array([100 * e.mean for e in estimates])
             error = np.array(
@@ -100,6 +102,7 @@ def episode_lengths(
             widths=0.6,
             patch_artist=True,
             whis=(5, 95),
+            medianprops={"color": "black"},
         )
         for patch, i in zip(boxes["boxes"], members, strict=True):
             patch.set_facecolor(colours[labels[i]])
