@@ -106,9 +106,11 @@ def expand_run_dirs(paths: Sequence[Path]) -> list[Path]:
                 "(is this a `multion eval --out` directory?)"
             )
         found.extend(children)
-    unique = list(dict.fromkeys(p.resolve() for p in found))
-    if len(unique) < len(found):
-        raise RunError("the same run directory is given twice")
+    seen: set[Path] = set()
+    for path in found:
+        if path.resolve() in seen:
+            raise RunError(f"{path}: given twice (each run may enter a report once)")
+        seen.add(path.resolve())
     return found
 
 
