@@ -7,12 +7,14 @@ import os
 import signal
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+import multion
 from multion.api.app import create_app
 from multion.api.config_io import ConfigError, env_config_from_dict, env_config_to_dict
 from multion.api.settings import ServerSettings
@@ -200,7 +202,14 @@ def test_malformed_bodies(
         ({"sensors": ["sonar"]}, "unknown sensor"),
         ({"task": {"num_goals": 3}}, "has 2 goals but task.num_goals is 3"),
         ({"episodes": [{"scene_id": "room-6x4"}]}, "episodes[0] is not a valid episode"),
-        ({"episodes": None, "split": "nowhere"}, "no packaged"),  # found by the worker
+        ({"split": "nowhere"}, "split = 'nowhere' is not allowed"),
+        ({"split": "../../tmp/x"}, "allowed one of 'train', 'val', 'test'"),
+        ({"camera": {"width": 0}}, "camera.width = 0 is out of range: allowed an integer in [1,"),
+        ({"maps": {"ego_size": 100001}}, "maps.ego_size = 100001 is out of range: allowed an integer in [1, 1001]"),
+        ({"navgrid": {"cell_size": 1e-6}}, "navgrid.cell_size = 1e-06 is out of range"),
+        ({"camera": {"min_depth": 5.0}}, "camera.min_depth (5.0) must be below camera.max_depth"),
+        # found by the worker; the message names the task, not the server's directories
+        ({"episodes": None, "task": {"num_goals": 5}, "split": "test"}, "no packaged 5-on test"),
     ],
 )
 def test_bad_configs(
@@ -211,6 +220,7 @@ def test_bad_configs(
         config.pop("episodes")
     status, code, message = error_of(call(api, "POST", "/v1/sessions", {"config": config}))
     assert (status, code) == (422, "invalid_config") and match in message
+    assert str(Path(multion.__file__).parent) not in message  # no server paths
     assert call(api, "GET", "/v1/health")[1]["sessions"] == 0
 
 

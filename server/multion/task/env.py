@@ -11,7 +11,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from multion.scenes.registry import scene_ids
+from multion.ranges import bounded, check_fields, one_of, require
+from multion.scenes.registry import SPLITS, scene_ids
 from multion.sim.camera import CameraConfig
 from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGridConfig
@@ -50,23 +51,26 @@ class EpisodeOverError(RuntimeError):
 class TaskConfig:
     """Rules and rewards of MultiON (SPEC §2)."""
 
-    num_goals: int = 3
+    num_goals: int = bounded(3, 1, NUM_CATEGORIES)
     """m, the number of ordered goals."""
-    success_distance: float = 1.5
+    success_distance: float = bounded(1.5, 0.0, 20.0, low_open=True)
     """FOUND succeeds within this geodesic distance of the current goal, metres."""
-    max_steps: int = 2500
-    found_budget: int = 0
+    max_steps: int = bounded(2500, 1, 100_000)
+    found_budget: int = bounded(0, 0, 100_000)
     """Wrong FOUNDs allowed before one ends the episode (0: the first one ends it)."""
-    goal_reward: float = 3.0
-    slack_reward: float = -0.01
-    wrong_found_penalty: float = 0.0
+    goal_reward: float = bounded(3.0, -1000.0, 1000.0)
+    slack_reward: float = bounded(-0.01, -1000.0, 1000.0)
+    wrong_found_penalty: float = bounded(0.0, -1000.0, 1000.0)
     """Subtracted from the reward of a wrong FOUND (the reference code's FALSE_FOUND_PENALTY,
     off in the paper's runs)."""
-    goal_radius: float = 0.05
-    goal_height: float = 0.75
+    goal_radius: float = bounded(0.05, 0.01, 0.5)
+    goal_height: float = bounded(0.75, 0.05, 3.0)
     goals_visible: bool = True
     """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
     ablation); they still count for FOUND, rewards and the oracle maps."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "task")
 
 
 @dataclass(frozen=True)
@@ -79,23 +83,20 @@ class EnvConfig:
     navgrid: NavGridConfig = field(default_factory=NavGridConfig)
     maps: MapConfig = field(default_factory=MapConfig)
     sensors: tuple[str, ...] = ("rgb", "depth", "goal")
-    split: str = "val"
+    split: str = one_of("val", SPLITS)
+    """Which scenes and packaged episodes: train (sampled online), val or test."""
     dataset: str | None = None
     """A dataset file; None uses the packaged one for (m, split), or samples online for train."""
-    episodes_per_scene: int = 25
+    episodes_per_scene: int = bounded(25, 1, 1_000_000)
     """Online (train) sampling draws this many episodes in a scene before moving to another:
     a scene switch rebuilds the PyBullet world, and early training episodes are a few steps."""
 
     def __post_init__(self) -> None:
+        check_fields(self, "")
         unknown = [s for s in self.sensors if s not in SENSORS]
-        if unknown:
-            raise ValueError(f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
-        if not 1 <= self.task.num_goals <= NUM_CATEGORIES:
-            raise ValueError(f"num_goals must be in 1..{NUM_CATEGORIES}, got {self.task.num_goals}")
-        if self.episodes_per_scene < 1:
-            raise ValueError(f"episodes_per_scene must be ≥ 1, got {self.episodes_per_scene}")
-        if self.maps.ego_size % 2 != 1:
-            raise ValueError(f"maps.ego_size must be odd, got {self.maps.ego_size}")
+        require(not unknown, f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
+        repeated = sorted({s for s in self.sensors if self.sensors.count(s) > 1})
+        require(not repeated, f"sensor(s) {repeated} named more than once in sensors")
 
 
 class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
@@ -163,7 +164,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         if cfg.split == "train":
             return None  # sampled online from the train scenes
         raise DatasetError(
-            f"{path}: no packaged {task_name(cfg.task.num_goals)} {cfg.split} dataset; "
+            f"no packaged {task_name(cfg.task.num_goals)} {cfg.split} dataset; "
             f"generate one with `multion dataset generate` and pass it as `dataset`"
         )
 
@@ -414,25 +415,24 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
 
 
 def build_observation_space(config: EnvConfig) -> spaces.Dict:
+    """The spaces of the configured sensors only (an image Box holds two arrays of its size)."""
     cam, size = config.camera, config.maps.ego_size
-    every = {
-        "rgb": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
-        "depth": spaces.Box(
-            0.0,
-            1.0 if cam.normalize_depth else cam.max_depth,
-            (cam.height, cam.width, 1),
-            np.float32,
+    image = (cam.height, cam.width)
+    builders = {
+        "rgb": lambda: spaces.Box(0, 255, (*image, 3), np.uint8),
+        "depth": lambda: spaces.Box(
+            0.0, 1.0 if cam.normalize_depth else cam.max_depth, (*image, 1), np.float32
         ),
-        "goal": spaces.Discrete(NUM_CATEGORIES),
-        "goal_onehot": spaces.Box(0.0, 1.0, (NUM_CATEGORIES,), np.float32),
-        "gps": spaces.Box(-np.inf, np.inf, (2,), np.float32),
-        "compass": spaces.Box(-np.pi, np.pi, (1,), np.float32),
-        "oracle_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
-        "oracle_ego_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
-        "goal_mask": spaces.Box(0, NUM_CATEGORIES, (cam.height, cam.width), np.uint8),
-        "goal_distance": spaces.Box(0.0, np.inf, (1,), np.float32),
+        "goal": lambda: spaces.Discrete(NUM_CATEGORIES),
+        "goal_onehot": lambda: spaces.Box(0.0, 1.0, (NUM_CATEGORIES,), np.float32),
+        "gps": lambda: spaces.Box(-np.inf, np.inf, (2,), np.float32),
+        "compass": lambda: spaces.Box(-np.pi, np.pi, (1,), np.float32),
+        "oracle_map": lambda: spaces.Box(0, 255, (size, size, 2), np.uint8),
+        "oracle_ego_map": lambda: spaces.Box(0, 255, (size, size, 2), np.uint8),
+        "goal_mask": lambda: spaces.Box(0, NUM_CATEGORIES, image, np.uint8),
+        "goal_distance": lambda: spaces.Box(0.0, np.inf, (1,), np.float32),
     }
-    return spaces.Dict({name: every[name] for name in config.sensors})
+    return spaces.Dict({name: builders[name]() for name in config.sensors})
 
 
 def _check_action(action: Any) -> int:
