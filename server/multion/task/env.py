@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,7 +27,15 @@ from multion.task.dataset import (
 from multion.task.episode import Episode
 from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
-from multion_client.constants import GOAL_RGBA, NUM_ACTIONS, NUM_CATEGORIES, Action
+from multion_client.constants import (
+    ACTIONS_TEXT,
+    GOAL_RGBA,
+    NUM_ACTIONS,
+    NUM_CATEGORIES,
+    Action,
+    action_id,
+)
+from multion_client.protocol import MAX_SEED
 
 SENSORS = (
     "rgb",
@@ -41,6 +49,15 @@ SENSORS = (
     "goal_mask",
     "goal_distance",
 )
+
+
+RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
+    "episode_index": (int, "an int"),
+    "episode_id": (str, "a string"),
+    "episode": ((Mapping, Episode), "an Episode map"),
+}
+"""What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
+its id, or inline; with their types."""
 
 
 class EpisodeOverError(RuntimeError):
@@ -213,6 +230,13 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        if seed is not None:
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+                raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
+            if not 0 <= seed <= MAX_SEED:
+                raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
+            seed = int(seed)
+        check_reset_options(options or {})
         super().reset(seed=seed)
         if seed is not None and self.episodes:
             self._cursor = seed % len(self.episodes)
@@ -436,19 +460,25 @@ def build_observation_space(config: EnvConfig) -> spaces.Dict:
 
 
 def _check_action(action: Any) -> int:
-    try:
-        value = int(action)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"action {action!r} is not an integer; actions are 0..{NUM_ACTIONS - 1} "
-            f"({', '.join(a.name for a in Action)})"
-        ) from None
-    if value != action or not 0 <= value < NUM_ACTIONS:
-        raise ValueError(
-            f"illegal action {action!r}; actions are 0..{NUM_ACTIONS - 1} "
-            f"({', '.join(a.name for a in Action)})"
-        )
+    value = action_id(action)
+    if value is None:
+        raise ValueError(f"illegal action {action!r:.80}; actions are integers: {ACTIONS_TEXT}")
     return value
+
+
+def check_reset_options(options: Mapping[str, Any]) -> None:
+    """Raise ValueError unless ``options`` holds at most one known reset option of the right type."""
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise ValueError(
+            f"unknown reset option(s) {unknown}; reset options are {', '.join(RESET_OPTIONS)}"
+        )
+    if len(options) > 1:
+        raise ValueError(f"give at most one of the reset options {', '.join(RESET_OPTIONS)}")
+    for name, value in options.items():
+        kind, text = RESET_OPTIONS[name]
+        if isinstance(value, bool) or not isinstance(value, kind):
+            raise ValueError(f"reset option {name!r} must be {text}, got {value!r:.80}")
 
 
 def make_env(
