@@ -20,8 +20,9 @@ from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings
 from multion.api.workers import Reply, Worker, WorkerPool
+from multion.task.env import check_reset_options
 from multion_client import errors
-from multion_client.constants import NUM_ACTIONS, Action
+from multion_client.constants import ACTIONS_TEXT, action_id
 from multion_client.protocol import (
     CreateSession,
     Reset,
@@ -118,6 +119,7 @@ class SessionRegistry:
                 f"reset needs one seed and one options entry per environment ({n}), "
                 f"got {len(seeds)} seeds and {len(options)} options (empty lists mean none)"
             )
+        _check_options(options)
 
         async def run(session: Session) -> bytes:
             session.done = [True] * n  # until the reset succeeds
@@ -320,27 +322,29 @@ class SessionRegistry:
 
 
 def _check_actions(actions: list[Any], n: int) -> list[int]:
-    """Actions as ints, by the in-process env's rules: integral numbers in 0..3."""
+    """Actions as ints, by the in-process env's rules (:func:`action_id`)."""
     if len(actions) != n:
         raise errors.BadRequest(
             f"expected {n} action(s), one per environment of the session, got {len(actions)}"
         )
-    checked = [_action(a) for a in actions]
-    for index, (action, value) in enumerate(zip(actions, checked, strict=True)):
+    checked = []
+    for index, action in enumerate(actions):
+        value = action_id(action)
         if value is None:
-            names = ", ".join(f"{a.value} {a.name}" for a in Action)
             raise errors.InvalidAction(
-                f"illegal action {action!r} for environment {index}; actions are {names}"
+                f"illegal action {action!r:.80} for environment {index}; actions are integers: "
+                f"{ACTIONS_TEXT}"
             )
-    return checked  # type: ignore[return-value]
+        checked.append(value)
+    return checked
 
 
-def _action(value: Any) -> int | None:
-    if isinstance(value, float) and value.is_integer():
-        value = int(value)
-    if isinstance(value, int) and 0 <= value < NUM_ACTIONS:
-        return int(value)
-    return None
+def _check_options(options: list[Any]) -> None:
+    for index, option in enumerate(options):
+        try:
+            check_reset_options(option or {})
+        except ValueError as error:
+            raise errors.BadRequest(f"environment {index}: {error}") from None
 
 
 def _splice(names: tuple[str, ...], replies: list[Reply], n: int) -> bytes:
