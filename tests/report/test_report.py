@@ -244,6 +244,8 @@ def test_eval_set_errors(capsys: pytest.CaptureFixture[str]) -> None:
     for argv, message in [
         (["--set", "task.found_budget"], "expected SECTION.FIELD=VALUE"),
         (["--set", "task.num_goals=2"], "give the number of goals with --task"),
+        (["--set", "task.found_budget=-3"], "task.found_budget = -3 is out of range"),
+        (["--set", "task.found_bugdet=3"], "unknown field 'task.found_bugdet'"),
     ]:
         assert run_eval(["--agent", "random", "--quiet", *argv]) == 2
         assert message in capsys.readouterr().err
