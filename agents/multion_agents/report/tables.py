@@ -201,6 +201,7 @@ def seen_not_seen(runs: Sequence[Run], labels: Sequence[str], paper: PaperResult
         "Goal k found after goal k-1: seen before vs not seen (%)",
         ["agent", "task", "goal k", "seen", "not seen", "improvement (points)", "paper seen / not"],
     )
+    never_reached: list[str] = []  # goal k-1 never found, so goal k was never looked for
     for i in display_order(runs, labels, paper):
         run = runs[i]
         if run.num_goals < 2:
@@ -208,12 +209,17 @@ def seen_not_seen(runs: Sequence[Run], labels: Sequence[str], paper: PaperResult
         if any("seen_before_current" not in e.metrics for e in run.episodes):
             table.notes.append(f"{run.name}: no per-episode seen_before_current; left out.")
             continue
+        missing = []
         for k in range(2, run.num_goals + 1):
             seen, unseen = seen_split(run, k)
             if seen or unseen:
                 table.rows.append(_seen_row(table, run, labels[i], k, seen, unseen, paper))
             else:
-                table.notes.append(f"{labels[i]} on {_task(run)} never found goal {k - 1}.")
+                missing.append(str(k))
+        if missing:
+            never_reached.append(f"{labels[i]} on {_task(run)} (k = {', '.join(missing)})")
+    if never_reached:
+        table.notes.append(f"Left out, goal k-1 never found: {'; '.join(never_reached)}.")
     if not table.rows:
         return None
     table.notes[:0] = [
