@@ -8,6 +8,7 @@ by what differs, and a note says so.
 
 from __future__ import annotations
 
+import math
 from collections import Counter, defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -69,16 +70,17 @@ def _usual_conditions(runs: Sequence[Run]) -> dict[int, dict[str, str]]:
 
 
 def display_order(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> list[int]:
-    """Run indices sorted by agent (the paper's order first, then as given), label, m."""
+    """Run indices sorted by agent (the paper's order first, then as given), found budget,
+    label, m."""
     known = list(paper.agents)
     first_seen: dict[str, int] = {}
     for run in runs:
         first_seen.setdefault(run.agent, len(first_seen))
 
-    def key(i: int) -> tuple[int, int, str, int]:
-        agent = runs[i].agent
-        rank = known.index(agent) if agent in known else len(known)
-        return (rank, first_seen[agent], labels[i], runs[i].num_goals)
+    def key(i: int) -> tuple[int, int, int, str, int]:
+        run = runs[i]
+        rank = known.index(run.agent) if run.agent in known else len(known)
+        return (rank, first_seen[run.agent], run.found_budget, labels[i], run.num_goals)
 
     return sorted(range(len(runs)), key=key)
 
@@ -86,14 +88,14 @@ def display_order(runs: Sequence[Run], labels: Sequence[str], paper: PaperResult
 # ---------------------------------------------------------------------- formatting
 def percent(estimate: Estimate) -> str:
     """``mean [low, high]`` in percent."""
-    if estimate.mean != estimate.mean:  # NaN: no episodes
+    if math.isnan(estimate.mean):  # no episodes
         return "–"
     return f"{100 * estimate.mean:.1f} [{100 * estimate.low:.1f}, {100 * estimate.high:.1f}]"
 
 
 def signed(estimate: Estimate) -> str:
     """A difference in percentage points, bold when its interval excludes zero."""
-    if estimate.mean != estimate.mean:
+    if math.isnan(estimate.mean):
         return "–"
     text = f"{100 * estimate.mean:+.1f} [{100 * estimate.low:+.1f}, {100 * estimate.high:+.1f}]"
     return f"**{text}**" if estimate.excludes_zero() else text
