@@ -263,3 +263,18 @@ def test_missing_matplotlib_is_named(
     assert "pip install 'multion[report]'" in capsys.readouterr().err
     assert report([run, "--out", str(tmp_path / "b"), "--no-figures"]) == 0
     assert (tmp_path / "b" / "table3.csv").exists()
+
+
+def test_runs_from_before_eval_set_still_load(report_runs: Path, tmp_path: Path) -> None:
+    """Runs written before `multion eval` recorded the resolved config and dataset checksum."""
+    from multion_agents.report.runs import load_run
+
+    old = copy_run(report_runs / "random-2on-budget2", tmp_path / "old")
+    payload = json.loads((old / "metrics.json").read_text())
+    for key in ("resolved_config", "dataset_sha256", "env_overrides", "max_steps", "image_size"):
+        del payload["run"][key]
+    (old / "metrics.json").write_text(json.dumps(payload))
+    run = load_run(old)
+    assert run.found_budget == 2  # from the config sent to the environment
+    assert run.dataset.endswith("room-2-on.json.gz")  # the --dataset path stands in for it
+    assert run.other_settings == "camera.width=16, task.max_steps=80"
