@@ -27,10 +27,15 @@ DPI = 110
 def metrics_vs_m(
     runs: Sequence[Run], labels: Sequence[str], paper: PaperResults, path: Path
 ) -> Path:
-    """Each headline metric against m, one line per agent label, interval bars."""
+    """Each headline metric against m, one line per agent label, interval bars. Labels with a
+    single m (e.g. a found-budget variant) have no line to draw and are left to the tables
+    (unless no label has more than one)."""
     by_label: dict[str, list[Run]] = defaultdict(list)
     for i in display_order(runs, labels, paper):
         by_label[labels[i]].append(runs[i])
+    by_label = {label: members for label, members in by_label.items() if len(members) > 1}
+    if not by_label:  # every agent on one task only: one point each
+        by_label = {labels[i]: [runs[i]] for i in display_order(runs, labels, paper)}
     tasks = sorted({run.num_goals for run in runs})
     figure = Figure(figsize=(10, 7.2), dpi=DPI, layout="constrained")
     axes = figure.subplots(2, 2, sharex=True).ravel()
@@ -91,6 +96,7 @@ def episode_lengths(
         figsize=(4.2 * len(tasks), 1.2 + 0.45 * len(all_labels)), dpi=DPI, layout="constrained"
     )
     axes = np.atleast_1d(figure.subplots(1, len(tasks), sharey=True, sharex=True))
+    longest = max(float(run.values("steps").max()) for run in runs)
     for axis, m in zip(axes, tasks, strict=True):
         members = [i for i in order if runs[i].num_goals == m]
         steps = [np.maximum(runs[i].values("steps"), 1) for i in members]
@@ -108,6 +114,7 @@ def episode_lengths(
             patch.set_facecolor(colours[labels[i]])
             patch.set_alpha(0.6)
         axis.set_xscale("log")
+        axis.set_xlim(0.8, 1.6 * longest)  # room for boxes that sit at the step limit
         axis.set_title(f"{m}-ON")
         axis.set_xlabel("episode length (steps, log scale)")
         axis.grid(alpha=0.3, axis="x")
