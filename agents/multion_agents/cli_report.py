@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"--doc {args.doc!r}: give a document name like 'baselines', not a path")
     if not args.no_figures and not has_matplotlib():
         return _fail(
-            "the figures need matplotlib: pip install 'multion[report]' (scripts/setup.sh does), "
+            "the figures need matplotlib: pip install 'multion-pybullet[report]' (scripts/setup.sh does), "
             "or pass --no-figures for the tables alone"
         )
     if args.out.exists() and not args.out.is_dir():

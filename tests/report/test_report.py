@@ -260,7 +260,7 @@ def test_missing_matplotlib_is_named(
     monkeypatch.setattr(cli_report, "has_matplotlib", lambda: False)
     run = str(report_runs / "oracle-planner-1on")
     assert report([run, "--out", str(tmp_path / "a")]) == 2
-    assert "pip install 'multion[report]'" in capsys.readouterr().err
+    assert "pip install 'multion-pybullet[report]'" in capsys.readouterr().err
     assert report([run, "--out", str(tmp_path / "b"), "--no-figures"]) == 0
     assert (tmp_path / "b" / "table3.csv").exists()
 

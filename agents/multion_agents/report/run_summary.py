@@ -79,13 +79,22 @@ def title_of(result: EvalResult) -> str:
     return f"{s.agent} on {task_name(s.num_goals)} {s.split} ({where}, seed {s.seed})"
 
 
+DISTRIBUTIONS = {
+    "multion": "multion-pybullet",
+    "multion-client": "multion-client",
+    "numpy": "numpy",
+    "pybullet": "pybullet",
+}
+
+
 def versions() -> dict[str, str]:
     found = {"python": platform.python_version()}
-    for package in ("multion", "multion-client", "numpy", "pybullet"):
+    # key → distribution (the multion distribution is called multion-pybullet on the index)
+    for key, distribution in DISTRIBUTIONS.items():
         try:
-            found[package] = metadata.version(package)
+            found[key] = metadata.version(distribution)
         except metadata.PackageNotFoundError:
-            found[package] = "not installed"
+            found[key] = "not installed"
     return found
 
 

@@ -21,6 +21,7 @@ from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings
 from multion.api.workers import Reply, Worker, WorkerPool
 from multion.task.env import check_reset_options
+from multion.task.memory import estimate_env_bytes, mib
 from multion_client import errors
 from multion_client.constants import ACTIONS_TEXT, action_id
 from multion_client.protocol import (
@@ -45,6 +46,8 @@ class Shard:
     shard_id: str
     start: int
     count: int
+    reserved_bytes: int
+    """The memory estimate of its environments, reserved on its worker."""
     closed: bool = False
 
 
@@ -80,10 +83,18 @@ class SessionRegistry:
     # ------------------------------------------------------------------ operations
     async def create(self, message: CreateSession) -> bytes:
         """Start the environments of a new session; returns the encoded SessionInfo."""
-        try:
-            session_config_from_dict(message.config)  # fail fast, before any worker is involved
+        try:  # fail fast, before any worker is involved
+            config, _ = session_config_from_dict(message.config)
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
+        env_bytes = estimate_env_bytes(config)
+        if env_bytes > self.pool.capacity_bytes:
+            raise errors.InvalidConfig(
+                f"one environment of this config may need up to {mib(env_bytes)} MiB, more than "
+                f"a simulator worker of this server may hold ({mib(self.pool.capacity_bytes)} "
+                "MiB); use smaller camera images, a coarser navgrid.cell_size or a smaller "
+                "maps.ego_size"
+            )
         # Files the config names are on this server's disk: only allowed directories (403).
         message = dataclasses.replace(message, config=checked_config(message.config, self.roots))
         n, s = message.num_envs, self.settings
@@ -104,7 +115,7 @@ class SessionRegistry:
         self._pending_sessions += 1
         self._pending_envs += n
         try:
-            return await _shielded(self._create(message))
+            return await _shielded(self._create(message, env_bytes))
         finally:
             self._pending_sessions -= 1
             self._pending_envs -= n
@@ -228,12 +239,13 @@ class SessionRegistry:
         return idle
 
     # ------------------------------------------------------------------ internals
-    async def _create(self, message: CreateSession) -> bytes:
+    async def _create(self, message: CreateSession, env_bytes: int) -> bytes:
         session_id = uuid.uuid4().hex
         shards, start = [], 0
-        for k, (worker, count) in enumerate(self.pool.choose(message.num_envs)):
-            shards.append(Shard(worker, f"{session_id}/{k}", start, count))
+        for k, (worker, count) in enumerate(self.pool.choose(message.num_envs, env_bytes)):
+            shards.append(Shard(worker, f"{session_id}/{k}", start, count, count * env_bytes))
             worker.env_count += count
+            worker.reserved_bytes += count * env_bytes
             start += count
         payload = {"config": message.config, "auto_reset": message.auto_reset}
         payloads = [{**payload, "num_envs": sh.count} for sh in shards]
@@ -305,6 +317,7 @@ class SessionRegistry:
                 continue
             shard.closed = True
             shard.worker.env_count -= shard.count
+            shard.worker.reserved_bytes -= shard.reserved_bytes
             if shard.worker.alive:
                 try:
                     await shard.worker.request(
@@ -351,6 +364,7 @@ def _splice(names: tuple[str, ...], replies: list[Reply], n: int) -> bytes:
     return join_encoded(
         [(name, n, [parts[i] for _, parts in replies]) for i, name in enumerate(names)]
     )
+
 
 
 def _unknown(session_id: str) -> str:
