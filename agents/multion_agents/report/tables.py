@@ -162,6 +162,9 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
     return table
 
 
+UNRECORDED = ("unknown", "not installed")  # runs without a version of the multion distribution
+
+
 def mismatch_notes(runs: Sequence[Run]) -> list[str]:
     """One note per way in which the runs differ: conditions, episode counts, versions."""
     notes = []
@@ -188,9 +191,12 @@ def mismatch_notes(runs: Sequence[Run]) -> list[str]:
             f"{count}: {', '.join(names)}" for count, names in sorted(counts.items(), reverse=True)
         )
         notes.append(f"**Episode counts differ** (intervals widen with fewer): {listing}.")
-    versions = {run.multion_version for run in runs}
-    if len(versions) > 1:
-        notes.append(f"**Runs were made with different multion versions**: {sorted(versions)}.")
+    recorded = {run.multion_version for run in runs if run.multion_version not in UNRECORDED}
+    if len(recorded) > 1:
+        notes.append(f"**Runs were made with different multion versions**: {sorted(recorded)}.")
+    unrecorded = [run.name for run in runs if run.multion_version in UNRECORDED]
+    if unrecorded:
+        notes.append(f"No multion version recorded for: {', '.join(unrecorded)}.")
     return notes
 
 
