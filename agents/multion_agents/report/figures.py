@@ -111,8 +111,10 @@ def episode_lengths(
             medianprops={"color": "black"},
         )
         for patch, i in zip(boxes["boxes"], members, strict=True):
-            patch.set_facecolor(colours[labels[i]])
-            patch.set_alpha(0.6)
+            # a box squeezed against the step limit still shows as a thick coloured bar
+            patch.set_facecolor((*colours[labels[i]][:3], 0.6))
+            patch.set_edgecolor(colours[labels[i]])
+            patch.set_linewidth(2.5)
         axis.set_xscale("log")
         axis.set_xlim(0.8, 1.6 * longest)  # room for boxes that sit at the step limit
         axis.set_title(f"{m}-ON")
