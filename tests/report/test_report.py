@@ -278,3 +278,15 @@ def test_runs_from_before_eval_set_still_load(report_runs: Path, tmp_path: Path)
     assert run.found_budget == 2  # from the config sent to the environment
     assert run.dataset.endswith("room-2-on.json.gz")  # the --dataset path stands in for it
     assert run.other_settings == "camera.width=16, task.max_steps=80"
+
+
+def test_train_and_eval_share_the_set_parser(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("torch")
+    from multion.cli import main
+
+    assert (
+        main(["train", "--set", "task.found_budget", "--frames", "64", "--out", str(tmp_path)]) == 2
+    )
+    assert "expected SECTION.FIELD=VALUE" in capsys.readouterr().err
