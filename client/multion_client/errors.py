@@ -69,6 +69,19 @@ class PathNotAllowed(BadRequest):
     code, status = "path_not_allowed", 403
 
 
+class Unauthorized(MultiONError):
+    """A leaderboard route without a valid token (missing, malformed, unknown or revoked)."""
+
+    code, status = "unauthorized", 401
+
+
+class NotAllowedInRun(BadRequest):
+    """Something a run does not let a participant choose: seeds, reset options, episodes, or a
+    sensor (oracle maps, goal distance) the track does not allow."""
+
+    code, status = "not_allowed_in_run", 403
+
+
 class NotFound(MultiONError):
     """No such route."""
 
@@ -79,6 +92,18 @@ class SessionNotFound(NotFound):
     """No session with this id (never created, closed, or reaped after being idle)."""
 
     code, status = "session_not_found", 404
+
+
+class RunNotFound(NotFound):
+    """No run with this id for this team (another team's runs are not visible)."""
+
+    code, status = "run_not_found", 404
+
+
+class UnknownTrack(NotFound):
+    """No such track or phase in the server's challenge, or the server runs no challenge."""
+
+    code, status = "unknown_track", 404
 
 
 class MethodNotAllowed(BadRequest):
@@ -97,6 +122,24 @@ class NotReset(MultiONError, RuntimeError):
     code, status = "not_reset", 409
 
 
+class EpisodeInProgress(MultiONError):
+    """A run's next episode was asked for before the current one ended."""
+
+    code, status = "episode_in_progress", 409
+
+
+class SequenceMismatch(MultiONError):
+    """A run step whose (episode, seq) is neither the next one nor a retry of the last one."""
+
+    code, status = "sequence_mismatch", 409
+
+
+class RunOver(MultiONError):
+    """The run has ended (finished, stopped early or failed): nothing more can be played."""
+
+    code, status = "run_over", 409
+
+
 class RequestTooLarge(MultiONError):
     code, status = "request_too_large", 413
 
@@ -113,6 +156,12 @@ class TooManySessions(LimitExceeded):
 
 class TooManyEnvs(LimitExceeded):
     code, status = "too_many_envs", 429
+
+
+class QuotaExceeded(LimitExceeded):
+    """The team has used its run quota for this phase (daily or total)."""
+
+    code, status = "quota_exceeded", 429
 
 
 # ---------------------------------------------------------------------- 5xx: the server's fault
@@ -142,15 +191,23 @@ ERRORS: dict[str, type[MultiONError]] = {
         InvalidConfig,
         InvalidEpisode,
         PathNotAllowed,
+        Unauthorized,
+        NotAllowedInRun,
         NotFound,
         SessionNotFound,
+        RunNotFound,
+        UnknownTrack,
         MethodNotAllowed,
         EpisodeOver,
         NotReset,
+        EpisodeInProgress,
+        SequenceMismatch,
+        RunOver,
         RequestTooLarge,
         LimitExceeded,
         TooManySessions,
         TooManyEnvs,
+        QuotaExceeded,
         InternalError,
         WorkerFailed,
         ServerUnavailable,
@@ -160,6 +217,7 @@ ERRORS: dict[str, type[MultiONError]] = {
 
 _BY_STATUS: dict[int, type[MultiONError]] = {
     400: BadRequest,
+    401: Unauthorized,
     403: PathNotAllowed,
     404: NotFound,
     405: MethodNotAllowed,

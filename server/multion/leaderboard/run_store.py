@@ -1,0 +1,194 @@
+"""The database side of runs: creating them under a quota, saving their state at every step
+(compare-and-set on ``Run.version``), recording episodes and finishing runs.
+
+Every function here is blocking (SQLAlchemy sessions); the run service calls them in a thread.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import select, update
+from sqlalchemy.orm import Session
+
+from multion.leaderboard.challenge import Phase, Track
+from multion.leaderboard.models import EpisodeRecord, Run, utcnow
+from multion.leaderboard.results import missed_metrics, summarize
+from multion.leaderboard.storage import runs_counted
+from multion_client import errors
+
+
+@dataclass
+class RunState:
+    """The resumable state of a running run, as saved in its row at every step."""
+
+    version: int = 0
+    position: int = -1
+    episode_active: bool = False
+    seq: int = 0
+    actions: list[int] = field(default_factory=list)
+    last_metrics: dict[str, Any] | None = None
+    deadline: dt.datetime | None = None
+    consecutive_timeouts: int = 0
+
+    @classmethod
+    def of(cls, run: Run) -> RunState:
+        return cls(
+            version=run.version,
+            position=run.position,
+            episode_active=run.episode_active,
+            seq=run.seq,
+            actions=[int(c) for c in run.actions],
+            last_metrics=run.last_metrics,
+            deadline=run.deadline,
+            consecutive_timeouts=run.consecutive_timeouts,
+        )
+
+    def columns(self) -> dict[str, Any]:
+        return {
+            "position": self.position,
+            "episode_active": self.episode_active,
+            "seq": self.seq,
+            "actions": "".join(str(a) for a in self.actions),
+            "last_metrics": self.last_metrics,
+            "deadline": self.deadline,
+            "consecutive_timeouts": self.consecutive_timeouts,
+        }
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """One finished (or expired, or missed) episode of a run, to be recorded."""
+
+    position: int
+    episode_index: int
+    episode_id: str
+    end_reason: str
+    metrics: dict[str, Any]
+    actions: str
+    seconds: float
+
+
+class RunMoved(Exception):
+    """The run's row changed under us (another replica or an admin acted on it)."""
+
+
+def create_run(
+    session: Session,
+    run: Run,
+    track: Track,
+    phase: Phase,
+    now: dt.datetime,
+    check_quota: bool = True,
+) -> None:
+    """Insert ``run`` if the team's quotas allow (daily: any 24 hours; total: ever).
+
+    The quota is debited here, at creation: an abandoned run still counts.
+    """
+    # Serialise quota checks of one team across replicas (PostgreSQL row lock; SQLite has a
+    # single writer anyway).
+    from multion.leaderboard.models import Team
+
+    session.execute(select(Team.id).where(Team.id == run.team_id).with_for_update())
+    if check_quota and phase.daily_quota is not None:
+        used = runs_counted(
+            session, run.team_id, track.name, phase.name, now - dt.timedelta(days=1)
+        )
+        if used >= phase.daily_quota:
+            raise errors.QuotaExceeded(
+                f"{track.name}/{phase.name}: {used} runs in the last 24 hours, the daily quota is "
+                f"{phase.daily_quota}; abandoned runs count, runs the server broke are refunded"
+            )
+    if check_quota and phase.total_quota is not None:
+        used = runs_counted(session, run.team_id, track.name, phase.name, None)
+        if used >= phase.total_quota:
+            raise errors.QuotaExceeded(
+                f"{track.name}/{phase.name}: {used} runs, the phase's total quota is "
+                f"{phase.total_quota}"
+            )
+    session.add(run)
+
+
+def save_state(
+    session: Session, run_id: str, state: RunState, results: list[EpisodeResult]
+) -> None:
+    """Write ``state`` (and any newly ended episodes) if nobody else changed the run meanwhile;
+    raises :class:`RunMoved` otherwise. Bumps ``state.version``."""
+    done = session.execute(
+        update(Run)
+        .where(Run.id == run_id, Run.version == state.version, Run.state == "running")
+        .values(version=state.version + 1, **state.columns())
+    )
+    if done.rowcount != 1:
+        session.rollback()
+        raise RunMoved(run_id)
+    for result in results:
+        session.add(_record(run_id, result))
+    state.version += 1
+
+
+def finish_run(
+    session: Session,
+    run_id: str,
+    state: RunState,
+    results: list[EpisodeResult],
+    outcome: str,
+    end_reason: str | None,
+    track: Track,
+    episode_ids: list[str],
+    order: list[int],
+    refunded: bool = False,
+) -> dict[str, Any]:
+    """End the run: record ``results``, fill the episodes never played as failures, store the
+    aggregates. ``outcome``: finished, ended or failed. Returns the summary."""
+    save_state(session, run_id, state, results)
+    recorded = {
+        r.position
+        for r in session.scalars(select(EpisodeRecord).where(EpisodeRecord.run_id == run_id))
+    }
+    recorded |= {r.position for r in results}
+    for position, index in enumerate(order):
+        if position not in recorded:
+            reason = "not_played"
+            session.add(
+                _record(
+                    run_id,
+                    EpisodeResult(
+                        position,
+                        index,
+                        episode_ids[position],
+                        reason,
+                        missed_metrics(track.num_goals, reason),
+                        "",
+                        0.0,
+                    ),  # fmt: skip
+                )
+            )
+    session.flush()
+    records = session.scalars(
+        select(EpisodeRecord).where(EpisodeRecord.run_id == run_id).order_by(EpisodeRecord.position)
+    ).all()
+    summary = summarize([r.metrics for r in records], track.metric)
+    run = session.get(Run, run_id)
+    assert run is not None
+    run.state, run.end_reason, run.refunded = outcome, end_reason, refunded
+    run.finished_at, run.summary = utcnow(), summary
+    run.episode_active, run.deadline = False, None
+    return summary
+
+
+def _record(run_id: str, result: EpisodeResult) -> EpisodeRecord:
+    metrics = dict(result.metrics)
+    metrics["end_reason"] = result.end_reason
+    return EpisodeRecord(
+        run_id=run_id,
+        position=result.position,
+        episode_index=result.episode_index,
+        episode_id=result.episode_id,
+        end_reason=result.end_reason,
+        metrics=metrics,
+        actions=result.actions,
+        seconds=result.seconds,
+    )
