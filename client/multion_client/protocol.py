@@ -553,6 +553,9 @@ class RunStep:
 class RunObservation:
     """The answer to starting an episode, a step, or observe: where the run stands.
 
+    ``episode`` is the run-order number of the current (or last) episode, -1 before the first;
+    ``seq`` the number of actions taken in it.
+
     ``done`` ends the episode (``end_reason``: success, wrong_found, max_steps, timeout);
     ``metrics`` are sent only when the episode is done and the phase gives per-episode
     feedback; ``run_done`` says no episode is left.
@@ -579,7 +582,7 @@ class RunObservation:
         if not isinstance(observation, Mapping):
             raise MalformedMessage("RunObservation: 'observation' must be a map")
         return cls(
-            episode=_count(d["episode"], "RunObservation", "episode"),
+            episode=_count(d["episode"], "RunObservation", "episode", -1),
             seq=_count(d["seq"], "RunObservation", "seq"),
             observation=dict(observation),
             done=bool(d["done"]),

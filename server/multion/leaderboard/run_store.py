@@ -14,10 +14,13 @@ from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Phase, Track
-from multion.leaderboard.models import EpisodeRecord, Run, utcnow
+from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.results import missed_metrics, summarize
 from multion.leaderboard.storage import runs_counted
 from multion_client import errors
+
+BASELINE_TEAM = "baselines"
+"""The organisers' team whose runs are the leaderboard's baselines."""
 
 
 @dataclass
@@ -85,13 +88,14 @@ def create_run(
 ) -> None:
     """Insert ``run`` if the team's quotas allow (daily: any 24 hours; total: ever).
 
-    The quota is debited here, at creation: an abandoned run still counts.
+    The quota is debited here, at creation: an abandoned run still counts. Runs of the
+    organisers' team :data:`BASELINE_TEAM` are marked baselines and have no quota.
     """
     # Serialise quota checks of one team across replicas (PostgreSQL row lock; SQLite has a
     # single writer anyway).
-    from multion.leaderboard.models import Team
-
-    session.execute(select(Team.id).where(Team.id == run.team_id).with_for_update())
+    team = session.execute(select(Team.name).where(Team.id == run.team_id).with_for_update())
+    if team.scalar_one() == BASELINE_TEAM:
+        run.baseline, check_quota = True, False
     if check_quota and phase.daily_quota is not None:
         used = runs_counted(
             session, run.team_id, track.name, phase.name, now - dt.timedelta(days=1)
