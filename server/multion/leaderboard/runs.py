@@ -77,6 +77,7 @@ class LiveRun:
     state: RunState
     session_id: str | None = None
     last_answer: bytes | None = None
+    last_end_reason: str | None = None
     episode_clock: float = field(default_factory=time.monotonic)
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
 
@@ -185,6 +186,11 @@ class RunService:
                     return live.last_answer  # a retry of the last step: do not act twice
             await self._expire_due(live)
             await self._check_running(live)
+            if not st.episode_active and episode == st.position:
+                raise errors.EpisodeOver(
+                    f"episode {episode} has ended ({live.last_end_reason}); start episode "
+                    f"{episode + 1} (POST episodes)"
+                )
             if not st.episode_active or episode != st.position or seq != st.seq + 1:
                 expected = (
                     f"episode {st.position}, seq {st.seq + 1}"
@@ -489,6 +495,7 @@ class RunService:
         from multion.leaderboard.results import missed_metrics
 
         st = live.state
+        live.last_end_reason = end_reason
         metrics = st.last_metrics or missed_metrics(live.track.num_goals, end_reason)
         return EpisodeResult(
             position=st.position,
