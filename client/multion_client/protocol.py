@@ -545,7 +545,9 @@ class RunStep:
 
             raise InvalidAction(f"RunStep: illegal action {action!r}; actions are 0..3")
         return cls(
-            _count(d["episode"], "RunStep", "episode"), _count(d["seq"], "RunStep", "seq", 1), action
+            _count(d["episode"], "RunStep", "episode"),
+            _count(d["seq"], "RunStep", "seq", 1),
+            action,
         )
 
 

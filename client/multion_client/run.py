@@ -23,6 +23,7 @@ same sequence number, so no action is taken twice; a crashed client resumes its 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -31,6 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 from multion_client.client import DEFAULT_TIMEOUT_S, Client
+from multion_client.errors import EpisodeOver, SequenceMismatch
 from multion_client.protocol import CreateRun, RunInfo, RunObservation, RunStatus
 
 TOKEN_ENV = "MULTION_TOKEN"
@@ -104,14 +106,24 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
         next_episode = 0 if current is None else current.episode + 1
         if next_episode >= self.num_episodes:
             raise RuntimeError("the run has no episode left")
-        self._current = self.client.start_episode(self.run_id, next_episode)
+        try:
+            self._current = self.client.start_episode(self.run_id, next_episode)
+        except SequenceMismatch:  # episodes expired meanwhile: ask where the run stands
+            self._current = self.client.run_observe(self.run_id)
+            return self.reset()
         return self._current.observation, self._info(self._current)
 
     def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         current = self._current
         if current is None or current.done:
             raise RuntimeError("the episode is over (or has not started); call reset()")
-        answer = self.client.run_step(self.run_id, current.episode, current.seq + 1, action)
+        try:
+            answer = self.client.run_step(self.run_id, current.episode, current.seq + 1, action)
+        except EpisodeOver as error:  # too late: the server ended the episode as it stood
+            answer = dataclasses.replace(current, done=True, end_reason="timeout")
+            self._current = answer
+            info = {**self._info(answer), "message": error.message}
+            return answer.observation, 0.0, False, True, info
         self._current = answer
         self._run_done = answer.run_done
         terminated = answer.done and answer.end_reason in TERMINAL_REASONS

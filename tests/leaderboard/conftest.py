@@ -80,6 +80,12 @@ def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("leaderboard")
 
 
+@pytest.fixture(scope="session")
+def make_challenge() -> Callable[..., Path]:
+    """``make_challenge(directory, step_timeout_s=60.0)``: write the tiny challenge file."""
+    return write_challenge
+
+
 @pytest.fixture(scope="module")
 def challenge_file(workdir: Path) -> Path:
     return write_challenge(workdir)
