@@ -4,12 +4,15 @@ episodes), a SQLite results database in a temp dir, team tokens, and a real HTTP
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
-from multion.api.local_server import LocalServer
+from multion.api.local_server import LocalServer, free_port
 from multion.leaderboard.challenge import Challenge, load_challenge
 from multion.leaderboard.storage import Database, add_team
 
@@ -156,3 +159,72 @@ def server(challenge_file: Path, database: str) -> Iterator[LocalServer]:
         yield server
     finally:
         server.stop()
+
+
+# ---------------------------------------------------------------------- PostgreSQL
+REQUIRE_POSTGRES = "MULTION_REQUIRE_POSTGRES"
+POSTGRES_HINT = (
+    "PostgreSQL is not installed: `apt-get install postgresql` (Debian) runs these tests; "
+    f"{REQUIRE_POSTGRES}=1 (set by .ci/run) makes them required"
+)
+
+
+def _postgres_bin() -> Path | None:
+    found = shutil.which("pg_ctl")
+    if found:
+        return Path(found).resolve().parent
+    versions = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"))
+    return versions[-1].parent if versions else None
+
+
+@pytest.fixture(scope="session")
+def postgres_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A throwaway PostgreSQL server (initdb + pg_ctl in a temp dir) and an empty database.
+
+    As root (CI), the cluster runs as the ``postgres`` user that Debian's package creates.
+    """
+    bindir = _postgres_bin()
+    if bindir is None:
+        if os.environ.get(REQUIRE_POSTGRES) == "1":
+            pytest.fail(POSTGRES_HINT)
+        pytest.skip(POSTGRES_HINT)
+    root = tmp_path_factory.mktemp("postgres")
+    data = root / "data"
+    prefix: list[str] = []
+    if os.geteuid() == 0:
+        prefix = ["runuser", "-u", "postgres", "--"]
+        shutil.chown(root, "postgres")
+        root.chmod(0o700)
+        for parent in root.parents:  # postgres must reach its directory
+            if parent == Path(tempfile.gettempdir()).parent:
+                break
+            parent.chmod(parent.stat().st_mode | 0o011)
+    port = free_port()
+
+    def run(*command: str) -> None:
+        subprocess.run([*prefix, *command], check=True, capture_output=True, timeout=120)
+
+    run(str(bindir / "initdb"), "-D", str(data), "-U", "postgres", "-A", "trust", "-E", "UTF8")
+    options = f"-p {port} -k {root} -c listen_addresses=127.0.0.1 -c fsync=off"
+    run(
+        str(bindir / "pg_ctl"),
+        "-D",
+        str(data),
+        "-o",
+        options,
+        "-l",
+        str(root / "log"),
+        "-w",
+        "start",
+    )
+    try:
+        import psycopg
+
+        with psycopg.connect(
+            f"host=127.0.0.1 port={port} user=postgres dbname=postgres", autocommit=True
+        ) as conn:
+            conn.execute("CREATE DATABASE multion")
+        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/multion"
+    finally:
+        subprocess.run([*prefix, str(bindir / "pg_ctl"), "-D", str(data), "-m", "fast", "stop"],
+                       capture_output=True, timeout=60)  # fmt: skip
