@@ -158,6 +158,12 @@ class TooManyEnvs(LimitExceeded):
     code, status = "too_many_envs", 429
 
 
+class MemoryBudgetExceeded(LimitExceeded):
+    """The session's memory estimate does not fit what the simulator workers have free now."""
+
+    code, status = "memory_budget_exceeded", 429
+
+
 class QuotaExceeded(LimitExceeded):
     """The team has used its run quota for this phase (daily or total)."""
 
@@ -207,6 +213,7 @@ ERRORS: dict[str, type[MultiONError]] = {
         LimitExceeded,
         TooManySessions,
         TooManyEnvs,
+        MemoryBudgetExceeded,
         QuotaExceeded,
         InternalError,
         WorkerFailed,

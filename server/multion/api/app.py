@@ -52,7 +52,9 @@ def create_app(
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        pool = WorkerPool(settings.workers, settings.worker_start_timeout_s)
+        pool = WorkerPool(
+            settings.workers, settings.worker_start_timeout_s, settings.worker_memory_mb * 2**20
+        )
         try:
             await pool.start()
         except BaseException:
