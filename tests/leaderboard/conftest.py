@@ -128,6 +128,7 @@ def start_server(
     env = {
         "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
         "MULTION_LEADERBOARD_EXPIRE_INTERVAL_S": "0.2",
+        "MULTION_LEADERBOARD_WARM_UP": "false",  # only the phases a test plays are generated
         **(extra_env or {}),
     }
     saved = {k: os.environ.get(k) for k in env}

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import multiprocessing
 import threading
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -67,10 +69,15 @@ def run_order(challenge: Challenge, run_id: str, count: int) -> list[int]:
 
 
 class HiddenEpisodes:
-    """The hidden episodes of every (track, phase), generated once on first need and kept."""
+    """The hidden episodes of every (track, phase), generated once on first need and kept.
 
-    def __init__(self, challenge: Challenge) -> None:
+    With ``in_subprocess`` they are generated in a fresh process: building houses holds the
+    GIL for seconds, which would stall a server's event loop.
+    """
+
+    def __init__(self, challenge: Challenge, in_subprocess: bool = True) -> None:
         self.challenge = challenge
+        self.in_subprocess = in_subprocess
         self._cache: dict[tuple[str, str], list[Episode]] = {}
         self._lock = threading.Lock()
 
@@ -79,5 +86,11 @@ class HiddenEpisodes:
         key = (track.name, phase.name)
         with self._lock:
             if key not in self._cache:
-                self._cache[key] = generate_hidden_episodes(self.challenge, track, phase)
+                if self.in_subprocess:
+                    spawn = multiprocessing.get_context("spawn")
+                    with ProcessPoolExecutor(1, mp_context=spawn) as pool:
+                        future = pool.submit(generate_hidden_episodes, self.challenge, track, phase)
+                        self._cache[key] = future.result()
+                else:
+                    self._cache[key] = generate_hidden_episodes(self.challenge, track, phase)
             return self._cache[key]
