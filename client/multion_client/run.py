@@ -89,9 +89,9 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
             self.info, self.run_id = None, run_id
             status = self.client.run_status(run_id)
             self.num_episodes = status.num_episodes
-            self._current = self.client.run_observe(run_id)
+            self._current = self.client.run_observe(run_id) if status.state == "running" else None
         self.action_space = gym.spaces.Discrete(4)
-        self._run_done = False
+        self._run_done = run_id is not None and status.state != "running"
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(

@@ -119,3 +119,39 @@ def test_quota_state_and_results(db: Database, challenge: Challenge) -> None:
     finally:
         reopened.close()
     assert utcnow() - run.created_at < dt.timedelta(minutes=5)
+
+
+def test_daily_quota_counts_the_last_24_hours_and_skips_refunds(
+    db: Database, challenge: Challenge
+) -> None:
+    from dataclasses import replace
+
+    track = challenge.track("1-on")
+    phase = replace(track.phase("minival"), daily_quota=2)
+    now = utcnow()
+    with db.sessions.begin() as session:
+        team, _ = add_team(session, "daily")
+        old = _run(team.id, "old", [0])
+        old.phase, old.created_at = "minival", now - dt.timedelta(hours=25)
+        refunded = _run(team.id, "refunded", [0])
+        refunded.phase, refunded.refunded = "minival", True
+        session.add_all([old, refunded])
+    for run_id in ("today-1", "today-2"):
+        with db.sessions.begin() as session:
+            run = _run(team.id, run_id, [0])
+            run.phase = "minival"
+            create_run(session, run, track, phase, now)
+    with (
+        db.sessions.begin() as session,
+        pytest.raises(errors.QuotaExceeded, match="daily quota is 2"),
+    ):
+        run = _run(team.id, "today-3", [0])
+        run.phase = "minival"
+        create_run(session, run, track, phase, now)
+
+
+def test_sealed_results_open_at_their_date(challenge: Challenge) -> None:
+    sealed = challenge.track("1-on-oracle").phase("test-challenge")
+    assert not sealed.results_visible(utcnow())
+    assert sealed.results_visible(sealed.sealed_until)
+    assert challenge.track("1-on").phase("minival").results_visible(utcnow())

@@ -91,6 +91,7 @@ class RunService:
         self.registry = registry
         self.hidden = HiddenEpisodes(challenge)
         self.live: dict[str, LiveRun] = {}
+        self._creating = asyncio.Lock()  # one quota check at a time in this process
 
     # ------------------------------------------------------------------ create
     async def create(self, team_id: int, message: CreateRun, baseline: bool = False) -> RunInfo:
@@ -127,7 +128,8 @@ class RunService:
             created_at=utcnow(),
             deadline=utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s),
         )
-        await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
+        async with self._creating:
+            await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
         live = self._live_from(row, track, phase, hidden)
         self.live[run_id] = live
         async with live.lock:
