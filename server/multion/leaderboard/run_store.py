@@ -13,11 +13,12 @@ from typing import Any
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from multion.leaderboard.challenge import Phase, Track
+from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.results import missed_metrics, summarize
 from multion.leaderboard.storage import runs_counted
 from multion_client import errors
+from multion_client.protocol import RunStatus
 
 BASELINE_TEAM = "baselines"
 """The organisers' team whose runs are the leaderboard's baselines."""
@@ -181,6 +182,50 @@ def finish_run(
     run.finished_at, run.summary = utcnow(), summary
     run.episode_active, run.deadline = False, None
     return summary
+
+
+def describe_run(
+    session: Session, challenge: Challenge, run: Run, episodes: bool = True
+) -> RunStatus:
+    """A run's status, with the results its phase lets the team see."""
+    track = challenge.track(run.track)
+    phase = track.phase(run.phase) if track is not None else None
+    visible = phase is not None and phase.results_visible(utcnow())
+    done = session.scalar(
+        select(EpisodeRecord.position)
+        .where(EpisodeRecord.run_id == run.id)
+        .order_by(EpisodeRecord.position.desc())
+        .limit(1)
+    )
+    per_episode = None
+    if episodes and visible and phase is not None and phase.feedback == "episodes":
+        per_episode = [
+            {"episode": r.position, "metrics": r.metrics}
+            for r in session.scalars(
+                select(EpisodeRecord)
+                .where(EpisodeRecord.run_id == run.id)
+                .order_by(EpisodeRecord.position)
+            )
+        ]
+    return RunStatus(
+        run_id=run.id,
+        track=run.track,
+        phase=run.phase,
+        method=run.method,
+        state=run.state,
+        end_reason=run.end_reason,
+        num_episodes=len(run.order),
+        episodes_done=0 if done is None else done + 1,
+        episode=run.position,
+        episode_active=run.episode_active,
+        seq=run.seq,
+        created_at=run.created_at.isoformat(),
+        finished_at=None if run.finished_at is None else run.finished_at.isoformat(),
+        refunded=run.refunded,
+        baseline=run.baseline,
+        results=run.summary if visible else None,
+        episodes=per_episode,
+    )
 
 
 def _record(run_id: str, result: EpisodeResult) -> EpisodeRecord:

@@ -33,12 +33,13 @@ from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.hidden import HiddenEpisodes, run_order
-from multion.leaderboard.models import EpisodeRecord, Run, utcnow
+from multion.leaderboard.models import Run, utcnow
 from multion.leaderboard.run_store import (
     EpisodeResult,
     RunMoved,
     RunState,
     create_run,
+    describe_run,
     finish_run,
     save_state,
 )
@@ -268,7 +269,7 @@ class RunService:
             run = session.get(Run, run_id)
             if run is None or (team_id is not None and run.team_id != team_id):
                 raise errors.RunNotFound(f"no run {run_id!r} for this team")
-            return self.describe(session, run)
+            return describe_run(session, self.challenge, run)
 
         return await self._db(read)
 
@@ -277,50 +278,9 @@ class RunService:
             runs = session.scalars(
                 select(Run).where(Run.team_id == team_id).order_by(Run.created_at.desc())
             ).all()
-            return [self.describe(session, run, episodes=False) for run in runs]
+            return [describe_run(session, self.challenge, run, episodes=False) for run in runs]
 
         return await self._db(read)
-
-    def describe(self, session: Any, run: Run, episodes: bool = True) -> RunStatus:
-        """A run's status, with the results its phase lets the team see."""
-        track = self.challenge.track(run.track)
-        phase = track.phase(run.phase) if track is not None else None
-        visible = phase is not None and phase.results_visible(utcnow())
-        done = session.scalar(
-            select(EpisodeRecord.position)
-            .where(EpisodeRecord.run_id == run.id)
-            .order_by(EpisodeRecord.position.desc())
-            .limit(1)
-        )
-        per_episode = None
-        if episodes and visible and phase is not None and phase.feedback == "episodes":
-            per_episode = [
-                {"episode": r.position, "metrics": r.metrics}
-                for r in session.scalars(
-                    select(EpisodeRecord)
-                    .where(EpisodeRecord.run_id == run.id)
-                    .order_by(EpisodeRecord.position)
-                )
-            ]
-        return RunStatus(
-            run_id=run.id,
-            track=run.track,
-            phase=run.phase,
-            method=run.method,
-            state=run.state,
-            end_reason=run.end_reason,
-            num_episodes=len(run.order),
-            episodes_done=0 if done is None else done + 1,
-            episode=run.position,
-            episode_active=run.episode_active,
-            seq=run.seq,
-            created_at=run.created_at.isoformat(),
-            finished_at=None if run.finished_at is None else run.finished_at.isoformat(),
-            refunded=run.refunded,
-            baseline=run.baseline,
-            results=run.summary if visible else None,
-            episodes=per_episode,
-        )
 
     # ------------------------------------------------------------------ expiry
     async def expire_forever(self, interval_s: float) -> None:
