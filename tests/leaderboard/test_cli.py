@@ -80,3 +80,11 @@ def test_admin_submit_baselines_export_replay(
     code, _, err = run_cli(capsys, "submit", "--server", server.url, "--track", "1-on",
                            "--phase", "minival", "--agent", "random", "--quiet")  # fmt: skip
     assert code == 2 and "unauthorized" in err
+
+
+def test_the_bench_measures_a_run_against_a_session() -> None:
+    from multion.leaderboard.bench import run_leaderboard_bench
+
+    result = run_leaderboard_bench(size=16, steps=20, verbose=False, rooms=1)
+    assert result["session_sps"] > 0 and result["run_sps"] > 0
+    assert result["ratio"] == pytest.approx(result["run_sps"] / result["session_sps"])

@@ -35,7 +35,7 @@ secret = "{secret}"
 step_timeout_s = 600
 
 [hidden]
-rooms = [3, 3]
+rooms = [{rooms}, {rooms}]
 
 [[tracks]]
 name = "3-on"
@@ -50,12 +50,17 @@ houses = 1
 
 
 def run_leaderboard_bench(
-    size: int = 256, steps: int = 300, server_options: list[str] | None = None, verbose: bool = True
+    size: int = 256,
+    steps: int = 300,
+    server_options: list[str] | None = None,
+    verbose: bool = True,
+    rooms: int = 3,
 ) -> dict[str, Any]:
-    """Print and return steps/s of a session and of a run at ``size``² RGB-D, and their ratio."""
+    """Print and return steps/s of a session and of a run at ``size``² RGB-D, and their ratio
+    (in one hidden house of ``rooms`` rooms)."""
     with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
         path = Path(directory) / "challenge.toml"
-        path.write_text(CHALLENGE.format(secret=secrets.token_urlsafe(24), size=size))
+        path.write_text(CHALLENGE.format(secret=secrets.token_urlsafe(24), size=size, rooms=rooms))
         challenge = load_challenge(path)
         track = challenge.tracks[0]
         episodes = generate_hidden_episodes(challenge, track, track.phases[0])
