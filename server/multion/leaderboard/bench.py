@@ -24,7 +24,7 @@ from multion.leaderboard.storage import Database, add_team
 from multion_client.env import RemoteEnv
 from multion_client.run import RunEnv
 
-BLOCK_STEPS = 20
+BLOCK_STEPS = 5
 TARGET = 0.9
 CHALLENGE = """
 [challenge]
