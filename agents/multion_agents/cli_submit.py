@@ -94,7 +94,7 @@ def submit(args: argparse.Namespace, cls: type) -> Any:
         _check_overrides(cls, track)
         env = RunEnv(
             args.server, args.track, args.phase, args.method or args.agent, token=token,
-            sensors=list(cls.sensors), maps=(cls.config_overrides or {}).get("maps"),
+            sensors=list(cls.sensors), maps=_oracle_maps(cls),
             paper_url=args.paper_url, code_url=args.code_url,
         )  # fmt: skip
         print(f"run {env.run_id}: {env.num_episodes} episodes (resume with --resume {env.run_id})")
@@ -121,6 +121,8 @@ def play_run(
 
     from multion_agents.evaluate import episode_seed
 
+    from multion_client.errors import RunOver
+
     agent = cls(seed=seed)
     visible = set(cls.sensors)
     bar = tqdm(
@@ -138,6 +140,8 @@ def play_run(
                 done = terminated or truncated
             bar.update(1)
             bar.set_postfix(last=info.get("end_reason"))
+    except RunOver:
+        pass  # the server ended the run (time budget, timeouts): its status says why
     finally:
         bar.close()
 
@@ -161,6 +165,13 @@ def _check_overrides(cls: type, track: dict[str, Any]) -> None:
     other = set(cls.config_overrides or {}) - {"maps", "camera"}
     if other:
         raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
+
+
+def _oracle_maps(cls: type) -> dict[str, Any] | None:
+    """The agent's oracle-map options, if it reads an oracle map (other tracks refuse them)."""
+    if not {"oracle_map", "oracle_ego_map"} & set(cls.sensors):
+        return None
+    return (cls.config_overrides or {}).get("maps")
 
 
 def _target_size(camera: dict[str, Any], track: dict[str, Any]) -> tuple[int, int] | None:
