@@ -120,7 +120,6 @@ def play_run(
     from tqdm import tqdm
 
     from multion_agents.evaluate import episode_seed
-
     from multion_client.errors import RunOver
 
     agent = cls(seed=seed)
