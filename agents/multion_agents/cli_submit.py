@@ -94,7 +94,7 @@ def submit(args: argparse.Namespace, cls: type) -> Any:
         _check_overrides(cls, track)
         env = RunEnv(
             args.server, args.track, args.phase, args.method or args.agent, token=token,
-            sensors=list(cls.sensors), maps=_oracle_maps(cls),
+            sensors=list(cls.sensors), maps=oracle_maps(cls),
             paper_url=args.paper_url, code_url=args.code_url,
         )  # fmt: skip
         print(f"run {env.run_id}: {env.num_episodes} episodes (resume with --resume {env.run_id})")
@@ -166,7 +166,7 @@ def _check_overrides(cls: type, track: dict[str, Any]) -> None:
         raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
 
 
-def _oracle_maps(cls: type) -> dict[str, Any] | None:
+def oracle_maps(cls: type) -> dict[str, Any] | None:
     """The agent's oracle-map options, if it reads an oracle map (other tracks refuse them)."""
     if not {"oracle_map", "oracle_ego_map"} & set(cls.sensors):
         return None

@@ -48,7 +48,7 @@ def play_baselines(
 ) -> list[str]:
     """Play the baselines on every (track, phase) selected; returns the run ids."""
     from multion_agents.agent import agent_class
-    from multion_agents.cli_submit import play_run
+    from multion_agents.cli_submit import oracle_maps, play_run
     from multion_client.run import RunEnv
 
     token = baseline_token(db)
@@ -64,7 +64,7 @@ def play_baselines(
                     cls = agent_class(name)
                     env = RunEnv(
                         server, track.name, phase.name, name, token=token,
-                        sensors=list(cls.sensors), maps=cls.config_overrides.get("maps"),
+                        sensors=list(cls.sensors), maps=oracle_maps(cls),
                     )  # fmt: skip
                     if progress:
                         print(f"{track.name}/{phase.name}: {name} (run {env.run_id})")
