@@ -85,6 +85,10 @@ def test_a_baseline_plays_a_phase_end_to_end(
     assert status.results is not None and set(status.results["ppl"]) == {"mean", "low", "high"}
     assert status.episodes is not None and len(status.episodes) == 3  # minival: per episode
 
+    # a retry of the run's very last step (its answer lost) still gets that answer
+    last = env.client.run_step(env.run_id, 2, status.seq, 0)
+    assert last.run_done and last.done and last.seq == status.seq
+
     run, records = stored_run(database, env.run_id)
     assert sorted(run.order) == [0, 1, 2]
     assert all(r.actions and set(r.actions) <= set("0123") for r in records)

@@ -24,6 +24,7 @@ import datetime as dt
 import logging
 import time
 import uuid
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -60,6 +61,7 @@ from multion_client.protocol import (
 )
 
 log = logging.getLogger("multion.leaderboard")
+ENDED_KEPT = 256
 
 
 @dataclass
@@ -93,6 +95,8 @@ class RunService:
         self.hidden = HiddenEpisodes(challenge)
         self.live: dict[str, LiveRun] = {}
         self._creating = asyncio.Lock()  # one quota check at a time in this process
+        self.ended: OrderedDict[str, LiveRun] = OrderedDict()
+        """Recently ended runs, so a retry of a run's last step still gets its answer."""
 
     # ------------------------------------------------------------------ create
     async def create(self, team_id: int, message: CreateRun, baseline: bool = False) -> RunInfo:
@@ -372,7 +376,7 @@ class RunService:
         )
 
     async def _get_live(self, team_id: int, run_id: str) -> LiveRun:
-        live = self.live.get(run_id)
+        live = self.live.get(run_id) or self.ended.get(run_id)
         if live is not None:
             if live.team_id != team_id:
                 raise errors.RunNotFound(f"no run {run_id!r} for this team")
@@ -504,6 +508,9 @@ class RunService:
             )
         )
         self.live.pop(live.run_id, None)
+        self.ended[live.run_id] = live
+        while len(self.ended) > ENDED_KEPT:
+            self.ended.popitem(last=False)
         await self._close_session(live)
 
     async def _close_session(self, live: LiveRun) -> None:
