@@ -18,6 +18,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
+from multion.processes import die_with_parent
 from multion.scenes.registry import sized_house_id
 from multion.task.episode import Episode
 from multion.task.generate import generate_episodes
@@ -88,7 +89,7 @@ class HiddenEpisodes:
             if key not in self._cache:
                 if self.in_subprocess:
                     spawn = multiprocessing.get_context("spawn")
-                    with ProcessPoolExecutor(1, mp_context=spawn) as pool:
+                    with ProcessPoolExecutor(1, spawn, initializer=die_with_parent) as pool:
                         future = pool.submit(generate_hidden_episodes, self.challenge, track, phase)
                         self._cache[key] = future.result()
                 else:
