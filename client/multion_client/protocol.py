@@ -419,6 +419,13 @@ def _text(value: Any, message: str, name: str, limit: int, optional: bool = Fals
     return value
 
 
+def _url(value: Any, message: str, name: str) -> str | None:
+    text = _text(value, message, name, 500, optional=True)
+    if text is not None and not text.startswith(("https://", "http://")):
+        raise MalformedMessage(f"{message}: '{name}' must be an http(s):// address")
+    return text
+
+
 def _count(value: Any, message: str, name: str, low: int = 0) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
         raise MalformedMessage(f"{message}: '{name}' must be an int ≥ {low}, got {value!r:.60}")
@@ -467,8 +474,8 @@ class CreateRun:
             method=str(_text(d["method"], "CreateRun", "method", 120)),
             sensors=sensors,
             maps=None if maps is None else dict(maps),
-            paper_url=_text(d.get("paper_url"), "CreateRun", "paper_url", 500, optional=True),
-            code_url=_text(d.get("code_url"), "CreateRun", "code_url", 500, optional=True),
+            paper_url=_url(d.get("paper_url"), "CreateRun", "paper_url"),
+            code_url=_url(d.get("code_url"), "CreateRun", "code_url"),
         )
 
 
