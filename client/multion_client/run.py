@@ -68,7 +68,7 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
         code_url: str | None = None,
         run_id: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
-        retries: int = 8,
+        retries: int = 30,
     ) -> None:
         self.client = Client(
             base_url, timeout=timeout, retries=retries, token=token_from_env(token)
