@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import asyncio
 import time
-from typing import Any
+from collections.abc import Coroutine
+from typing import Any, TypeVar
 
 from fastapi import APIRouter, Request
 
@@ -25,6 +26,7 @@ from multion_client.protocol import (
     StartEpisode,
 )
 
+T = TypeVar("T")
 router = APIRouter(tags=["leaderboard"], default_response_class=MsgpackResponse)
 
 _MSGPACK = "application/x-msgpack"
@@ -47,6 +49,14 @@ def _answers(ok: str, *codes: int) -> dict[int | str, dict[str, Any]]:
     for code in codes:
         answers[code] = {**error, "description": text[code]}
     return answers
+
+
+async def unabandoned(operation: Coroutine[Any, Any, T]) -> T:
+    """Await ``operation`` in its own task: a client hanging up mid-step must not cancel it
+    between the simulator step and the saved state (a retry would then act twice)."""
+    task = asyncio.ensure_future(operation)
+    task.add_done_callback(lambda t: t.cancelled() or t.exception())
+    return await asyncio.shield(task)
 
 
 def _service(request: Request) -> RunService:
@@ -128,7 +138,7 @@ async def challenge(request: Request) -> MsgpackResponse:
 async def create_run(request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
     message = CreateRun.from_wire(await read_message(request))
-    info = await _service(request).create(team_id, message)
+    info = await unabandoned(_service(request).create(team_id, message))
     return MsgpackResponse(info.to_wire(), status_code=201)
 
 
@@ -167,7 +177,9 @@ async def run_status(run_id: str, request: Request) -> MsgpackResponse:
 async def start_episode(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
     message = StartEpisode.from_wire(await read_message(request))
-    return MsgpackResponse(await _service(request).start_episode(team_id, run_id, message))
+    return MsgpackResponse(
+        await unabandoned(_service(request).start_episode(team_id, run_id, message))
+    )
 
 
 @router.post(
@@ -181,7 +193,9 @@ async def step(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
     message = RunStep.from_wire(await read_message(request))
     service = _service(request)
-    body = await service.step(team_id, run_id, message.episode, message.seq, message.action)
+    body = await unabandoned(
+        service.step(team_id, run_id, message.episode, message.seq, message.action)
+    )
     return MsgpackResponse(body)
 
 
@@ -205,4 +219,6 @@ async def observe(run_id: str, request: Request) -> MsgpackResponse:
 )
 async def abandon(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
-    return MsgpackResponse((await _service(request).abandon(team_id, run_id)).to_wire())
+    return MsgpackResponse(
+        (await unabandoned(_service(request).abandon(team_id, run_id))).to_wire()
+    )
