@@ -73,3 +73,19 @@ def test_choosing_episodes_or_seeds_is_not_allowed(cls: type, body: dict) -> Non
 def test_malformed_run_messages(cls: type, body: dict, error: type) -> None:
     with pytest.raises(error):
         cls.from_wire(body)
+
+
+def test_the_run_client_is_light() -> None:
+    """Participants need only the light client: no simulator, torch, web server or database."""
+    import subprocess
+    import sys
+
+    check = (
+        "import sys\n"
+        "from multion_client.run import RunEnv\n"
+        "from multion_client import RunEnv as Again\n"
+        "assert RunEnv is Again\n"
+        "heavy = {'pybullet', 'multion', 'torch', 'fastapi', 'sqlalchemy'} & set(sys.modules)\n"
+        "assert not heavy, heavy\n"
+    )
+    subprocess.run([sys.executable, "-c", check], check=True, timeout=60)
