@@ -99,7 +99,9 @@ class RunService:
         """Recently ended runs, so a retry of a run's last step still gets its answer."""
 
     # ------------------------------------------------------------------ create
-    async def create(self, team_id: int, message: CreateRun, baseline: bool = False) -> RunInfo:
+    async def create(self, team_id: int, message: CreateRun) -> RunInfo:
+        """Start a run (the quota is debited here); runs of the team ``baselines`` are marked
+        baselines by :func:`run_store.create_run`."""
         track, phase = self._track_phase(message.track, message.phase)
         sensors = tuple(message.sensors or track.allowed_sensors)
         refused = [s for s in sensors if s not in track.allowed_sensors]
@@ -126,7 +128,6 @@ class RunService:
             method=message.method,
             paper_url=message.paper_url,
             code_url=message.code_url,
-            baseline=baseline,
             sensors=list(sensors),
             maps=dict(message.maps or {}),
             order=order,
