@@ -35,7 +35,7 @@ from gymnasium import spaces
 from multion_client.errors import MalformedMessage
 from multion_client.schema import EXT_NDARRAY as EXT_NDARRAY
 from multion_client.schema import EXT_SCALAR as EXT_SCALAR
-from multion_client.schema import NDARRAY, OBSERVATION, schema
+from multion_client.schema import NDARRAY, OBSERVATION, message_schema, schema
 
 # The encoding lives in .wire; it is part of this contract, so it is importable from here.
 from multion_client.wire import decode as decode
@@ -430,6 +430,30 @@ def _count(value: Any, message: str, name: str, low: int = 0) -> int:
 
 
 @dataclass(frozen=True)
+class ChallengeInfo:
+    """``GET /v1/challenge``: the tracks, their phases and the time limits of a run."""
+
+    name: str
+    limits: dict[str, Any] = field(
+        metadata=schema("step_timeout_s, max_consecutive_timeouts, run_timeout_s")
+    )
+    tracks: list[dict[str, Any]] = field(
+        metadata=schema(
+            "per track: name, num_goals, kind, sensors (allowed), camera, metric (ranking), "
+            "max_steps, phases (name, episodes, feedback, daily_quota, total_quota, sealed_until)"
+        )
+    )
+
+    def to_wire(self) -> dict[str, Any]:
+        return {"name": self.name, "limits": self.limits, "tracks": self.tracks}
+
+    @classmethod
+    def from_wire(cls, data: Any) -> ChallengeInfo:
+        d = _fields(data, "ChallengeInfo", ("name", "limits", "tracks"))
+        return cls(str(d["name"]), dict(d["limits"]), _list(d["tracks"], "ChallengeInfo", "tracks"))
+
+
+@dataclass(frozen=True)
 class CreateRun:
     """``POST /v1/runs``: start a run of ``track`` / ``phase`` (debits the team's quota).
 
@@ -522,7 +546,7 @@ class StartEpisode:
     No seeds, options or episode choice: :data:`RUN_FORBIDDEN_FIELDS` are refused.
     """
 
-    episode: int
+    episode: int = field(metadata=schema("the next episode's run-order number", minimum=0))
 
     def to_wire(self) -> dict[str, Any]:
         return {"episode": self.episode}
@@ -541,9 +565,11 @@ class RunStep:
     Sending the last ``(episode, seq)`` again returns the stored answer without acting twice.
     """
 
-    episode: int
-    seq: int
-    action: int
+    episode: int = field(metadata=schema("run-order number of the current episode", minimum=0))
+    seq: int = field(metadata=schema("this action's number in the episode, from 1", minimum=1))
+    action: int = field(
+        metadata=schema("0 FOUND, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT", minimum=0, maximum=3)
+    )
 
     def to_wire(self) -> dict[str, Any]:
         return {"episode": self.episode, "seq": self.seq, "action": self.action}
@@ -578,12 +604,16 @@ class RunObservation:
     feedback; ``run_done`` says no episode is left.
     """
 
-    episode: int
-    seq: int
-    observation: dict[str, Any]
+    episode: int = field(
+        metadata=schema("run-order number of the episode; -1 before the first", minimum=-1)
+    )
+    seq: int = field(metadata=schema("actions taken in the episode", minimum=0))
+    observation: dict[str, Any] = field(metadata=schema(**OBSERVATION))
     done: bool
     end_reason: str | None = None
-    metrics: dict[str, Any] | None = None
+    metrics: dict[str, Any] | None = field(
+        default=None, metadata=schema("the episode's metrics, at its end, on phases that show them")
+    )
     run_done: bool = False
 
     FIELDS = ("episode", "seq", "observation", "done")
@@ -654,7 +684,9 @@ class RunStatus:
 class RunList:
     """``GET /v1/runs``: the calling team's runs, newest first."""
 
-    runs: list[RunStatus]
+    runs: list[RunStatus] = field(
+        metadata=schema(anyOf=[{"type": "array", "items": message_schema(RunStatus)}])
+    )
 
     def to_wire(self) -> dict[str, Any]:
         return {"runs": [r.to_wire() for r in self.runs]}

@@ -1,10 +1,11 @@
 """Runs over real HTTP: a baseline plays a phase end to end, its records equal the in-process
-env's, every cheat gets a clear 4xx, retries never act twice, a restart loses nothing, and a
-stored run replays to identical metrics."""
+env's, every cheat gets a clear 4xx, retries never act twice, a restart loses nothing, a
+stored run replays to identical metrics, and every answer is as the OpenAPI document says."""
 
 from __future__ import annotations
 
 import socket
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -26,8 +27,11 @@ from multion_agents.agent import agent_class
 from multion_agents.cli_submit import play_run
 from multion_client import errors
 from multion_client.client import Client
-from multion_client.protocol import CreateRun, decode, encode, run_path
+from multion_client.protocol import CONTENT_TYPE, CreateRun, decode, encode, run_path
 from multion_client.run import RunEnv
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "api"))
+from wire_schema import problems, raw_decode  # noqa: E402  (the API tests' schema checker)
 
 
 def stored_run(database: str, run_id: str) -> tuple[Run, list[EpisodeRecord]]:
@@ -305,3 +309,66 @@ def test_a_server_restart_loses_nothing(
         resumed.abandon()
     finally:
         second.stop()
+
+
+# ---------------------------------------------------------------------- OpenAPI
+def operation(document: dict[str, Any], method: str, path: str) -> dict[str, Any]:
+    for template, operations in document["paths"].items():
+        parts, wanted = template.split("/"), path.split("/")
+        if len(parts) == len(wanted) and all(
+            p == w or p.startswith("{") for p, w in zip(parts, wanted, strict=True)
+        ):
+            return operations[method.lower()]
+    raise AssertionError(f"{method} {path} is not documented")
+
+
+def test_every_run_answer_conforms(server: Any, new_team: Callable[[str], str]) -> None:
+    document = httpx.get(server.url + "/openapi.json").json()
+    token = new_team("documented")
+    seen: set[int] = set()
+
+    def send(method: str, path: str, body: Any = None, auth: str | None = token) -> Any:
+        spec = operation(document, method, path)
+        headers = {"content-type": CONTENT_TYPE}
+        if auth:
+            headers["authorization"] = f"Bearer {auth}"
+        content = None if body is None else encode(body)
+        response = httpx.request(method, server.url + path, content=content, headers=headers)
+        status = str(response.status_code)
+        assert status in spec["responses"], f"{method} {path} answered undocumented {status}"
+        schema = spec["responses"][status]["content"][CONTENT_TYPE]["schema"]
+        answer = raw_decode(response.content)
+        assert not problems(schema, answer), (method, path, status, problems(schema, answer))
+        if content is not None and response.status_code < 300:
+            request_schema = spec["requestBody"]["content"][CONTENT_TYPE]["schema"]
+            assert not problems(request_schema, raw_decode(content)), (method, path, body)
+        seen.add(response.status_code)
+        return answer
+
+    send("GET", "/v1/challenge", auth=None)
+    run = send("POST", "/v1/runs", {"track": "1-on", "phase": "minival", "method": "tour",
+                                    "paper_url": "https://example.org/paper"})  # fmt: skip
+    rid = run["run_id"]
+    send("POST", "/v1/runs", {"track": "1-on", "phase": "minival", "method": "x"}, auth=None)
+    send("POST", "/v1/runs", {"track": "1-on", "phase": "minival", "method": "x",
+                              "sensors": ["oracle_map"]})  # fmt: skip
+    send("POST", "/v1/runs", {"track": "nope", "phase": "minival", "method": "x"})
+    send("POST", "/v1/runs", {"track": "1-on", "phase": "minival"})
+    send("GET", run_path(rid, "observe"))
+    send("POST", run_path(rid, "episodes"), {"episode": 1})
+    send("POST", run_path(rid, "episodes"), {"episode": 0, "seed": 1})
+    send("POST", run_path(rid, "episodes"), {"episode": 0})
+    send("POST", run_path(rid, "episodes"), {"episode": 0})  # a retry: same answer
+    send("POST", run_path(rid, "episodes"), {"episode": 1})  # 409: in progress
+    send("POST", run_path(rid, "step"), {"episode": 0, "seq": 1, "action": 2})
+    send("POST", run_path(rid, "step"), {"episode": 0, "seq": 1, "action": 2})  # retry
+    send("POST", run_path(rid, "step"), {"episode": 0, "seq": 3, "action": 2})
+    send("POST", run_path(rid, "step"), {"episode": 0, "seq": 2, "action": 9})
+    send("POST", run_path(rid, "step"), {"episode": 0, "seq": 2, "action": 1, "pad": "x" * 70_000})
+    send("GET", run_path(rid, "observe"))
+    send("GET", run_path(rid))
+    send("GET", "/v1/runs")
+    send("GET", run_path("f" * 32))
+    send("DELETE", run_path(rid))
+    send("DELETE", run_path(rid))  # 409: over
+    assert {200, 201, 400, 401, 403, 404, 409, 413} <= seen

@@ -14,41 +14,30 @@ from typing import Any, TypeVar
 from fastapi import APIRouter, Request
 
 from multion.api.deps import MsgpackResponse, read_message
+from multion.api.openapi import answers, request_body
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.storage import team_for_token
 from multion_client import errors
+from multion_client import errors as e
 from multion_client.protocol import (
     CHALLENGE_PATH,
     RUNS_PATH,
+    ChallengeInfo,
     CreateRun,
+    RunInfo,
     RunList,
+    RunObservation,
+    RunStatus,
     RunStep,
     StartEpisode,
 )
 
+BODY_ERRORS = (e.MalformedMessage, e.RequestTooLarge)
+RUN_ERRORS = (e.Unauthorized, e.RunNotFound, e.UnknownTrack)
+PLAY_ERRORS = (e.EpisodeInProgress, e.SequenceMismatch, e.EpisodeOver, e.RunOver, e.WorkerFailed)
+
 T = TypeVar("T")
 router = APIRouter(tags=["leaderboard"], default_response_class=MsgpackResponse)
-
-_MSGPACK = "application/x-msgpack"
-
-
-def _answers(ok: str, *codes: int) -> dict[int | str, dict[str, Any]]:
-    text = {
-        400: "malformed body or illegal action",
-        401: "missing, unknown or revoked token",
-        403: "a seed, reset options, an episode choice or a sensor the track does not allow",
-        404: "no such run for this team, or no such track / phase",
-        409: "episode in progress, wrong sequence number, or the run is over",
-        413: "request body over the server's limit",
-        422: "invalid map options",
-        429: "the team's quota for this phase is used up",
-        503: "the simulator failed: the run is over and refunded",
-    }
-    error = {"content": {_MSGPACK: {}}, "description": "{'error': {'code', 'message'}}"}
-    answers: dict[int | str, dict[str, Any]] = {200: {"content": {_MSGPACK: {}}, "description": ok}}
-    for code in codes:
-        answers[code] = {**error, "description": text[code]}
-    return answers
 
 
 async def unabandoned(operation: Coroutine[Any, Any, T]) -> T:
@@ -120,10 +109,10 @@ async def team_of(request: Request) -> int:
     summary="The challenge",
     description="Tracks (task, allowed sensors, camera, ranking metric), their phases (episodes, "
     "feedback, quotas, sealing date) and the time limits of a run. Needs no token.",
-    responses=_answers("msgpack map", 404),
+    responses=answers(200, ChallengeInfo, e.UnknownTrack),
 )
 async def challenge(request: Request) -> MsgpackResponse:
-    return MsgpackResponse(_service(request).challenge.describe())
+    return MsgpackResponse(ChallengeInfo(**_service(request).challenge.describe()).to_wire())
 
 
 @router.post(
@@ -133,7 +122,19 @@ async def challenge(request: Request) -> MsgpackResponse:
     description="Start a run of a track's phase (CreateRun: track, phase, method, optional "
     "sensors, maps, paper_url, code_url). The quota is debited now: an abandoned run counts; "
     "a run the server breaks is refunded.",
-    responses=_answers("RunInfo", 400, 401, 403, 404, 413, 422, 429, 503),
+    openapi_extra=request_body(CreateRun),
+    responses=answers(
+        201,
+        RunInfo,
+        *BODY_ERRORS,
+        *RUN_ERRORS,
+        e.NotAllowedInRun,
+        e.InvalidConfig,
+        e.QuotaExceeded,
+        e.TooManySessions,
+        e.MemoryBudgetExceeded,
+        e.WorkerFailed,
+    ),  # fmt: skip
 )
 async def create_run(request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
@@ -145,7 +146,7 @@ async def create_run(request: Request) -> MsgpackResponse:
 @router.get(
     RUNS_PATH,
     summary="The team's runs",
-    responses=_answers("RunList, newest first", 401),
+    responses=answers(200, RunList, e.Unauthorized, e.UnknownTrack),
 )
 async def list_runs(request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
@@ -159,7 +160,7 @@ async def list_runs(request: Request) -> MsgpackResponse:
     description="RunStatus: state (running, finished, ended, failed), progress, why it ended, "
     "and the results its phase shows (per-episode on minival, aggregates on test-standard, "
     "nothing on test-challenge until its sealing date).",
-    responses=_answers("RunStatus", 401, 404),
+    responses=answers(200, RunStatus, *RUN_ERRORS),
 )
 async def run_status(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
@@ -172,7 +173,10 @@ async def run_status(run_id: str, request: Request) -> MsgpackResponse:
     description="StartEpisode `{episode: n}`: n must be the next episode, after the current "
     "one ended; n of the episode already started returns its observation again. No seeds, no "
     "options.",
-    responses=_answers("RunObservation", 400, 401, 403, 404, 409, 503),
+    openapi_extra=request_body(StartEpisode),
+    responses=answers(
+        200, RunObservation, *BODY_ERRORS, *RUN_ERRORS, e.NotAllowedInRun, *PLAY_ERRORS
+    ),
 )
 async def start_episode(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
@@ -187,7 +191,16 @@ async def start_episode(run_id: str, request: Request) -> MsgpackResponse:
     summary="One action of the current episode",
     description="RunStep `{episode, seq, action}`: seq counts the episode's actions from 1. "
     "The last (episode, seq) sent again returns the same answer without acting twice.",
-    responses=_answers("RunObservation", 400, 401, 403, 404, 409, 413, 503),
+    openapi_extra=request_body(RunStep),
+    responses=answers(
+        200,
+        RunObservation,
+        *BODY_ERRORS,
+        *RUN_ERRORS,
+        e.NotAllowedInRun,
+        e.InvalidAction,
+        *PLAY_ERRORS,
+    ),  # fmt: skip
 )
 async def step(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
@@ -204,7 +217,7 @@ async def step(run_id: str, request: Request) -> MsgpackResponse:
     summary="Where the run stands",
     description="The answer to the last start or step of the current episode (to resume after "
     "a client crash); `done` with an empty observation between episodes.",
-    responses=_answers("RunObservation", 401, 404, 409),
+    responses=answers(200, RunObservation, *RUN_ERRORS, e.RunOver, e.WorkerFailed),
 )
 async def observe(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
@@ -215,7 +228,7 @@ async def observe(run_id: str, request: Request) -> MsgpackResponse:
     RUNS_PATH + "/{run_id}",
     summary="Abandon a run",
     description="End the run now: its missing episodes count as failures; the quota stays used.",
-    responses=_answers("RunStatus", 401, 404, 409),
+    responses=answers(200, RunStatus, *RUN_ERRORS, e.RunOver),
 )
 async def abandon(run_id: str, request: Request) -> MsgpackResponse:
     team_id = await team_of(request)
