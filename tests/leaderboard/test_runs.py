@@ -292,8 +292,18 @@ def test_a_server_restart_loses_nothing(
         going.reset()
         for action in (1, 2, 1, 1):
             observation, *_ = going.step(action)
+        crashed = RunEnv(first.url, "1-on", "minival", "crashed", token=token, sensors=["goal"])
+        crashed.reset()
+        crashed.step(2)
     finally:
         first.stop()
+    # as if the server died after saving action 2 (a FOUND, saved while the simulator stepped)
+    # and before answering it: the episode ended by that action, which nobody recorded yet
+    db = Database.open(database)
+    with db.sessions.begin() as session:
+        row = session.get(Run, crashed.run_id)
+        row.actions, row.seq = row.actions + "0", row.seq + 1
+    db.close()
     second = launch(challenge_file, database)
     try:
         client = Client(second.url, token=token)
@@ -307,6 +317,13 @@ def test_a_server_restart_loses_nothing(
             np.testing.assert_array_equal(again[key], observation[key])
         resumed.step(2)
         resumed.abandon()
+        # the client retries its lost step: the rebuilt run answers it, with the episode's end
+        answer = client.run_step(crashed.run_id, 0, 2, 0)
+        assert answer.done and answer.end_reason in ("wrong_found", "success")
+        assert answer.metrics is not None and answer.metrics["steps"] == 2
+        run, records = stored_run(database, crashed.run_id)
+        assert [r.actions for r in records] == ["20"] and run.state == "running"
+        client.abandon_run(crashed.run_id)
     finally:
         second.stop()
 
