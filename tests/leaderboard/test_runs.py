@@ -297,8 +297,8 @@ def test_a_server_restart_loses_nothing(
         crashed.step(2)
     finally:
         first.stop()
-    # as if the server died after saving action 2 (a FOUND, saved while the simulator stepped)
-    # and before answering it: the episode ended by that action, which nobody recorded yet
+    # a saved state whose last action (a FOUND) ended the episode without its record (as a
+    # server that saved actions before their outcome would leave it): the rebuild records it
     db = Database.open(database)
     with db.sessions.begin() as session:
         row = session.get(Run, crashed.run_id)

@@ -10,7 +10,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from typing import Any
 
-from sqlalchemy import select, update
+from sqlalchemy import Connection, select, update
 from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
@@ -117,19 +117,20 @@ def create_run(
 
 
 def save_state(
-    session: Session, run_id: str, state: RunState, results: list[EpisodeResult]
+    session: Session | Connection, run_id: str, state: RunState, results: list[EpisodeResult]
 ) -> None:
-    """Write ``state`` (and any newly ended episodes) if nobody else changed the run meanwhile;
-    raises :class:`RunMoved` otherwise. Bumps ``state.version``."""
+    """Write ``state`` (and any newly ended episodes: ``session`` must then be an ORM session)
+    if nobody else changed the run meanwhile; raises :class:`RunMoved` otherwise (the caller's
+    transaction is then rolled back). Bumps ``state.version``."""
     done = session.execute(
         update(Run)
         .where(Run.id == run_id, Run.version == state.version, Run.state == "running")
         .values(version=state.version + 1, **state.columns())
     )
     if done.rowcount != 1:
-        session.rollback()
         raise RunMoved(run_id)
     for result in results:
+        assert isinstance(session, Session)
         session.add(_record(run_id, result))
     state.version += 1
 

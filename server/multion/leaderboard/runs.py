@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import dataclasses
 import datetime as dt
 import logging
 import time
@@ -211,18 +210,15 @@ class RunService:
                 )
             if not 0 <= action <= 3:
                 raise errors.InvalidAction(f"illegal action {action!r}; actions are 0..3")
-            # The action is saved while the simulator steps (a rebuild replays it, so its outcome
-            # need not be saved with it): the database adds no latency to a step.
-            planned = dataclasses.replace(
-                st, seq=st.seq + 1, actions=[*st.actions, action], deadline=self._deadline()
-            )
-            saving = asyncio.ensure_future(self._save_planned(live, planned))
-            reply = await self._session_call(live, "step", action, saving)
-            await self._settle(live, saving)
-            st.seq, st.actions, st.deadline = planned.seq, planned.actions, planned.deadline
+            # Saved after the step, before the answer (saving while the simulator steps was
+            # measured slower: the threads contend for the GIL and the cores).
+            reply = await self._session_call(live, "step", action)
             observation, info = reply["observations"][0], reply["infos"][0]
             done = bool(reply["terminated"][0] or reply["truncated"][0])
+            st.seq += 1
+            st.actions.append(action)
             st.last_metrics = info["metrics"]
+            st.deadline = self._deadline()
             results = []
             if done:
                 st.episode_active = False
@@ -332,11 +328,6 @@ class RunService:
                 results.append(self._result(live, "timeout"))
             await self._finish(live, results, "ended", "run_timeout")
             return
-        if st.deadline is not None and now > st.deadline and st.episode_active and st.actions:
-            if live.last_answer is None:  # restored, not yet replayed: its saved metrics may
-                await self._rebuild(live)  # be one step behind its actions
-                if live.run_id not in self.live:
-                    return
         while st.deadline is not None and now > st.deadline:
             if st.episode_active:
                 results.append(self._result(live, "timeout"))
@@ -421,12 +412,9 @@ class RunService:
 
         return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
 
-    async def _session_call(
-        self, live: LiveRun, verb: str, argument: int, saving: asyncio.Future[int] | None = None
-    ) -> dict[str, Any]:
+    async def _session_call(self, live: LiveRun, verb: str, argument: int) -> dict[str, Any]:
         """Reset (argument: episode index) or step (argument: action) the run's environment,
-        rebuilding the session first if it is gone (restart, idle reaper, another replica).
-        ``saving``: the step's state being saved meanwhile, settled before a failure is."""
+        rebuilding the session first if it is gone (restart, idle reaper, another replica)."""
         for attempt in range(2):
             try:
                 if live.session_id is None:
@@ -444,9 +432,6 @@ class RunService:
                     raise
             except (errors.WorkerFailed, errors.InternalError) as error:
                 await self._close_session(live)
-                if saving is not None:
-                    with contextlib.suppress(errors.MultiONError):
-                        await self._settle(live, saving)
                 await self._finish(live, [], "failed", "server_error", refunded=True)
                 raise errors.WorkerFailed(
                     f"the simulator failed during this run ({error.message}); the run is over "
@@ -470,11 +455,10 @@ class RunService:
         for action in st.actions:
             reply = decode(await self.registry.step(live.session_id, Step([action])))
             done = bool(reply["terminated"][0] or reply["truncated"][0])
-        # the saved metrics may be one step behind the actions (saved while the step ran)
         st.last_metrics = reply["infos"][0]["metrics"]
         end_reason = st.last_metrics.get("end_reason") if done else None
         run_done = False
-        if done:  # the last saved action ended the episode before its outcome was saved
+        if done:  # defensive: a saved state whose last action ended the episode unrecorded
             st.episode_active = False
             results = [self._result(live, str(end_reason))]
             run_done = st.position == len(live.order) - 1
@@ -506,25 +490,16 @@ class RunService:
         )
 
     async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
-        try:
-            await self._db(lambda s: save_state(s, live.run_id, live.state, results))
-        except RunMoved:
-            self.live.pop(live.run_id, None)
-            await self._close_session(live)
-            raise errors.SequenceMismatch(
-                "this run was changed elsewhere (another server replica or an organiser); "
-                "GET its observe route and continue from there"
-            ) from None
+        def save() -> None:
+            if results:
+                with self.db.sessions.begin() as session:
+                    save_state(session, live.run_id, live.state, results)
+            else:  # the per-step save: one UPDATE on a bare connection, no ORM session
+                with self.db.engine.begin() as connection:
+                    save_state(connection, live.run_id, live.state, results)
 
-    async def _save_planned(self, live: LiveRun, planned: RunState) -> int:
-        """Save ``planned`` (a copy of the run's state); returns its new version."""
-        await self._db(lambda s: save_state(s, live.run_id, planned, []))
-        return planned.version
-
-    async def _settle(self, live: LiveRun, saving: asyncio.Future[int]) -> None:
-        """Wait for a concurrent save; take its version, or give the run up if it moved."""
         try:
-            live.state.version = await saving
+            await asyncio.to_thread(save)
         except RunMoved:
             self.live.pop(live.run_id, None)
             await self._close_session(live)
