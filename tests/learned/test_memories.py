@@ -126,7 +126,7 @@ def test_reset_mid_sequence_equals_fresh_run(name: str) -> None:
 
 def test_frmqn_empty_memory_reads_zeros() -> None:
     memory = FRMQN(observation_dim=10, hidden_dim=5, memory_size=4, key_dim=6, out_dim=8)
-    state = memory.initial_state(2)
+    state = memory.initial_state(2, torch.device("cpu"))
     read, new_state = memory.step({}, torch.randn(2, 15), state)
     assert torch.equal(read, torch.zeros(2, 8))
     assert new_state["valid"].sum(1).tolist() == [1.0, 1.0]
@@ -144,7 +144,7 @@ def test_masked_attention_ignores_empty_slots() -> None:
 
 def test_frmqn_ring_buffer_keeps_the_last_m() -> None:
     memory = FRMQN(observation_dim=3, hidden_dim=2, memory_size=4, key_dim=2, out_dim=2)
-    state = memory.initial_state(1)
+    state = memory.initial_state(1, torch.device("cpu"))
     for _ in range(6):
         _, state = memory.step({}, torch.randn(1, 5), state)
     assert state["count"].item() == 6 and state["valid"].sum().item() == 4
@@ -191,7 +191,7 @@ def test_recognition_label_nearest_goal_within_2_5_m() -> None:
 def test_obj_recog_map_writes_prediction_at_agent_cell() -> None:
     _, space = _space("obj-recog-map")
     memory = ObjRecogMap(space)
-    grid = memory.initial_state(3)["map"]
+    grid = memory.initial_state(3, torch.device("cpu"))["map"]
     gps = torch.tensor([[1.6, 0.8], [0.0, 0.0], [0.3, -0.3]])
     out = memory.write(grid, torch.tensor([4.0, 0.0, 8.0]), gps)
     assert out[0, C0 - 2, C0 - 1] == 4.0 and out[0].count_nonzero() == 1

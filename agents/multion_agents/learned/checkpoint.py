@@ -34,6 +34,7 @@ def save_checkpoint(path: Path, payload: dict[str, Any]) -> None:
         "format_version": FORMAT_VERSION,
         "rng": {
             "torch": torch.get_rng_state(),
+            "torch_cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else [],
             "numpy": np.random.get_state(),
             "python": random.getstate(),
         },
@@ -69,6 +70,9 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
 def restore_random_states(payload: dict[str, Any]) -> None:
     rng = payload["rng"]
     torch.set_rng_state(rng["torch"])
+    cuda_states = rng.get("torch_cuda", [])
+    if cuda_states and len(cuda_states) == torch.cuda.device_count():
+        torch.cuda.set_rng_state_all(cuda_states)
     np.random.set_state(rng["numpy"])
     random.setstate(rng["python"])
 

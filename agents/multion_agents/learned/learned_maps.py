@@ -90,8 +90,8 @@ class ObjRecogMap(Memory):
         self.cnn = MapCNN(EMBED_DIM, crop_size)
         self.out_dim = self.cnn.out_dim
 
-    def initial_state(self, batch: int) -> State:
-        return {"map": torch.zeros(batch, self.global_size, self.global_size)}
+    def initial_state(self, batch: int, device: torch.device) -> State:
+        return {"map": torch.zeros(batch, self.global_size, self.global_size, device=device)}
 
     def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:
         if image_features is None:
@@ -157,9 +157,9 @@ class ProjNeuralMap(Memory):
         self.cnn = MapCNN(channels, crop_size)
         self.out_dim = self.cnn.out_dim
 
-    def initial_state(self, batch: int) -> State:
+    def initial_state(self, batch: int, device: torch.device) -> State:
         size = self.global_size
-        return {"map": torch.zeros(batch, self.channels, size, size)}
+        return {"map": torch.zeros(batch, self.channels, size, size, device=device)}
 
     def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:
         if image_features is None:
