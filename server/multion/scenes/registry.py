@@ -19,6 +19,10 @@ from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
 
 SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
+GENERATOR_VERSION = 1
+"""Version of the procedural scenes (houses, rooms, furniture). Bump it whenever a change makes
+an id produce different geometry: navigable grids cached on disk under an older version are
+then rebuilt (``multion.sim.grid_cache``)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 
 _HOUSE = re.compile(r"house-(\d+)")

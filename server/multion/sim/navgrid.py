@@ -21,6 +21,10 @@ from scipy import ndimage
 
 from multion.sim.world import PyBulletWorld
 
+NAVGRID_VERSION = 1
+"""Version of :func:`build_navgrid`'s algorithm. Bump it whenever a change alters the cells it
+computes: navigable grids cached on disk under an older version are then rebuilt."""
+
 
 @dataclass(frozen=True)
 class NavGridConfig:

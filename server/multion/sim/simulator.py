@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim import grid_cache
 from multion.sim.camera import Camera, CameraConfig, CameraImage
 from multion.sim.navgrid import NavGrid, NavGridConfig, build_navgrid
 from multion.sim.world import PyBulletWorld
@@ -43,12 +44,16 @@ def load_world(scene_id: str) -> PyBulletWorld:
 
 
 def navgrid_for(scene_id: str, world: PyBulletWorld, config: NavGridConfig) -> NavGrid:
-    """The navigable grid of a scene, computed once per process and configuration."""
+    """The navigable grid of a scene: from this process's memory, else from the disk cache
+    (:mod:`multion.sim.grid_cache`), else computed by ray casts and saved there."""
     key = (scene_id, config)
     if key in _GRID_CACHE:
         _GRID_CACHE.move_to_end(key)
         return _GRID_CACHE[key]
-    grid = build_navgrid(world, config)
+    grid, path, disk_key = grid_cache.cached_grid(scene_id, config)
+    if grid is None:
+        grid = build_navgrid(world, config)
+        grid_cache.store(path, grid, disk_key)
     _GRID_CACHE[key] = grid
     while len(_GRID_CACHE) > _GRID_CACHE_SIZE:
         _GRID_CACHE.popitem(last=False)
