@@ -197,6 +197,16 @@ def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
     return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
 
 
+def scene_order(episodes: Sequence[Episode]) -> list[int]:
+    """Episode indices grouped by scene (scenes in order of first appearance, episodes in
+    order within a scene): each environment then builds each house once. Results do not
+    depend on the order (agents are seeded per episode index)."""
+    first: dict[str, int] = {}
+    for index, episode in enumerate(episodes):
+        first.setdefault(episode.scene_id, index)
+    return sorted(range(len(episodes)), key=lambda i: (first[episodes[i].scene_id], i))
+
+
 def play_all(
     settings: EvalSettings,
     episodes: Sequence[Episode],
@@ -233,7 +243,7 @@ def play_all(
     )
     try:
         with ThreadPoolExecutor(max_workers=max(1, settings.workers)) as pool:
-            for record in pool.map(play, range(len(episodes))):
+            for record in pool.map(play, scene_order(episodes)):
                 records.append(record)
                 done = [r.metrics.get("success", 0.0) for r in records]
                 bar.set_postfix(success=f"{100 * float(np.mean(done)):.0f}%")

@@ -178,11 +178,12 @@ def test_every_model_trains_a_few_hundred_frames(
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
     assert [int(r["frames"]) for r in rows] == [64, 128, 192]
     # the reference schedule: learning rate and clip range decay linearly over the 3 updates
+    # (progress.csv keeps 3 significant digits)
     assert [float(r["learning_rate"]) for r in rows] == pytest.approx(
-        [args.learning_rate * f for f in (1, 2 / 3, 1 / 3)], rel=1e-3
+        [args.learning_rate * f for f in (1, 2 / 3, 1 / 3)], rel=1e-2
     )
     assert [float(r["clip"]) for r in rows] == pytest.approx(
-        [args.clip * f for f in (1, 2 / 3, 1 / 3)], rel=1e-3
+        [args.clip * f for f in (1, 2 / 3, 1 / 3)], rel=1e-2
     )
     payload = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
     assert payload["agent"] == name and payload["update"] == 3
