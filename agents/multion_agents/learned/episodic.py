@@ -191,9 +191,9 @@ def policy_query_dim(observation_space: spaces.Dict) -> int:
     return IMAGE_EMBED_DIM * sees + GOAL_EMBED_DIM + ACTION_EMBED_DIM
 
 
-def build_frmqn(observation_space: spaces.Dict) -> FRMQN:
+def build_frmqn(observation_space: spaces.Dict, geometry: object = None) -> FRMQN:
     return FRMQN(policy_query_dim(observation_space), HIDDEN_SIZE)
 
 
-def build_smt(observation_space: spaces.Dict) -> SMT:
+def build_smt(observation_space: spaces.Dict, geometry: object = None) -> SMT:
     return SMT(policy_query_dim(observation_space))

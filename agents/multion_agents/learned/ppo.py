@@ -343,6 +343,7 @@ def _device(name: str) -> torch.device:
 
 def train(args: Args) -> dict[str, Any]:
     """Run (or resume) a training run; returns a summary of the last update."""
+    from multion.api.config_io import env_config_from_dict, env_config_to_dict
     from multion.task.dataset import parse_task
 
     spec = model_spec(args.agent)
@@ -364,6 +365,9 @@ def train(args: Args) -> dict[str, Any]:
     )
     env_config = merge_overrides(env_config, args.env_overrides)
     env_config["episodes_per_scene"] = args.episodes_per_scene
+    # every field spelled out: the checkpoint then fixes the map geometry, crop size and
+    # camera even if the env's defaults change later
+    env_config = env_config_to_dict(env_config_from_dict(env_config))
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)
     if args.found_prior is not None:
@@ -373,7 +377,8 @@ def train(args: Args) -> dict[str, Any]:
     checkpoint_path = out / "checkpoint.pt"
     if args.resume:
         payload = load_checkpoint(checkpoint_path)
-        if payload["agent"] != args.agent or payload["env_config"] != env_config:
+        stored = env_config_from_dict(payload["env_config"])
+        if payload["agent"] != args.agent or stored != env_config_from_dict(env_config):
             raise CheckpointError(
                 f"{checkpoint_path} was trained with agent {payload['agent']!r} and env config "
                 f"{payload['env_config']}; this run asks for {args.agent!r} and {env_config}"

@@ -36,11 +36,12 @@ class AgentConfig:
     """Degrees per TURN_LEFT / TURN_RIGHT."""
 
 
-def load_world(scene_id: str) -> PyBulletWorld:
-    """Build the PyBullet world of a scene id (``house-00042``, ``room-6x4``, or a mesh path)."""
+def load_world(scene_id: str, renderer: str = "tiny") -> PyBulletWorld:
+    """Build the PyBullet world of a scene id (``house-00042``, ``room-6x4``, or a mesh path),
+    ready for ``renderer`` (``CameraConfig.renderer``)."""
     if is_mesh_scene(scene_id):
-        return PyBulletWorld.from_mesh(scene_id)
-    return PyBulletWorld.from_layout(layout_for(scene_id))
+        return PyBulletWorld.from_mesh(scene_id, renderer)
+    return PyBulletWorld.from_layout(layout_for(scene_id), renderer)
 
 
 def navgrid_for(scene_id: str, world: PyBulletWorld, config: NavGridConfig) -> NavGrid:
@@ -92,12 +93,17 @@ class Simulator:
         """Switch to ``scene_id`` (a no-op when it is already loaded); returns its grid."""
         if scene_id != self.scene_id or self.world is None:
             self.close()
-            self.world = load_world(scene_id)
+            self.world = load_world(scene_id, self.camera_config.renderer)
             self.grid = navgrid_for(scene_id, self.world, self.navgrid_config)
-            self.camera = Camera(self.camera_config, self.world.client)
+            self.camera = Camera(self.camera_config, self.world.client, self.world.renderer)
             self.scene_id = scene_id
         assert self.grid is not None
         return self.grid
+
+    @property
+    def renderer(self) -> str | None:
+        """The renderer in use ("tiny" or "egl"), None before a scene is loaded."""
+        return self.world.renderer if self.world is not None else None
 
     def close(self) -> None:
         if self.world is not None:
