@@ -286,15 +286,19 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:
+        from multion.sim.camera import resolve_renderer
+
         config, records = play_all(settings, episodes, local_env_factory(), progress)
         server: dict[str, Any] = {"url": None, "local": False, "in_process": True}
+        server["renderer"] = resolve_renderer(_requested_renderer(config))
     elif settings.server is not None:
         with Client(settings.server, retries=1) as client:
-            health = client.health()
+            health, spec = client.health(), client.spec()
         config, records = play_all(
             settings, episodes, remote_env_factory(settings.server), progress
         )
         server = {"url": settings.server, "local": False, "api_version": health.get("api_version")}
+        server["renderer"] = _served_renderer(config, spec)
     else:
         from multion.api.local_server import LocalServer
 
@@ -306,9 +310,24 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         )
         with LocalServer(workers=max(1, settings.workers), options=allow) as local:
             with Client(local.url) as client:
-                health = client.health()
+                health, spec = client.health(), client.spec()
             config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)
         server = {"url": None, "local": True, "api_version": health.get("api_version")}
+        server["renderer"] = _served_renderer(config, spec)
     return EvalResult(
         settings, config, records, episodes, server, seconds=time.perf_counter() - started
     )
+
+
+def _requested_renderer(config: dict[str, Any]) -> str:
+    from multion.task.env import EnvConfig
+
+    return str(config.get("camera", {}).get("renderer", EnvConfig().camera.renderer))
+
+
+def _served_renderer(config: dict[str, Any], spec: dict[str, Any]) -> str | None:
+    """The renderer the server's environments used ("auto" resolved by the server's spec)."""
+    requested = _requested_renderer(config)
+    if requested != "auto":
+        return requested
+    return spec.get("renderer", {}).get("auto")  # None from servers older than the field

@@ -90,8 +90,6 @@ def test_every_model_and_the_ppo_loss_follow_the_device(name: str) -> None:
     loss.backward()
     grads = [p.grad for p in policy.parameters() if p.grad is not None]
     assert grads and all(g.device == META for g in grads)
-    out = policy.step(
-        {k: v[0] for k, v in frames.items()}, actions[0], starts[0] + 1.0, state
-    )
+    out = policy.step({k: v[0] for k, v in frames.items()}, actions[0], starts[0] + 1.0, state)
     assert out.logits.device == META
     assert all(v.device == META for v in out.state.values()), "new state off device"

@@ -93,7 +93,9 @@ class Camera:
         )
         if renderer == "egl":
             self.projection = _shift_image(
-                self.projection, EGL_PIXEL_SHIFT[0] / config.width, EGL_PIXEL_SHIFT[1] / config.height
+                self.projection,
+                EGL_PIXEL_SHIFT[0] / config.width,
+                EGL_PIXEL_SHIFT[1] / config.height,
             )
 
     def render(
@@ -151,6 +153,8 @@ def _shift_image(projection: tuple[float, ...], dx: float, dy: float) -> tuple[f
 # ---------------------------------------------------------------------- renderer plugins
 _egl_failed = False
 """Set once the plugin failed to load in this process: ``auto`` then stops trying."""
+_egl_loaded = False
+"""Set once the plugin loaded in this process (``resolve_renderer`` need not probe again)."""
 
 
 def attach_renderer(client: int, requested: str) -> str:
@@ -176,8 +180,8 @@ def resolve_renderer(requested: str) -> str:
     client, once: the answer is cached with the plugin's load result)."""
     if requested != "auto":
         return requested
-    if _egl_failed:
-        return "tiny"
+    if _egl_failed or _egl_loaded:
+        return "egl" if _egl_loaded else "tiny"
     client = p.connect(p.DIRECT)
     try:
         return attach_renderer(client, "auto")
@@ -192,17 +196,21 @@ def egl_plugin_path() -> str | None:
 
 
 def _load_egl(client: int) -> bool:
-    global _egl_failed
+    global _egl_failed, _egl_loaded
     if _egl_failed:
         return False
     path = egl_plugin_path()
     plugin = -1
+    # Mesa's llvmpipe starts one rendering thread per core by default; simulator processes
+    # already share the cores, so each renders on one thread (set LP_NUM_THREADS to override)
+    os.environ.setdefault("LP_NUM_THREADS", "1")
     if path is not None:
         with _quiet_stdout():  # the plugin prints its OpenGL vendor and version on every load
             plugin = p.loadPlugin(path, "_eglRendererPlugin", physicsClientId=client)
     if plugin < 0:
         _egl_failed = True
         return False
+    _egl_loaded = True
     return True
 
 

@@ -5,9 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter, Request
+from starlette.concurrency import run_in_threadpool
 
 from multion.api.config_io import env_config_to_dict
 from multion.api.deps import MsgpackResponse, Registry, Settings
+from multion.sim.camera import RENDERERS, resolve_renderer
 from multion.task.env import SENSORS, EnvConfig, MultiONEnv, build_observation_space
 from multion_client.constants import GOAL_CATEGORIES, Action
 from multion_client.protocol import API_VERSION, HEALTH_PATH, SPEC_PATH, space_to_wire
@@ -70,6 +72,12 @@ async def spec(request: Request, settings: Settings) -> MsgpackResponse:
         "action_space": {"type": "Discrete", "n": len(Action), "start": 0},
         "metadata": dict(MultiONEnv.metadata),
         "autoreset_mode": "same_step",
+        # what camera.renderer "auto" renders with on this server (probed once: EGL or tiny)
+        "renderer": {
+            "choices": list(RENDERERS),
+            "default": default.camera.renderer,
+            "auto": await run_in_threadpool(resolve_renderer, "auto"),
+        },
         "limits": {
             "max_sessions": settings.max_sessions,
             "max_envs_per_session": settings.max_envs_per_session,
