@@ -182,17 +182,25 @@ def estimate(options: argparse.Namespace) -> dict[str, float]:
                 )
             )
         rates[agent] = float(summary["fps"])  # the second update: start-up excluded
-        hours = options.frames / rates[agent] / 3600
+        seconds = options.frames / rates[agent]
         print(
-            f"  {agent:18s} {rates[agent]:8.1f} frames/s -> {hours:9.1f} h per run "
-            f"({hours * len(options.tasks):.1f} h for {len(options.tasks)} tasks)"
+            f"  {agent:18s} {rates[agent]:8.1f} frames/s -> {duration(seconds)} per run, "
+            f"{duration(seconds * len(options.tasks))} for {len(options.tasks)} tasks"
         )
-    total = sum(options.frames / r / 3600 for r in rates.values()) * len(options.tasks)
+    total = sum(options.frames / r for r in rates.values()) * len(options.tasks)
     print(
-        f"  all {len(rates) * len(options.tasks)} runs: {total:.1f} h of training, "
+        f"  all {len(rates) * len(options.tasks)} runs: {duration(total)} of training, "
         "one run at a time on this machine (evaluation not included)"
     )
     return rates
+
+
+def duration(seconds: float) -> str:
+    if seconds < 3600:
+        return f"{seconds / 60:.1f} min"
+    if seconds < 3 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
 
 
 def run_training(options: argparse.Namespace, agent: str, task: str, out: Path) -> Path:
