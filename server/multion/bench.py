@@ -31,7 +31,7 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train"],
+        choices=["sim", "cache", "http", "train", "memory"],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -71,6 +71,10 @@ def run(args: argparse.Namespace) -> int:
         bench_sim(args.steps, args.episodes)
     if "cache" in parts:
         bench_cache(args.eval_episodes)
+    if "memory" in parts:
+        from multion.api.bench_memory import bench_memory
+
+        bench_memory()
     if "http" in parts:
         from multion.api.bench_http import run_http_bench
 

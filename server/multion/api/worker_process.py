@@ -19,6 +19,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.processes import die_with_parent
 from multion.task.dataset import DatasetError
 from multion.task.env import EpisodeOverError, MultiONEnv
 from multion_client import errors
@@ -42,6 +43,7 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
     memory runs out (the worker then answers and exits: its state is not to be trusted, and the
     server replaces it)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which stops us
+    die_with_parent()
     # A bug or a bad estimate can cost this worker, never the machine.
     resource.setrlimit(resource.RLIMIT_AS, (memory_limit_bytes, memory_limit_bytes))
     shards: dict[str, Shard] = {}
