@@ -118,6 +118,7 @@ def test_auto_falls_back_to_tiny_and_egl_names_the_packages(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr(camera_module, "_egl_failed", False)
+    monkeypatch.setattr(camera_module, "_egl_loaded", False)  # as in a fresh process
     monkeypatch.setattr(camera_module, "egl_plugin_path", lambda: None)  # a pybullet without it
     _, used = _observations("auto", [1])
     assert used == "tiny"
