@@ -20,6 +20,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -226,9 +227,12 @@ def run_evaluation(
     from multion_agents.report import write_report
 
     metrics_path = out / "metrics.json"
-    if metrics_path.is_file():
+    current = metrics_path.is_file() and metrics_path.stat().st_mtime >= checkpoint.stat().st_mtime
+    if current:
         print(f"{agent} {task}: evaluated, skipped")
     else:
+        if out.exists():  # an evaluation of an earlier checkpoint: evaluate the new one
+            shutil.rmtree(out)
         settings = EvalSettings(
             agent=agent,
             num_goals=parse_task(task),
@@ -241,6 +245,7 @@ def run_evaluation(
             checkpoint=str(checkpoint),
         )
         partial = out.with_name(out.name + ".partial")  # renamed when complete: resumable
+        shutil.rmtree(partial, ignore_errors=True)
         write_report(evaluate(settings), partial, pictures=1)
         os.replace(partial, out)
     return json.loads(metrics_path.read_text())["metrics"]
