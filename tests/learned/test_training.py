@@ -354,7 +354,9 @@ def test_a_checkpoint_is_evaluated_through_the_eval_path(
     )
     first, second = evaluate(settings, progress=False), evaluate(settings, progress=False)
     assert len(first.records) == 2
-    assert first.config["camera"] == {"width": SIZE, "height": SIZE}  # the trained camera
+    camera = first.config["camera"]  # the trained camera, every field but the renderer
+    assert camera["width"] == camera["height"] == SIZE and camera["hfov_deg"] == 79.0
+    assert "renderer" not in camera  # the evaluating machine picks its own
     assert [r.metrics for r in first.records] == [r.metrics for r in second.records]
     with pytest.raises(AgentError, match="holds a 'oracle-map' agent"):
         evaluate(
