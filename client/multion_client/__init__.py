@@ -10,13 +10,14 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__all__ = ["API_VERSION", "Client", "RemoteEnv", "RemoteVectorEnv"]
+__all__ = ["API_VERSION", "Client", "RemoteEnv", "RemoteVectorEnv", "RunEnv"]
 
 _HOMES = {
     "API_VERSION": "multion_client.protocol",
     "Client": "multion_client.client",
     "RemoteEnv": "multion_client.env",
     "RemoteVectorEnv": "multion_client.vector",
+    "RunEnv": "multion_client.run",
 }
 
 

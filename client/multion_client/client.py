@@ -12,19 +12,29 @@ import numpy as np
 
 from multion_client.errors import MalformedMessage, MultiONError, ServerUnavailable, error_from_code
 from multion_client.protocol import (
+    CHALLENGE_PATH,
     CONTENT_TYPE,
     HEALTH_PATH,
+    RUNS_PATH,
     SESSIONS_PATH,
     SPEC_PATH,
+    CreateRun,
     CreateSession,
     Error,
     Observations,
     Reset,
+    RunInfo,
+    RunList,
+    RunObservation,
+    RunStatus,
+    RunStep,
     SessionInfo,
+    StartEpisode,
     Step,
     StepResult,
     decode,
     encode,
+    run_path,
     session_path,
     space_from_wire,
 )
@@ -39,7 +49,11 @@ class Client:
     Connection failures are retried with exponential backoff (at most ``retries`` times) for
     idempotent calls (health, spec, observe, close) and for any call whose connection was never
     established; ``create_session``, ``reset`` and ``step`` are otherwise not retried, because
-    the server may already have acted on them.
+    the server may already have acted on them. The leaderboard's run calls carry sequence
+    numbers, so starting an episode and stepping a run are retried too.
+
+    ``token`` (a team's leaderboard token) is sent as ``Authorization: Bearer``; only the run
+    routes need it.
     """
 
     def __init__(
@@ -48,6 +62,7 @@ class Client:
         timeout: float = DEFAULT_TIMEOUT_S,
         retries: int = 3,
         backoff_s: float = 0.2,
+        token: str | None = None,
     ) -> None:
         if retries < 0:
             raise ValueError(f"retries must be ≥ 0, got {retries}")
@@ -57,7 +72,8 @@ class Client:
         self._http = httpx.Client(
             base_url=self.base_url,
             timeout=httpx.Timeout(timeout, connect=min(timeout, 10.0)),
-            headers={"accept": CONTENT_TYPE},
+            headers={"accept": CONTENT_TYPE}
+            | ({"authorization": f"Bearer {token}"} if token else {}),
         )
 
     # ------------------------------------------------------------------ routes
@@ -108,6 +124,42 @@ class Client:
     def close_session(self, session_id: str) -> None:
         """Free the session's environments on the server."""
         self._call("DELETE", session_path(session_id), idempotent=True)
+
+    # ------------------------------------------------------------------ leaderboard runs
+    def challenge(self) -> dict[str, Any]:
+        """The server's challenge: tracks, phases, limits (no token needed)."""
+        return self._call("GET", CHALLENGE_PATH, idempotent=True)
+
+    def create_run(self, message: CreateRun) -> RunInfo:
+        """Start a run (debits the team's quota; not retried once the request was sent)."""
+        return RunInfo.from_wire(self._call("POST", RUNS_PATH, message.to_wire()))
+
+    def start_episode(self, run_id: str, episode: int) -> RunObservation:
+        """Start the run's episode number ``episode`` (retried safely: the server dedupes)."""
+        body = StartEpisode(episode).to_wire()
+        data = self._call("POST", run_path(run_id, "episodes"), body, idempotent=True)
+        return RunObservation.from_wire(data)
+
+    def run_step(self, run_id: str, episode: int, seq: int, action: Any) -> RunObservation:
+        """Action ``seq`` of ``episode`` (retried safely: a repeated seq is not acted twice)."""
+        body = RunStep(episode, seq, _plain(action)).to_wire()
+        data = self._call("POST", run_path(run_id, "step"), body, idempotent=True)
+        return RunObservation.from_wire(data)
+
+    def run_observe(self, run_id: str) -> RunObservation:
+        return RunObservation.from_wire(
+            self._call("GET", run_path(run_id, "observe"), idempotent=True)
+        )
+
+    def run_status(self, run_id: str) -> RunStatus:
+        return RunStatus.from_wire(self._call("GET", run_path(run_id), idempotent=True))
+
+    def list_runs(self) -> list[RunStatus]:
+        return RunList.from_wire(self._call("GET", RUNS_PATH, idempotent=True)).runs
+
+    def abandon_run(self, run_id: str) -> RunStatus:
+        """End the run now; its missing episodes count as failures."""
+        return RunStatus.from_wire(self._call("DELETE", run_path(run_id), idempotent=True))
 
     # ------------------------------------------------------------------ plumbing
     def close(self) -> None:

@@ -69,6 +69,19 @@ class PathNotAllowed(BadRequest):
     code, status = "path_not_allowed", 403
 
 
+class Unauthorized(MultiONError):
+    """A leaderboard route without a valid token (missing, malformed, unknown or revoked)."""
+
+    code, status = "unauthorized", 401
+
+
+class NotAllowedInRun(BadRequest):
+    """Something a run does not let a participant choose: seeds, reset options, episodes, or a
+    sensor (oracle maps, goal distance) the track does not allow."""
+
+    code, status = "not_allowed_in_run", 403
+
+
 class NotFound(MultiONError):
     """No such route."""
 
@@ -79,6 +92,18 @@ class SessionNotFound(NotFound):
     """No session with this id (never created, closed, or reaped after being idle)."""
 
     code, status = "session_not_found", 404
+
+
+class RunNotFound(NotFound):
+    """No run with this id for this team (another team's runs are not visible)."""
+
+    code, status = "run_not_found", 404
+
+
+class UnknownTrack(NotFound):
+    """No such track or phase in the server's challenge, or the server runs no challenge."""
+
+    code, status = "unknown_track", 404
 
 
 class MethodNotAllowed(BadRequest):
@@ -95,6 +120,24 @@ class NotReset(MultiONError, RuntimeError):
     """``observe`` before the first ``reset`` of a session."""
 
     code, status = "not_reset", 409
+
+
+class EpisodeInProgress(MultiONError):
+    """A run's next episode was asked for before the current one ended."""
+
+    code, status = "episode_in_progress", 409
+
+
+class SequenceMismatch(MultiONError):
+    """A run step whose (episode, seq) is neither the next one nor a retry of the last one."""
+
+    code, status = "sequence_mismatch", 409
+
+
+class RunOver(MultiONError):
+    """The run has ended (finished, stopped early or failed): nothing more can be played."""
+
+    code, status = "run_over", 409
 
 
 class RequestTooLarge(MultiONError):
@@ -119,6 +162,12 @@ class MemoryBudgetExceeded(LimitExceeded):
     """The session's memory estimate does not fit what the simulator workers have free now."""
 
     code, status = "memory_budget_exceeded", 429
+
+
+class QuotaExceeded(LimitExceeded):
+    """The team has used its run quota for this phase (daily or total)."""
+
+    code, status = "quota_exceeded", 429
 
 
 # ---------------------------------------------------------------------- 5xx: the server's fault
@@ -148,16 +197,24 @@ ERRORS: dict[str, type[MultiONError]] = {
         InvalidConfig,
         InvalidEpisode,
         PathNotAllowed,
+        Unauthorized,
+        NotAllowedInRun,
         NotFound,
         SessionNotFound,
+        RunNotFound,
+        UnknownTrack,
         MethodNotAllowed,
         EpisodeOver,
         NotReset,
+        EpisodeInProgress,
+        SequenceMismatch,
+        RunOver,
         RequestTooLarge,
         LimitExceeded,
         TooManySessions,
         TooManyEnvs,
         MemoryBudgetExceeded,
+        QuotaExceeded,
         InternalError,
         WorkerFailed,
         ServerUnavailable,
@@ -167,6 +224,7 @@ ERRORS: dict[str, type[MultiONError]] = {
 
 _BY_STATUS: dict[int, type[MultiONError]] = {
     400: BadRequest,
+    401: Unauthorized,
     403: PathNotAllowed,
     404: NotFound,
     405: MethodNotAllowed,

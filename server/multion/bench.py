@@ -31,7 +31,7 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train", "memory"],
+        choices=["sim", "cache", "http", "train", "memory", "leaderboard"],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -79,6 +79,10 @@ def run(args: argparse.Namespace) -> int:
         from multion.api.bench_http import run_http_bench
 
         run_http_bench(server_options=["--http", args.http, "--loop", args.loop])
+    if "leaderboard" in parts:
+        from multion.leaderboard.bench import run_leaderboard_bench
+
+        run_leaderboard_bench(server_options=["--http", args.http, "--loop", args.loop])
     if "train" in parts:
         from multion_agents.bench_train import run_train_bench
 

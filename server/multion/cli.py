@@ -1,4 +1,4 @@
-"""The ``multion`` command line: serve, datasets, scenes, bench, eval, train.
+"""The ``multion`` command line: serve, datasets, scenes, bench, eval, train, submit, leaderboard.
 
 Each sub-command lives in its own module exposing ``add_arguments(parser)`` and ``run(args)``;
 modules are imported only when their command runs, so ``multion --help`` stays fast and a
@@ -24,6 +24,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "evaluate an agent on a split, locally or against a server",
     ),
     "train": ("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
+    "submit": (
+        "multion_agents.cli_submit",
+        "play an agent through a leaderboard run on a challenge server",
+    ),
+    "leaderboard": (
+        "multion.leaderboard.cli",
+        "organisers: database, teams and tokens, runs, export, replay, baselines",
+    ),
     "dataset": ("multion.cli_data", "generate or check episode datasets"),
     "scene": ("multion.cli_data", "draw or export scenes"),
     "bench": ("multion.bench", "measure simulator, server and training speed"),

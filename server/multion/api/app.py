@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import AsyncIterator
+from typing import TYPE_CHECKING
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -27,6 +28,9 @@ from multion_client.errors import (
 )
 from multion_client.protocol import API_VERSION
 
+if TYPE_CHECKING:
+    from multion.leaderboard.settings import LeaderboardSettings
+
 log = logging.getLogger("multion.api")
 
 DESCRIPTION = """\
@@ -36,8 +40,14 @@ clients only send actions. The `multion_client` package (`Client`, `RemoteEnv`,
 `RemoteVectorEnv`) speaks this protocol."""
 
 
-def create_app(settings: ServerSettings | None = None) -> FastAPI:
-    """A MultiON server app; its lifespan starts and stops the simulator workers."""
+def create_app(
+    settings: ServerSettings | None = None, leaderboard: LeaderboardSettings | None = None
+) -> FastAPI:
+    """A MultiON server app; its lifespan starts and stops the simulator workers.
+
+    With ``leaderboard`` (a challenge file and a results database) it also serves the run
+    routes of :mod:`multion.leaderboard`; without, it behaves as a plain session server.
+    """
     settings = settings or ServerSettings()
 
     @contextlib.asynccontextmanager
@@ -54,7 +64,13 @@ def create_app(settings: ServerSettings | None = None) -> FastAPI:
         app.state.settings, app.state.registry = settings, registry
         reaper = asyncio.create_task(registry.reap_forever())
         try:
-            yield
+            if leaderboard is None:
+                yield
+            else:
+                from multion.leaderboard.app import leaderboard_lifespan
+
+                async with leaderboard_lifespan(app, leaderboard, challenge, registry):
+                    yield
         finally:
             reaper.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -70,6 +86,10 @@ def create_app(settings: ServerSettings | None = None) -> FastAPI:
     install_openapi(app)
     app.include_router(meta.router)
     app.include_router(sessions.router)
+    if leaderboard is not None:
+        from multion.leaderboard.app import check_leaderboard
+
+        challenge = check_leaderboard(app, leaderboard)
     app.add_exception_handler(MultiONError, _api_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(HTTPException, _http_error)

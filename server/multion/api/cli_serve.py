@@ -50,6 +50,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-access-log", action="store_true", help="do not log every request (faster)"
     )
+    parser.add_argument(
+        "--challenge",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="turn the leaderboard on: a challenge file (tracks, phases, secret); see "
+        "docs/leaderboard.md",
+    )
+    parser.add_argument(
+        "--database",
+        default=None,
+        metavar="URL",
+        help="the leaderboard's results database (default sqlite:///leaderboard.db; "
+        "postgresql+psycopg://… for several replicas)",
+    )
 
 
 def add_http_stack_arguments(parser: argparse.ArgumentParser, whose: str = "") -> None:
@@ -91,8 +106,25 @@ def run(args: argparse.Namespace) -> int:
     except ValidationError as error:
         print(f"multion serve: invalid option: {error}")
         return 2
+    leaderboard = None
+    if getattr(args, "challenge", None) is not None or getattr(args, "database", None):
+        from multion.leaderboard.challenge import ChallengeError
+        from multion.leaderboard.settings import LeaderboardSettings
+
+        if args.challenge is None:
+            print("multion serve: --database needs --challenge FILE")
+            return 2
+        given = {"challenge": args.challenge, "database": args.database}
+        try:
+            leaderboard = LeaderboardSettings(**{k: v for k, v in given.items() if v})
+            app = create_app(settings, leaderboard)
+        except (ValidationError, ChallengeError) as error:
+            print(f"multion serve: {error}")
+            return 2
+    else:
+        app = create_app(settings)
     uvicorn.run(
-        create_app(settings),
+        app,
         host=settings.host,
         port=settings.port,
         log_level=args.log_level,

@@ -5,6 +5,7 @@ Accepted ids:
 * ``house-NNNNN``: procedural house number N (any non-negative integer, usually 5 digits);
   the default splits use houses 0–60 (train), 61–71 (val) and 72–89 (test), the same counts
   as Matterport3D's 61 / 11 / 18 scenes.
+* ``house-NNNNN-rK``: house number N built with exactly K rooms (1..8), e.g. hidden houses.
 * ``room-WxD``: one empty W × D metre room, e.g. ``room-6x4`` or ``room-10x2.5`` (sides up to
   50 m).
 * a path ending in ``.obj``, ``.glb``, ``.gltf`` or ``.ply``: a mesh scan, loaded elsewhere.
@@ -15,7 +16,7 @@ from __future__ import annotations
 import functools
 import re
 
-from multion.scenes.house import generate_house
+from multion.scenes.house import HouseConfig, generate_house
 from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
 
@@ -30,6 +31,7 @@ then rebuilt (``multion.sim.grid_cache``)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 
 _HOUSE = re.compile(r"house-(\d+)")
+_SIZED_HOUSE = re.compile(r"house-(\d+)-r([1-8])")
 _ROOM = re.compile(r"room-(\d+(?:\.\d+)?)x(\d+(?:\.\d+)?)")
 _ACCEPTED = "'house-NNNNN' (e.g. house-00042), 'room-WxD' in metres (e.g. room-6x4, room-10x2.5)"
 
@@ -46,6 +48,14 @@ def _first_seeds() -> dict[str, int]:
 def house_id(seed: int) -> str:
     """The canonical id of house number ``seed``, e.g. ``house-00042``."""
     return f"house-{seed:05d}"
+
+
+def sized_house_id(seed: int, rooms: int) -> str:
+    """The id of house number ``seed`` built with exactly ``rooms`` rooms (1..8), e.g.
+    ``house-1234567-r3``; used for the leaderboard's hidden houses, which may be small."""
+    if not 1 <= rooms <= 8:
+        raise ValueError(f"rooms must be in 1..8, got {rooms}")
+    return f"{house_id(seed)}-r{rooms}"
 
 
 def scene_ids(split: str) -> list[str]:
@@ -78,6 +88,10 @@ def layout_for(scene_id: str) -> SceneLayout:
     """The layout of a procedural scene id (see the module docstring for the accepted forms)."""
     if match := _HOUSE.fullmatch(scene_id):
         return generate_house(int(match.group(1)), scene_id=scene_id)
+    if match := _SIZED_HOUSE.fullmatch(scene_id):
+        rooms = int(match.group(2))
+        config = HouseConfig(min_rooms=rooms, max_rooms=rooms)
+        return generate_house(int(match.group(1)), config, scene_id=scene_id)
     if match := _ROOM.fullmatch(scene_id):
         width, depth = float(match.group(1)), float(match.group(2))
         if not (0 < width <= MAX_ROOM_SIDE_M and 0 < depth <= MAX_ROOM_SIDE_M):

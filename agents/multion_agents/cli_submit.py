@@ -1,0 +1,200 @@
+"""``multion submit``: play an agent through a leaderboard run on a challenge server.
+
+Examples::
+
+    export MULTION_TOKEN=mlb_...            # the team's token (kept out of shell history)
+    multion submit --server https://host:8000 --track 3-on --phase minival --agent explorer
+    multion submit --server URL --track 1-on --phase test-standard --agent oracle-map \\
+        --checkpoint runs/om/checkpoint.pt --method "OracleMap (ours)" --paper-url https://…
+    multion submit --server URL --resume RUN_ID --agent explorer   # after a crash
+
+Any agent of ``multion eval`` runs: baselines, import paths and learned agents with their
+checkpoint. The server picks the hidden episodes and scores them; the agent sees the sensors it
+asked for, which the track must allow. A camera of another size than the track's is served by
+resizing the images here (nearest neighbour), for learned agents trained on small images.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+import numpy as np
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--server", required=True, help="the challenge server's URL")
+    parser.add_argument(
+        "--token", default=None, help="team token (default: the MULTION_TOKEN variable)"
+    )
+    parser.add_argument("--track", default=None, help="track name, e.g. 3-on")
+    parser.add_argument("--phase", default=None, help="phase: minival, test-standard, …")
+    parser.add_argument("--agent", required=True, help="an agent of `multion eval`")
+    parser.add_argument("--checkpoint", default=None, help="checkpoint of a learned agent")
+    parser.add_argument("--deterministic", action="store_true", help="learned agents: argmax")
+    parser.add_argument("--method", default=None, help="method name shown on the leaderboard")
+    parser.add_argument("--paper-url", default=None)
+    parser.add_argument("--code-url", default=None)
+    parser.add_argument("--seed", type=int, default=0, help="agent seed (default 0)")
+    parser.add_argument("--resume", default=None, metavar="RUN_ID", help="continue this run")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from multion_agents.agent import AgentError
+    from multion_agents.evaluate import EvalSettings, resolve_agent
+    from multion_client.errors import MultiONError, ServerUnavailable
+
+    settings = EvalSettings(
+        agent=args.agent, checkpoint=args.checkpoint, deterministic=args.deterministic
+    )
+    try:
+        cls = resolve_agent(settings)
+    except (AgentError, ValueError) as error:
+        return _fail(str(error))
+    if args.resume is None and not (args.track and args.phase):
+        return _fail("a new run needs --track and --phase (or --resume RUN_ID)")
+    try:
+        status = submit(args, cls)
+    except ServerUnavailable as error:
+        return _fail(f"cannot reach {args.server}: {error} (resume with --resume)")
+    except MultiONError as error:
+        return _fail(f"the server refused: {error}")
+    except ValueError as error:
+        return _fail(str(error))
+    print(
+        f"run {status.run_id}: {status.state}"
+        + (f" ({status.end_reason})" if status.end_reason else "")
+    )
+    if status.results:
+        primary = status.results.get("primary", "ppl")
+        for name in ("ppl", "progress", "success", "spl"):
+            value = status.results[name]
+            mark = " (ranking)" if name == primary else ""
+            print(
+                f"  {name:<9} {100 * value['mean']:6.1f}%  "
+                f"[{100 * value['low']:.1f}, {100 * value['high']:.1f}]{mark}"
+            )
+    else:
+        print("  results: not shown for this phase (yet)")
+    return 0
+
+
+def submit(args: argparse.Namespace, cls: type) -> Any:
+    """Play every remaining episode of a (new or resumed) run; returns its final RunStatus."""
+    from multion_client.client import Client
+    from multion_client.run import RunEnv, token_from_env
+
+    token = token_from_env(args.token)
+    camera = (cls.config_overrides or {}).get("camera", {})
+    if args.resume is None:
+        with Client(args.server, token=token) as client:
+            track = _track(client.challenge(), args.track)
+        _check_overrides(cls, track)
+        env = RunEnv(
+            args.server, args.track, args.phase, args.method or args.agent, token=token,
+            sensors=list(cls.sensors), maps=oracle_maps(cls),
+            paper_url=args.paper_url, code_url=args.code_url,
+        )  # fmt: skip
+        print(f"run {env.run_id}: {env.num_episodes} episodes (resume with --resume {env.run_id})")
+    else:
+        env = RunEnv(args.server, token=token, run_id=args.resume)
+        with Client(args.server, token=token) as client:
+            track = _track(client.challenge(), env.status().track)
+    play_run(env, cls, args.seed, _target_size(camera, track), progress=not args.quiet)
+    status = env.status()
+    env.close()
+    return status
+
+
+def play_run(
+    env: Any,
+    cls: type,
+    seed: int = 0,
+    image_size: tuple[int, int] | None = None,
+    progress: bool = True,
+) -> None:
+    """Play the remaining episodes of a ``RunEnv`` with a fresh agent of class ``cls``; the
+    agent is re-seeded per episode from ``(seed, episode number)``, as ``multion eval`` does."""
+    from tqdm import tqdm
+
+    from multion_agents.evaluate import episode_seed
+    from multion_client.errors import RunOver
+
+    agent = cls(seed=seed)
+    visible = set(cls.sensors)
+    bar = tqdm(
+        total=env.num_episodes, initial=env.episodes_started, unit="ep", disable=not progress
+    )
+    try:
+        while not env.run_done:
+            observation, info = env.reset()
+            agent.seed(episode_seed(seed, info["episode"]))
+            agent.reset()
+            done = False
+            while not done:
+                seen = _resized({k: v for k, v in observation.items() if k in visible}, image_size)
+                observation, _, terminated, truncated, info = env.step(agent.act(seen))
+                done = terminated or truncated
+            bar.update(1)
+            bar.set_postfix(last=info.get("end_reason"))
+    except RunOver:
+        pass  # the server ended the run (time budget, timeouts): its status says why
+    finally:
+        bar.close()
+
+
+def _track(challenge: dict[str, Any], name: str) -> dict[str, Any]:
+    for track in challenge["tracks"]:
+        if track["name"] == name:
+            return track
+    raise ValueError(
+        f"the server has no track {name!r}; tracks: {[t['name'] for t in challenge['tracks']]}"
+    )
+
+
+def _check_overrides(cls: type, track: dict[str, Any]) -> None:
+    missing = [s for s in cls.sensors if s not in track["sensors"]]
+    if missing:
+        raise ValueError(
+            f"agent {cls.__name__} needs sensor(s) {missing}, which track {track['name']!r} does "
+            f"not allow (it allows {track['sensors']})"
+        )
+    other = set(cls.config_overrides or {}) - {"maps", "camera"}
+    if other:
+        raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
+
+
+def oracle_maps(cls: type) -> dict[str, Any] | None:
+    """The agent's oracle-map options, if it reads an oracle map (other tracks refuse them)."""
+    if not {"oracle_map", "oracle_ego_map"} & set(cls.sensors):
+        return None
+    return (cls.config_overrides or {}).get("maps")
+
+
+def _target_size(camera: dict[str, Any], track: dict[str, Any]) -> tuple[int, int] | None:
+    """The agent's image size (height, width) when it differs from the track's."""
+    if not camera:
+        return None
+    want = (int(camera.get("height", 256)), int(camera.get("width", 256)))
+    have = (int(track["camera"].get("height", 256)), int(track["camera"].get("width", 256)))
+    return None if want == have else want
+
+
+def _resized(observation: dict[str, np.ndarray], size: tuple[int, int] | None) -> dict[str, Any]:
+    if size is None:
+        return observation
+    out = dict(observation)
+    for key in ("rgb", "depth", "goal_mask"):
+        if key in out:
+            image = out[key]
+            rows = (np.arange(size[0]) * image.shape[0]) // size[0]
+            cols = (np.arange(size[1]) * image.shape[1]) // size[1]
+            out[key] = image[rows][:, cols]
+    return out
+
+
+def _fail(message: str) -> int:
+    print(f"multion submit: {message}", file=sys.stderr)
+    return 2

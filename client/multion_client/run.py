@@ -1,0 +1,165 @@
+"""``RunEnv``: a leaderboard run as a Gymnasium environment, for custom agents.
+
+::
+
+    from multion_client.run import RunEnv
+
+    env = RunEnv("https://challenge.example.org", track="3-on", phase="minival",
+                 method="my-agent")                       # token from $MULTION_TOKEN
+    while not env.run_done:
+        obs, info = env.reset()                           # the server's next hidden episode
+        done = False
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(my_agent(obs))
+            done = terminated or truncated
+    print(env.status().results)                           # what the phase shows
+
+The server picks the episodes and their order: ``reset`` takes no seed or options. Rewards are
+always 0 (they would leak the geodesic distance); the metrics of an episode come in ``info``
+at its end only on phases with per-episode feedback. A dropped connection is retried with the
+same sequence number, so no action is taken twice; a crashed client resumes its run with
+``RunEnv(..., run_id=ID)`` at the step where it stopped.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from multion_client.client import DEFAULT_TIMEOUT_S, Client
+from multion_client.errors import EpisodeOver, SequenceMismatch
+from multion_client.protocol import CreateRun, RunInfo, RunObservation, RunStatus
+
+TOKEN_ENV = "MULTION_TOKEN"
+"""The environment variable a token is read from when none is given (keeps it out of shell
+history)."""
+TERMINAL_REASONS = ("success", "wrong_found")
+
+
+def token_from_env(token: str | None) -> str:
+    """``token``, or ``$MULTION_TOKEN``; a clear error if neither is set."""
+    token = token or os.environ.get(TOKEN_ENV)
+    if not token:
+        raise ValueError(f"no leaderboard token: pass one or set the {TOKEN_ENV} variable")
+    return token
+
+
+class RunEnv(gym.Env[dict[str, np.ndarray], int]):
+    """One run of a challenge's (track, phase), created on construction (or resumed)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(
+        self,
+        base_url: str,
+        track: str | None = None,
+        phase: str | None = None,
+        method: str | None = None,
+        *,
+        token: str | None = None,
+        sensors: Sequence[str] | None = None,
+        maps: Mapping[str, Any] | None = None,
+        paper_url: str | None = None,
+        code_url: str | None = None,
+        run_id: str | None = None,
+        timeout: float = DEFAULT_TIMEOUT_S,
+        retries: int = 30,
+    ) -> None:
+        self.client = Client(
+            base_url, timeout=timeout, retries=retries, token=token_from_env(token)
+        )
+        if run_id is None:
+            if not (track and phase and method):
+                raise ValueError("a new run needs track, phase and method (or give run_id)")
+            message = CreateRun(
+                track, phase, method, list(sensors) if sensors else None,
+                dict(maps) if maps else None, paper_url, code_url,
+            )  # fmt: skip
+            self.info: RunInfo | None = self.client.create_run(message)
+            self.run_id = self.info.run_id
+            self.observation_space = self.info.observation_space
+            self.num_episodes = self.info.num_episodes
+            self._current: RunObservation | None = None
+        else:
+            self.info, self.run_id = None, run_id
+            status = self.client.run_status(run_id)
+            self.num_episodes = status.num_episodes
+            self._current = self.client.run_observe(run_id) if status.state == "running" else None
+        self.action_space = gym.spaces.Discrete(4)
+        self._run_done = run_id is not None and status.state != "running"
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start the run's next episode (or, resuming, return the one in progress)."""
+        if seed is not None or options:
+            raise ValueError("a run's episodes are chosen by the server: no seed or options")
+        current = self._current
+        if current is not None and not current.done:
+            return current.observation, self._info(current)  # resuming mid-episode
+        next_episode = 0 if current is None else current.episode + 1
+        if next_episode >= self.num_episodes:
+            raise RuntimeError("the run has no episode left")
+        try:
+            self._current = self.client.start_episode(self.run_id, next_episode)
+        except SequenceMismatch:  # episodes expired meanwhile: ask where the run stands
+            self._current = self.client.run_observe(self.run_id)
+            return self.reset()
+        return self._current.observation, self._info(self._current)
+
+    def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        current = self._current
+        if current is None or current.done:
+            raise RuntimeError("the episode is over (or has not started); call reset()")
+        try:
+            answer = self.client.run_step(self.run_id, current.episode, current.seq + 1, action)
+        except EpisodeOver as error:  # too late: the server ended the episode as it stood
+            answer = dataclasses.replace(current, done=True, end_reason="timeout")
+            self._current = answer
+            info = {**self._info(answer), "message": error.message}
+            return answer.observation, 0.0, False, True, info
+        self._current = answer
+        self._run_done = answer.run_done
+        terminated = answer.done and answer.end_reason in TERMINAL_REASONS
+        truncated = answer.done and not terminated
+        return answer.observation, 0.0, terminated, truncated, self._info(answer)
+
+    def close(self) -> None:
+        """Close the connection; the run itself goes on (``abandon()`` ends it)."""
+        self.client.close()
+
+    # ------------------------------------------------------------------ run
+    @property
+    def run_done(self) -> bool:
+        """No episode left (also true when the run ended early)."""
+        if self._run_done:
+            return True
+        current = self._current
+        last = current is not None and current.done and current.episode + 1 >= self.num_episodes
+        return last or (current is not None and current.run_done)
+
+    @property
+    def episodes_started(self) -> int:
+        return 0 if self._current is None else self._current.episode + 1
+
+    def status(self) -> RunStatus:
+        return self.client.run_status(self.run_id)
+
+    def abandon(self) -> RunStatus:
+        self._run_done = True
+        return self.client.abandon_run(self.run_id)
+
+    @staticmethod
+    def _info(answer: RunObservation) -> dict[str, Any]:
+        info: dict[str, Any] = {"episode": answer.episode, "seq": answer.seq}
+        if answer.done:
+            info["end_reason"] = answer.end_reason
+            if answer.metrics is not None:
+                info["metrics"] = answer.metrics
+        return info

@@ -1,0 +1,65 @@
+"""Turning the leaderboard on in a server: the challenge, the database and the run service.
+
+``create_app(settings, leaderboard)`` calls :func:`check_leaderboard` when it builds the app (so
+a bad challenge file or database fails at once) and :func:`leaderboard_lifespan` inside its
+lifespan, once the session registry exists.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+
+from fastapi import FastAPI
+
+from multion.api.sessions import SessionRegistry
+from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.routes import TokenCache, router
+from multion.leaderboard.runs import RunService
+from multion.leaderboard.settings import LeaderboardSettings
+from multion.leaderboard.storage import Database
+
+log = logging.getLogger("multion.leaderboard")
+
+
+def check_leaderboard(app: FastAPI, settings: LeaderboardSettings) -> Challenge:
+    """Read the challenge (ChallengeError on a bad file) and add the routes."""
+    challenge = load_challenge(settings.challenge)
+    app.include_router(router)
+    return challenge
+
+
+@contextlib.asynccontextmanager
+async def leaderboard_lifespan(
+    app: FastAPI, settings: LeaderboardSettings, challenge: Challenge, registry: SessionRegistry
+) -> AsyncIterator[None]:
+    """Open (and migrate) the database, start the run service and its expiry loop."""
+    db = await asyncio.to_thread(Database.open, settings.database)
+    service = RunService(challenge, db, registry)
+    app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
+    tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
+    if settings.warm_up:
+        tasks.append(asyncio.create_task(_warm_up(service)))
+    try:
+        yield
+    finally:
+        for task in tasks:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        await service.close()
+        db.close()
+
+
+async def _warm_up(service: RunService) -> None:
+    """Generate every phase's hidden episodes now, so the first run does not wait for them."""
+    for track in service.challenge.tracks:
+        for phase in track.phases:
+            try:
+                await asyncio.to_thread(service.hidden.get, track, phase)
+            except Exception:  # noqa: BLE001 - reported; the first run will try again
+                log.exception(
+                    "generating the hidden episodes of %s/%s failed", track.name, phase.name
+                )

@@ -1,0 +1,435 @@
+"""The challenge definition: tracks, phases, hidden scenes and time budgets, from one TOML file.
+
+An organiser writes one file (see ``docs/leaderboard.md``)::
+
+    [challenge]
+    name = "MultiON 2026"
+    secret_env = "MULTION_CHALLENGE_SECRET"   # or: secret = "..." (keep the file private)
+
+    [limits]
+    step_timeout_s = 60          # an episode whose next action is this late ends as it stands
+    max_consecutive_timeouts = 3 # that many expired episodes in a row end the run
+    run_timeout_s = 86400        # a run still going after this long ends
+
+    [hidden]
+    rooms = [3, 6]               # room count range of the hidden houses
+
+    [[tracks]]
+    name = "3-on"
+    num_goals = 3
+    kind = "standard"            # rgb, depth, goal, goal_onehot, gps, compass
+    camera = { width = 256, height = 256 }
+
+    [[tracks.phases]]
+    name = "minival"
+    episodes = 30
+    houses = 2
+    feedback = "episodes"        # per-episode results to the team
+    daily_quota = 20
+
+Every value is checked when the file is read; :class:`ChallengeError` names the field and the
+allowed range. The config classes are frozen dataclasses, one per section, with their ranges.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import re
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+from multion.api.config_io import ConfigError, env_config_from_dict
+from multion.task.env import SENSORS
+
+STANDARD_SENSORS = ("rgb", "depth", "goal", "goal_onehot", "gps", "compass")
+"""What a *standard* track may receive (the MultiON challenge's sensors)."""
+ORACLE_SENSORS = (*STANDARD_SENSORS, "oracle_map", "oracle_ego_map", "goal_distance")
+"""What an *oracle* track may receive besides: the oracle maps and the oracle goal distance."""
+TRACK_KINDS = {"standard": STANDARD_SENSORS, "oracle": ORACLE_SENSORS}
+METRICS = ("ppl", "progress", "success", "spl")
+FEEDBACK = ("episodes", "aggregate", "sealed")
+"""What a team sees of its finished runs: per-episode records and aggregates (minival),
+aggregates only (test-standard), nothing until ``sealed_until`` (test-challenge)."""
+MIN_SECRET_CHARS = 16
+_NAME = re.compile(r"[a-z0-9][a-z0-9._-]{0,39}")
+
+
+class ChallengeError(ValueError):
+    """A challenge file that cannot be used; the message names the field and the problem."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Time budgets of a run (organiser settings)."""
+
+    step_timeout_s: float = 60.0
+    """(0, 86400]: an episode whose next action (or start) is later ends as it stands."""
+    max_consecutive_timeouts: int = 3
+    """[1, 1000]: that many expired episodes in a row end the run."""
+    run_timeout_s: float = 86400.0
+    """(0, 30 days]: a run still going after this long ends; its missing episodes fail."""
+
+    def __post_init__(self) -> None:
+        _check_range("limits.step_timeout_s", self.step_timeout_s, 0.0, 86400.0, low_open=True)
+        _check_range("limits.max_consecutive_timeouts", self.max_consecutive_timeouts, 1, 1000)
+        _check_range("limits.run_timeout_s", self.run_timeout_s, 0.0, 30 * 86400.0, low_open=True)
+
+
+@dataclass(frozen=True)
+class HiddenScenes:
+    """The generator of the hidden houses (their numbers come from the secret)."""
+
+    rooms: tuple[int, int] = (3, 6)
+    """[1, 8] each, low ≤ high: room count range of a hidden house (small houses load faster)."""
+
+    def __post_init__(self) -> None:
+        low, high = self.rooms
+        _check_range("hidden.rooms[0]", low, 1, 8)
+        _check_range("hidden.rooms[1]", high, low, 8)
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One phase of a track, in the Habitat challenge's manner."""
+
+    name: str
+    episodes: int
+    """[1, 100000] hidden episodes played by every run of this phase."""
+    houses: int = 3
+    """[1, 1000] hidden houses the episodes are spread over."""
+    feedback: str = "aggregate"
+    daily_quota: int | None = None
+    """Runs a team may create in any 24 hours (None: no daily cap)."""
+    total_quota: int | None = None
+    """Runs a team may create in this phase, ever (None: no cap)."""
+    sealed_until: dt.datetime | None = None
+    """With feedback "sealed": results become visible to teams from this UTC time on."""
+    max_steps: int | None = None
+    """[1, 100000] the episode step limit, if not the track's."""
+
+    def __post_init__(self) -> None:
+        where = f"phase {self.name!r}"
+        _check_name(f"{where}: name", self.name)
+        _check_range(f"{where}: episodes", self.episodes, 1, 100_000)
+        _check_range(f"{where}: houses", self.houses, 1, 1000)
+        if self.feedback not in FEEDBACK:
+            raise ChallengeError(
+                f"{where}: feedback must be one of {FEEDBACK}, got {self.feedback!r}"
+            )
+        for quota in ("daily_quota", "total_quota"):
+            value = getattr(self, quota)
+            if value is not None:
+                _check_range(f"{where}: {quota}", value, 0, 1_000_000)
+        if (self.feedback == "sealed") != (self.sealed_until is not None):
+            raise ChallengeError(
+                f"{where}: feedback 'sealed' needs sealed_until (a UTC date-time) and only it does"
+            )
+        if self.max_steps is not None:
+            _check_range(f"{where}: max_steps", self.max_steps, 1, 100_000)
+
+    def results_visible(self, now: dt.datetime) -> bool:
+        return self.sealed_until is None or now >= self.sealed_until
+
+
+@dataclass(frozen=True)
+class Track:
+    """A task (m goals), the sensors a participant may receive, the camera and the ranking."""
+
+    name: str
+    num_goals: int
+    kind: str = "standard"
+    sensors: tuple[str, ...] = ()
+    """The allowed sensors; empty: those of ``kind``."""
+    camera: Mapping[str, Any] = field(default_factory=dict)
+    """CameraConfig fields (width, height, hfov_deg …); the rest keep their defaults."""
+    maps: Mapping[str, Any] = field(default_factory=dict)
+    """MapConfig fields for the oracle maps; a run on an oracle track may choose its own."""
+    max_steps: int = 2500
+    metric: str = "ppl"
+    """The ranking metric: ppl (the MultiON challenge's), progress, success or spl."""
+    phases: tuple[Phase, ...] = ()
+
+    def __post_init__(self) -> None:
+        where = f"track {self.name!r}"
+        _check_name(f"{where}: name", self.name)
+        _check_range(f"{where}: num_goals", self.num_goals, 1, 8)
+        if self.kind not in TRACK_KINDS:
+            raise ChallengeError(
+                f"{where}: kind must be one of {list(TRACK_KINDS)}, got {self.kind!r}"
+            )
+        unknown = [s for s in self.sensors if s not in SENSORS]
+        if unknown:
+            raise ChallengeError(
+                f"{where}: unknown sensor(s) {unknown}; sensors are {list(SENSORS)}"
+            )
+        if self.metric not in METRICS:
+            raise ChallengeError(f"{where}: metric must be one of {METRICS}, got {self.metric!r}")
+        _check_range(f"{where}: max_steps", self.max_steps, 1, 100_000)
+        if not self.phases:
+            raise ChallengeError(f"{where}: needs at least one [[tracks.phases]]")
+        names = [p.name for p in self.phases]
+        if len(set(names)) != len(names):
+            raise ChallengeError(f"{where}: phase names repeat: {names}")
+        try:
+            env_config_from_dict(self.env_config(self.phases[0]))
+        except ConfigError as error:
+            raise ChallengeError(f"{where}: {error}") from None
+
+    @property
+    def allowed_sensors(self) -> tuple[str, ...]:
+        return self.sensors or TRACK_KINDS[self.kind]
+
+    def phase(self, name: str) -> Phase | None:
+        return next((p for p in self.phases if p.name == name), None)
+
+    def env_config(
+        self,
+        phase: Phase,
+        sensors: tuple[str, ...] | None = None,
+        maps: Mapping[str, Any] | None = None,
+    ) -> dict[str, Any]:
+        """The environment config of a run (EnvConfig as nested dicts, no episodes yet)."""
+        return {
+            "task": {"num_goals": self.num_goals, "max_steps": phase.max_steps or self.max_steps},
+            "camera": dict(self.camera),
+            "maps": {**self.maps, **(maps or {})},
+            "sensors": list(sensors if sensors is not None else self.allowed_sensors),
+        }
+
+
+@dataclass(frozen=True)
+class Challenge:
+    """The whole challenge: its name, the secret, time limits, hidden scenes and tracks."""
+
+    name: str
+    secret: str
+    tracks: tuple[Track, ...]
+    limits: Limits = field(default_factory=Limits)
+    hidden: HiddenScenes = field(default_factory=HiddenScenes)
+
+    def __post_init__(self) -> None:
+        if len(self.secret) < MIN_SECRET_CHARS:
+            raise ChallengeError(
+                f"challenge secret must have at least {MIN_SECRET_CHARS} characters "
+                "(e.g. `python -c 'import secrets; print(secrets.token_urlsafe(32))'`)"
+            )
+        names = [t.name for t in self.tracks]
+        if not names:
+            raise ChallengeError("a challenge needs at least one [[tracks]]")
+        if len(set(names)) != len(names):
+            raise ChallengeError(f"track names repeat: {names}")
+
+    def track(self, name: str) -> Track | None:
+        return next((t for t in self.tracks if t.name == name), None)
+
+    def describe(self) -> dict[str, Any]:
+        """The public description (no secret): what ``GET /v1/challenge`` answers."""
+        return {
+            "name": self.name,
+            "limits": {
+                "step_timeout_s": self.limits.step_timeout_s,
+                "max_consecutive_timeouts": self.limits.max_consecutive_timeouts,
+                "run_timeout_s": self.limits.run_timeout_s,
+            },
+            "tracks": [
+                {
+                    "name": t.name,
+                    "num_goals": t.num_goals,
+                    "kind": t.kind,
+                    "sensors": list(t.allowed_sensors),
+                    "camera": dict(t.camera),
+                    "metric": t.metric,
+                    "max_steps": t.max_steps,
+                    "phases": [
+                        {
+                            "name": p.name,
+                            "episodes": p.episodes,
+                            "feedback": p.feedback,
+                            "daily_quota": p.daily_quota,
+                            "total_quota": p.total_quota,
+                            "sealed_until": None
+                            if p.sealed_until is None
+                            else p.sealed_until.isoformat(),
+                        }
+                        for p in t.phases
+                    ],
+                }
+                for t in self.tracks
+            ],
+        }
+
+
+# ---------------------------------------------------------------------- reading
+def load_challenge(path: str | Path, environ: Mapping[str, str] | None = None) -> Challenge:
+    """Read and check a challenge file; raises :class:`ChallengeError` naming the problem."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ChallengeError(f"{path}: no such challenge file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+        raise ChallengeError(f"{path}: not a readable TOML file ({error})") from None
+    try:
+        return challenge_from_dict(data, os.environ if environ is None else environ)
+    except ChallengeError as error:
+        raise ChallengeError(f"{path}: {error}") from None
+
+
+def challenge_from_dict(data: Mapping[str, Any], environ: Mapping[str, str]) -> Challenge:
+    top = _section(data, "", ("challenge", "limits", "hidden", "tracks"), ("challenge", "tracks"))
+    head = _section(top["challenge"], "challenge", ("name", "secret", "secret_env"), ("name",))
+    secret = _secret(head, environ)
+    limits = Limits(
+        **_section(
+            top.get("limits", {}),
+            "limits",
+            ("step_timeout_s", "max_consecutive_timeouts", "run_timeout_s"),
+        )
+    )
+    hidden_raw = _section(top.get("hidden", {}), "hidden", ("rooms",))
+    hidden = HiddenScenes(
+        **({"rooms": _pair(hidden_raw["rooms"], "hidden.rooms")} if "rooms" in hidden_raw else {})
+    )
+    tracks_raw = top["tracks"]
+    if not isinstance(tracks_raw, list):
+        raise ChallengeError("'tracks' must be an array of tables ([[tracks]])")
+    return Challenge(
+        name=_typed(head["name"], str, "challenge.name"),
+        secret=secret,
+        tracks=tuple(_track(raw, index) for index, raw in enumerate(tracks_raw)),
+        limits=limits,
+        hidden=hidden,
+    )
+
+
+def _secret(head: Mapping[str, Any], environ: Mapping[str, str]) -> str:
+    if ("secret" in head) == ("secret_env" in head):
+        raise ChallengeError("[challenge] needs exactly one of 'secret' or 'secret_env'")
+    if "secret" in head:
+        return _typed(head["secret"], str, "challenge.secret")
+    name = _typed(head["secret_env"], str, "challenge.secret_env")
+    if not environ.get(name):
+        raise ChallengeError(f"the environment variable {name} (challenge.secret_env) is not set")
+    return environ[name]
+
+
+def _track(raw: Any, index: int) -> Track:
+    fields = (
+        "name",
+        "num_goals",
+        "kind",
+        "sensors",
+        "camera",
+        "maps",
+        "max_steps",
+        "metric",
+        "phases",
+    )
+    d = _section(raw, f"tracks[{index}]", fields, ("name", "num_goals", "phases"))
+    where = f"tracks[{index}]"
+    phases_raw = d.pop("phases")
+    if not isinstance(phases_raw, list):
+        raise ChallengeError(f"{where}.phases must be an array of tables ([[tracks.phases]])")
+    for key in ("camera", "maps"):
+        if key in d and not isinstance(d[key], Mapping):
+            raise ChallengeError(f"{where}.{key} must be a table")
+    if "sensors" in d:
+        d["sensors"] = tuple(
+            _typed(s, str, f"{where}.sensors")
+            for s in _typed(d["sensors"], list, f"{where}.sensors")
+        )
+    _typed(d["name"], str, f"{where}.name")
+    for key in ("num_goals", "max_steps"):
+        if key in d:
+            _typed(d[key], int, f"{where}.{key}")
+    return Track(
+        **d, phases=tuple(_phase(p, f"{where}.phases[{i}]") for i, p in enumerate(phases_raw))
+    )
+
+
+def _phase(raw: Any, where: str) -> Phase:
+    fields = (
+        "name",
+        "episodes",
+        "houses",
+        "feedback",
+        "daily_quota",
+        "total_quota",
+        "sealed_until",
+        "max_steps",
+    )
+    d = _section(raw, where, fields, ("name", "episodes"))
+    _typed(d["name"], str, f"{where}.name")
+    for key in ("episodes", "houses", "daily_quota", "total_quota", "max_steps"):
+        if key in d:
+            _typed(d[key], int, f"{where}.{key}")
+    if "sealed_until" in d:
+        d["sealed_until"] = _utc(d["sealed_until"], f"{where}.sealed_until")
+    return Phase(**d)
+
+
+def _utc(value: Any, where: str) -> dt.datetime:
+    if isinstance(value, str):
+        try:
+            value = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+        except ValueError:
+            raise ChallengeError(f"{where} must be a date-time like 2026-12-01T00:00:00Z") from None
+    if isinstance(value, dt.date) and not isinstance(value, dt.datetime):
+        value = dt.datetime(value.year, value.month, value.day)
+    if not isinstance(value, dt.datetime):
+        raise ChallengeError(f"{where} must be a date-time like 2026-12-01T00:00:00Z")
+    return (
+        value.replace(tzinfo=dt.timezone.utc)
+        if value.tzinfo is None
+        else value.astimezone(dt.timezone.utc)
+    )
+
+
+def _section(
+    data: Any, where: str, known: tuple[str, ...], required: tuple[str, ...] = ()
+) -> dict[str, Any]:
+    label = where or "the file"
+    if not isinstance(data, Mapping):
+        raise ChallengeError(f"{label} must be a table, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(known))
+    if unknown:
+        raise ChallengeError(f"{label}: unknown field(s) {unknown}; fields are {list(known)}")
+    missing = [name for name in required if name not in data]
+    if missing:
+        raise ChallengeError(f"{label}: missing field(s) {missing}")
+    return dict(data)
+
+
+def _typed(value: Any, kind: type, where: str) -> Any:
+    if isinstance(value, bool) and kind is not bool or not isinstance(value, kind):
+        raise ChallengeError(f"{where} must be {kind.__name__}, got {value!r:.60}")
+    return value
+
+
+def _pair(value: Any, where: str) -> tuple[int, int]:
+    if not isinstance(value, list) or len(value) != 2:
+        raise ChallengeError(f"{where} must be [low, high], got {value!r:.60}")
+    return (_typed(value[0], int, where), _typed(value[1], int, where))
+
+
+def _check_range(where: str, value: float, low: float, high: float, low_open: bool = False) -> None:
+    ok = (low < value if low_open else low <= value) and value <= high
+    if not ok:
+        bracket = "(" if low_open else "["
+        raise ChallengeError(f"{where} must be in {bracket}{low}, {high}], got {value!r}")
+
+
+def _check_name(where: str, name: str) -> None:
+    if not _NAME.fullmatch(name):
+        raise ChallengeError(
+            f"{where} must be 1–40 lowercase letters, digits, '.', '_' or '-', got {name!r}"
+        )

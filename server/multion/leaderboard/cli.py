@@ -1,0 +1,385 @@
+"""``multion leaderboard``: the organisers' commands.
+
+::
+
+    multion leaderboard init --database sqlite:///results.db
+    multion leaderboard check --challenge challenge.toml [--generate]
+    multion leaderboard tracks --challenge challenge.toml
+    multion leaderboard team add "Team Rocket"          # prints the team's token once
+    multion leaderboard team list
+    multion leaderboard token add "Team Rocket" | revoke "Team Rocket" [--key KEY] | list
+    multion leaderboard runs [--team T] [--track 3-on] [--phase minival]
+    multion leaderboard export --out results.csv [--best]   # or results.json (with episodes)
+    multion leaderboard replay RUN_ID [--write]          # re-score from the stored actions
+    multion leaderboard baselines --server URL           # random, explorer, … as baselines
+
+``--database`` defaults to ``$MULTION_LEADERBOARD_DATABASE`` or ``sqlite:///leaderboard.db``,
+``--challenge`` to ``$MULTION_LEADERBOARD_CHALLENGE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+DEFAULT_DATABASE = "sqlite:///leaderboard.db"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    def command(name: str, text: str, challenge: bool = False, database: bool = True) -> Any:
+        p = sub.add_parser(name, help=text, description=text)
+        if database:
+            p.add_argument(
+                "--database",
+                default=os.environ.get("MULTION_LEADERBOARD_DATABASE", DEFAULT_DATABASE),
+                help="SQLAlchemy URL or SQLite path (default $MULTION_LEADERBOARD_DATABASE or "
+                f"{DEFAULT_DATABASE})",
+            )
+        if challenge:
+            p.add_argument(
+                "--challenge",
+                type=Path,
+                default=os.environ.get("MULTION_LEADERBOARD_CHALLENGE"),
+                help="the challenge file (default $MULTION_LEADERBOARD_CHALLENGE)",
+            )
+        return p
+
+    command("init", "create the database or upgrade it to the newest schema")
+    p = command("check", "validate a challenge file", challenge=True, database=False)
+    p.add_argument("--generate", action="store_true", help="also generate the hidden episodes")
+    command("tracks", "list the tracks and phases of a challenge", challenge=True, database=False)
+    p = command("team", "add or list teams")
+    p.add_argument("team_action", choices=["add", "list"])
+    p.add_argument("name", nargs="?")
+    p = command("token", "add, revoke or list a team's tokens")
+    p.add_argument("token_action", choices=["add", "revoke", "list"])
+    p.add_argument("name", help="team name")
+    p.add_argument("--key", default=None, help="revoke only this token (its key, mlb_KEY_…)")
+    p = command("runs", "list runs")
+    for option in ("team", "track", "phase", "state"):
+        p.add_argument(f"--{option}", default=None)
+    p = command("export", "write results as CSV or JSON (by --out's suffix)")
+    p.add_argument("--out", type=Path, required=True, help="results.csv or results.json")
+    p.add_argument("--best", action="store_true", help="each team's best run per track/phase")
+    p = command("replay", "replay a stored run and compare (or re-score) it", challenge=True)
+    p.add_argument("run_id")
+    p.add_argument("--write", action="store_true", help="store the replayed metrics")
+    p = command("baselines", "play the baseline agents through the run protocol", challenge=True)
+    p.add_argument("--server", required=True, help="the challenge server's URL")
+    p.add_argument("--track", action="append", default=None, help="only these tracks")
+    p.add_argument("--phase", action="append", default=None, help="only these phases")
+    p.add_argument("--agents", nargs="+", default=None, help="default: every baseline allowed")
+    p.add_argument("--quiet", action="store_true")
+
+
+def run(args: argparse.Namespace) -> int:
+    from multion.leaderboard.challenge import ChallengeError
+    from multion.leaderboard.storage import StorageError
+    from multion_client.errors import MultiONError
+
+    try:
+        return int(_ACTIONS[args.action](args) or 0)
+    except (ChallengeError, StorageError, MultiONError, ValueError) as error:
+        print(f"multion leaderboard {args.action}: {error}", file=sys.stderr)
+        return 2
+
+
+# ---------------------------------------------------------------------- actions
+def _challenge(args: argparse.Namespace) -> Any:
+    from multion.leaderboard.challenge import load_challenge
+
+    if args.challenge is None:
+        raise ValueError("give --challenge FILE (or set MULTION_LEADERBOARD_CHALLENGE)")
+    return load_challenge(args.challenge)
+
+
+def _db(args: argparse.Namespace) -> Any:
+    from multion.leaderboard.storage import Database
+
+    return Database.open(args.database)
+
+
+def _init(args: argparse.Namespace) -> int:
+    from multion.leaderboard.storage import current_revision
+
+    db = _db(args)
+    print(
+        f"{db.engine.url.render_as_string(hide_password=True)}: schema {current_revision(db.engine)}"
+    )
+    db.close()
+    return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    challenge = _challenge(args)
+    phases = sum(len(t.phases) for t in challenge.tracks)
+    print(
+        f"{args.challenge}: challenge {challenge.name!r}, {len(challenge.tracks)} tracks, {phases} phases: OK"
+    )
+    if args.generate:
+        from multion.leaderboard.hidden import generate_hidden_episodes
+
+        for track in challenge.tracks:
+            for phase in track.phases:
+                episodes = generate_hidden_episodes(challenge, track, phase)
+                scenes = len({e.scene_id for e in episodes})
+                print(
+                    f"  {track.name}/{phase.name}: {len(episodes)} episodes in {scenes} hidden houses"
+                )
+    return 0
+
+
+def _tracks(args: argparse.Namespace) -> int:
+    challenge = _challenge(args)
+    for track in challenge.tracks:
+        print(
+            f"{track.name}: {track.num_goals}-ON, {track.kind}, ranked by {track.metric}, sensors {', '.join(track.allowed_sensors)}"
+        )
+        for p in track.phases:
+            quota = ", ".join(
+                q for q in (
+                    f"{p.daily_quota}/day" if p.daily_quota is not None else "",
+                    f"{p.total_quota} total" if p.total_quota is not None else "",
+                ) if q
+            ) or "no quota"  # fmt: skip
+            sealed = f", sealed until {p.sealed_until.isoformat()}" if p.sealed_until else ""
+            print(
+                f"  {p.name}: {p.episodes} episodes in {p.houses} houses, feedback {p.feedback}, {quota}{sealed}"
+            )
+    return 0
+
+
+def _team(args: argparse.Namespace) -> int:
+    from sqlalchemy import select
+
+    from multion.leaderboard.models import Team
+    from multion.leaderboard.storage import add_team
+
+    db = _db(args)
+    try:
+        with db.sessions.begin() as session:
+            if args.team_action == "add":
+                if not args.name:
+                    raise ValueError("team add needs a NAME")
+                team, token = add_team(session, args.name)
+                print(f"team {team.name!r} added; its token (shown once, keep it secret):")
+                print(token)
+            else:
+                for team in session.scalars(select(Team).order_by(Team.name)):
+                    live = sum(1 for t in team.tokens if t.revoked_at is None)
+                    print(f"{team.name}\t{live} live token(s)\tsince {team.created_at:%Y-%m-%d}")
+    finally:
+        db.close()
+    return 0
+
+
+def _token(args: argparse.Namespace) -> int:
+    from multion.leaderboard.storage import add_token, find_team, revoke_tokens
+
+    db = _db(args)
+    try:
+        with db.sessions.begin() as session:
+            team = find_team(session, args.name)
+            if args.token_action == "add":
+                print(add_token(session, team))
+            elif args.token_action == "revoke":
+                print(f"revoked {revoke_tokens(session, team, args.key)} token(s) of {team.name!r}")
+            else:
+                for token in team.tokens:
+                    state = (
+                        "live"
+                        if token.revoked_at is None
+                        else f"revoked {token.revoked_at:%Y-%m-%d %H:%M}"
+                    )
+                    print(f"mlb_{token.key}_…\t{state}\tcreated {token.created_at:%Y-%m-%d %H:%M}")
+    finally:
+        db.close()
+    return 0
+
+
+def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
+    """Every run as a flat row (team, track, phase, method, state, metrics with intervals)."""
+    from sqlalchemy import select
+
+    from multion.leaderboard.models import Run, Team
+
+    query = select(Run, Team.name).join(Team).order_by(Run.created_at)
+    for name in ("track", "phase", "state"):
+        if filters.get(name):
+            query = query.where(getattr(Run, name) == filters[name])
+    if filters.get("team"):
+        query = query.where(Team.name == filters["team"])
+    rows = []
+    for run, team in session.execute(query):
+        row: dict[str, Any] = {
+            "run_id": run.id,
+            "team": team,
+            "track": run.track,
+            "phase": run.phase,
+            "method": run.method,
+            "baseline": run.baseline,
+            "state": run.state,
+            "end_reason": run.end_reason,
+            "refunded": run.refunded,
+            "episodes": len(run.order),
+            "created_at": run.created_at.isoformat(),
+            "finished_at": run.finished_at.isoformat() if run.finished_at else None,
+            "paper_url": run.paper_url,
+            "code_url": run.code_url,
+        }
+        for metric in ("ppl", "progress", "success", "spl"):
+            value = (run.summary or {}).get(metric) or {}
+            for part in ("mean", "low", "high"):
+                row[f"{metric}_{part}"] = value.get(part)
+        row["primary"] = (run.summary or {}).get("primary")
+        rows.append(row)
+    return rows
+
+
+def best_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each team's best finished run per (track, phase), by the track's ranking metric."""
+    best: dict[tuple[str, str, str], dict[str, Any]] = {}
+    for row in rows:
+        if row["state"] != "finished" or row["primary"] is None:
+            continue
+        key = (row["team"], row["track"], row["phase"])
+        score = row[f"{row['primary']}_mean"]
+        if key not in best or score > best[key][f"{row['primary']}_mean"]:
+            best[key] = row
+    return sorted(best.values(), key=lambda r: (r["track"], r["phase"], -r[f"{r['primary']}_mean"]))
+
+
+def _runs(args: argparse.Namespace) -> int:
+    db = _db(args)
+    try:
+        with db.sessions() as session:
+            rows = run_rows(
+                session, team=args.team, track=args.track, phase=args.phase, state=args.state
+            )
+    finally:
+        db.close()
+    for r in rows:
+        score = (
+            "" if r["primary"] is None else f"{r['primary']} {100 * r[r['primary'] + '_mean']:.1f}%"
+        )
+        mark = " [baseline]" if r["baseline"] else ""
+        reason = f" ({r['end_reason']})" if r["end_reason"] else ""
+        print(
+            f"{r['run_id']}  {r['team']}{mark}  {r['track']}/{r['phase']}  {r['method']}  {r['state']}{reason}  {score}"
+        )
+    if not rows:
+        print("no runs")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from sqlalchemy import select
+
+    from multion.leaderboard.models import EpisodeRecord
+
+    db = _db(args)
+    try:
+        with db.sessions() as session:
+            rows = run_rows(session)
+            if args.best:
+                rows = best_rows(rows)
+            suffix = args.out.suffix.lower()
+            if suffix == ".json":
+                for row in rows:
+                    records = session.scalars(
+                        select(EpisodeRecord)
+                        .where(EpisodeRecord.run_id == row["run_id"])
+                        .order_by(EpisodeRecord.position)
+                    )
+                    row["episode_records"] = [
+                        {"position": e.position, "episode_id": e.episode_id, "end_reason": e.end_reason,
+                         "metrics": e.metrics, "actions": e.actions}
+                        for e in records
+                    ]  # fmt: skip
+                text = json.dumps({"runs": rows}, indent=1)
+            elif suffix == ".csv":
+                buffer = io.StringIO()
+                names = list(rows[0]) if rows else ["run_id"]
+                writer = csv.DictWriter(buffer, fieldnames=names)
+                writer.writeheader()
+                writer.writerows(rows)
+                text = buffer.getvalue()
+            else:
+                raise ValueError(f"--out must end in .csv or .json, got {args.out}")
+    finally:
+        db.close()
+    _write_atomically(args.out, text)
+    print(f"wrote {len(rows)} runs to {args.out}")
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from multion.leaderboard.replay import rescore
+
+    challenge = _challenge(args)
+    db = _db(args)
+    try:
+        with db.sessions.begin() as session:
+            report = rescore(session, challenge, args.run_id, write=args.write)
+    finally:
+        db.close()
+    primary = report["summary"]["primary"]
+    value = report["summary"][primary]
+    print(
+        f"run {args.run_id}: {report['episodes']} episodes replayed; {primary} {100 * value['mean']:.2f}%"
+    )
+    if report["differences"]:
+        print(f"  {len(report['differences'])} episode(s) differ from the stored record: {report['differences']}"
+              + (" (stored records updated)" if args.write else " (use --write to re-score)"))  # fmt: skip
+        return 0 if args.write else 1
+    print("  identical to the stored records")
+    return 0
+
+
+def _baselines(args: argparse.Namespace) -> int:
+    from multion.leaderboard.baselines import play_baselines
+
+    challenge = _challenge(args)
+    db = _db(args)
+    try:
+        play_baselines(
+            db, challenge, args.server, args.track, args.phase, args.agents, not args.quiet
+        )
+    finally:
+        db.close()
+    return 0
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+_ACTIONS = {
+    "init": _init,
+    "check": _check,
+    "tracks": _tracks,
+    "team": _team,
+    "token": _token,
+    "runs": _runs,
+    "export": _export,
+    "replay": _replay,
+    "baselines": _baselines,
+}

@@ -1,0 +1,97 @@
+"""Replaying a stored run in-process: the hidden episodes regenerated from the secret, the
+stored actions played again, the metrics compared with (or re-scored over) the stored ones."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from multion.api.config_io import session_config_from_dict
+from multion.leaderboard.challenge import Challenge
+from multion.leaderboard.hidden import generate_hidden_episodes
+from multion.leaderboard.models import EpisodeRecord, Run
+from multion.leaderboard.results import summarize
+from multion.leaderboard.storage import StorageError
+from multion.task.env import MultiONEnv
+
+REPLAY_SENSORS = ["goal"]
+"""Metrics do not depend on what is rendered, so a replay renders nothing."""
+
+
+@dataclass(frozen=True)
+class ReplayedEpisode:
+    position: int
+    stored: dict[str, Any]
+    replayed: dict[str, Any]
+
+    @property
+    def same(self) -> bool:
+        return self.stored == self.replayed
+
+
+def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterator[ReplayedEpisode]:
+    """Each played episode of ``run`` replayed from its stored actions, in run order.
+
+    An episode that ended by a timeout or an abandon keeps that end reason (the replay ends
+    where the actions end); missed episodes (no actions) are compared as stored.
+    """
+    track = challenge.track(run.track)
+    phase = track.phase(run.phase) if track is not None else None
+    if track is None or phase is None:
+        raise StorageError(
+            f"run {run.id}: the challenge has no track/phase {run.track}/{run.phase}"
+        )
+    hidden = generate_hidden_episodes(challenge, track, phase)
+    config = track.env_config(phase, tuple(REPLAY_SENSORS), run.maps)
+    env_config, _ = session_config_from_dict(config)
+    env = MultiONEnv(env_config, episodes=[hidden[i] for i in run.order])
+    try:
+        for record in run.episodes:
+            if record.end_reason == "not_played":
+                yield ReplayedEpisode(record.position, record.metrics, record.metrics)
+                continue
+            if hidden[record.episode_index].episode_id != record.episode_id:
+                raise StorageError(
+                    f"run {run.id}: episode {record.position} was {record.episode_id}, the "
+                    f"secret now gives {hidden[record.episode_index].episode_id}: wrong secret?"
+                )
+            _, info = env.reset(options={"episode_index": record.position})
+            for action in record.actions:
+                _, _, terminated, truncated, info = env.step(int(action))
+            metrics = dict(info["metrics"])
+            if record.end_reason not in ("success", "wrong_found", "max_steps"):
+                metrics["end_reason"] = record.end_reason  # timeout / abandoned: the run's
+            yield ReplayedEpisode(record.position, record.metrics, metrics)
+    finally:
+        env.close()
+
+
+def rescore(session: Session, challenge: Challenge, run_id: str, write: bool) -> dict[str, Any]:
+    """Replay run ``run_id``; with ``write``, store the replayed metrics and new aggregates.
+
+    Returns ``{"run_id", "episodes", "differences": [positions], "summary"}``.
+    """
+    run = session.get(Run, run_id)
+    if run is None:
+        raise StorageError(f"no run {run_id!r}")
+    if run.state == "running":
+        raise StorageError(f"run {run_id} is still running; replay it once it is over")
+    track = challenge.track(run.track)
+    assert track is not None
+    replayed = list(replay_run(challenge, run))
+    differences = [r.position for r in replayed if not r.same]
+    summary = summarize([r.replayed for r in replayed], track.metric)
+    if write:
+        records = {r.position: r for r in session.query(EpisodeRecord).filter_by(run_id=run_id)}
+        for r in replayed:
+            records[r.position].metrics = r.replayed
+        run.summary = summary
+    return {
+        "run_id": run_id,
+        "episodes": len(replayed),
+        "differences": differences,
+        "summary": summary,
+    }

@@ -1,0 +1,564 @@
+"""The run service: a team's run of hidden episodes, played through a one-environment session.
+
+A run holds a session of the server's ordinary :class:`SessionRegistry` whose episodes are the
+phase's hidden ones in the run's own shuffled order; the service alone resets and steps it,
+strips everything the track does not allow from the answers (episode and scene ids, rewards,
+per-step metrics), and saves the run's state in the database at every step (its actions so
+far, the last metrics, the deadline). So:
+
+* a repeated ``(episode, seq)`` returns the stored answer without acting twice;
+* a run whose session is gone (server restart, idle reaper, another replica) is rebuilt by
+  replaying the current episode's saved actions, which is exact (the simulator is
+  deterministic), and resumes at the same step;
+* a late action or episode start expires the episode as it stands (``step_timeout_s``);
+  ``max_consecutive_timeouts`` in a row, or ``run_timeout_s`` in all, end the run, and its
+  missing episodes count as failures;
+* a simulator worker that dies fails the run and refunds it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import datetime as dt
+import logging
+import time
+import uuid
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import select
+
+from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.api.sessions import SessionRegistry
+from multion.leaderboard.challenge import Challenge, Phase, Track
+from multion.leaderboard.hidden import HiddenEpisodes, run_order
+from multion.leaderboard.models import Run, utcnow
+from multion.leaderboard.run_store import (
+    EpisodeResult,
+    RunMoved,
+    RunState,
+    create_run,
+    describe_run,
+    finish_run,
+    save_state,
+)
+from multion.leaderboard.storage import Database
+from multion.task.episode import Episode
+from multion_client import errors
+from multion_client.protocol import (
+    CreateRun,
+    CreateSession,
+    Reset,
+    RunInfo,
+    RunObservation,
+    RunStatus,
+    StartEpisode,
+    Step,
+    decode,
+    encode,
+)
+
+log = logging.getLogger("multion.leaderboard")
+ENDED_KEPT = 256
+
+
+@dataclass
+class LiveRun:
+    """A running run held by this server process."""
+
+    run_id: str
+    team_id: int
+    track: Track
+    phase: Phase
+    episodes: list[Episode]
+    """The hidden episodes in this run's order."""
+    order: list[int]
+    config: dict[str, Any]
+    created_at: dt.datetime
+    state: RunState
+    session_id: str | None = None
+    last_answer: bytes | None = None
+    last_end_reason: str | None = None
+    episode_clock: float = field(default_factory=time.monotonic)
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+
+
+class RunService:
+    """Every run operation; raises the typed errors of ``multion_client.errors``."""
+
+    def __init__(self, challenge: Challenge, db: Database, registry: SessionRegistry) -> None:
+        self.challenge = challenge
+        self.db = db
+        self.registry = registry
+        self.hidden = HiddenEpisodes(challenge)
+        self.live: dict[str, LiveRun] = {}
+        self._creating = asyncio.Lock()  # one quota check at a time in this process
+        self.ended: OrderedDict[str, LiveRun] = OrderedDict()
+        """Recently ended runs, so a retry of a run's last step still gets its answer."""
+
+    # ------------------------------------------------------------------ create
+    async def create(self, team_id: int, message: CreateRun) -> RunInfo:
+        """Start a run (the quota is debited here); runs of the team ``baselines`` are marked
+        baselines by :func:`run_store.create_run`."""
+        track, phase = self._track_phase(message.track, message.phase)
+        sensors = tuple(message.sensors or track.allowed_sensors)
+        refused = [s for s in sensors if s not in track.allowed_sensors]
+        if refused:
+            raise errors.NotAllowedInRun(
+                f"track {track.name!r} ({track.kind}) does not allow sensor(s) {refused}; it "
+                f"allows {list(track.allowed_sensors)}"
+            )
+        if message.maps and not {"oracle_map", "oracle_ego_map"} & set(track.allowed_sensors):
+            raise errors.NotAllowedInRun(f"track {track.name!r} has no oracle maps to configure")
+        config = track.env_config(phase, sensors, message.maps)
+        try:
+            session_config_from_dict(config)
+        except ConfigError as error:
+            raise errors.InvalidConfig(str(error)) from None
+        hidden = await asyncio.to_thread(self.hidden.get, track, phase)
+        run_id = uuid.uuid4().hex
+        order = run_order(self.challenge, run_id, len(hidden))
+        row = Run(
+            id=run_id,
+            team_id=team_id,
+            track=track.name,
+            phase=phase.name,
+            method=message.method,
+            paper_url=message.paper_url,
+            code_url=message.code_url,
+            sensors=list(sensors),
+            maps=dict(message.maps or {}),
+            order=order,
+            created_at=utcnow(),
+            deadline=utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s),
+        )
+        async with self._creating:
+            await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
+        live = self._live_from(row, track, phase, hidden)
+        self.live[run_id] = live
+        async with live.lock:
+            info = await self._open_session(live)
+        limits = self.challenge.describe()["limits"]
+        return RunInfo(
+            run_id=run_id,
+            track=track.name,
+            phase=phase.name,
+            num_episodes=len(order),
+            sensors=list(sensors),
+            observation_space=info["observation_space"],
+            action_space=info["action_space"],
+            limits=limits,
+        )
+
+    # ------------------------------------------------------------------ play
+    async def start_episode(self, team_id: int, run_id: str, message: StartEpisode) -> bytes:
+        live = await self._get_live(team_id, run_id)
+        async with live.lock:
+            await self._expire_due(live)
+            st = live.state
+            if message.episode == st.position and st.episode_active and live.last_answer:
+                return live.last_answer  # a retry: the episode has started already
+            await self._check_running(live)
+            if st.episode_active:
+                raise errors.EpisodeInProgress(
+                    f"episode {st.position} is still going (step {st.seq}); a run plays its "
+                    "episodes one after the other, each to its end"
+                )
+            if message.episode != st.position + 1:
+                raise errors.SequenceMismatch(
+                    f"the next episode of this run is {st.position + 1}, not {message.episode}"
+                )
+            reply = await self._session_call(live, "reset", st.position + 1)
+            observation, info = reply["observations"][0], reply["infos"][0]
+            st.position += 1
+            st.episode_active, st.seq, st.actions = True, 0, []
+            st.last_metrics = info["metrics"]
+            st.deadline = self._deadline()
+            st.consecutive_timeouts = 0
+            live.episode_clock = time.monotonic()
+            await self._save(live, [])
+            answer = RunObservation(st.position, 0, observation, done=False)
+            live.last_answer = encode(answer.to_wire())
+            return live.last_answer
+
+    async def step(self, team_id: int, run_id: str, episode: int, seq: int, action: int) -> bytes:
+        live = await self._get_live(team_id, run_id)
+        async with live.lock:
+            st = live.state
+            if (episode, seq) == (st.position, st.seq) and seq > 0:
+                if live.last_answer is None and st.episode_active:
+                    await self._rebuild(live)  # after a restart: replay to the same step
+                if live.last_answer is not None:
+                    return live.last_answer  # a retry of the last step: do not act twice
+            await self._expire_due(live)
+            await self._check_running(live)
+            if not st.episode_active and episode == st.position:
+                raise errors.EpisodeOver(
+                    f"episode {episode} has ended ({live.last_end_reason}); start episode "
+                    f"{episode + 1} (POST episodes)"
+                )
+            if not st.episode_active or episode != st.position or seq != st.seq + 1:
+                expected = (
+                    f"episode {st.position}, seq {st.seq + 1}"
+                    if st.episode_active
+                    else f"no step: start episode {st.position + 1} first"
+                )
+                raise errors.SequenceMismatch(
+                    f"got episode {episode}, seq {seq}; expected {expected}"
+                )
+            if not 0 <= action <= 3:
+                raise errors.InvalidAction(f"illegal action {action!r}; actions are 0..3")
+            # Saved after the step, before the answer (saving while the simulator steps was
+            # measured slower: the threads contend for the GIL and the cores).
+            reply = await self._session_call(live, "step", action)
+            observation, info = reply["observations"][0], reply["infos"][0]
+            done = bool(reply["terminated"][0] or reply["truncated"][0])
+            st.seq += 1
+            st.actions.append(action)
+            st.last_metrics = info["metrics"]
+            st.deadline = self._deadline()
+            results = []
+            if done:
+                st.episode_active = False
+                results.append(self._result(live, str(st.last_metrics.get("end_reason"))))
+            run_done = done and st.position == len(live.order) - 1
+            if run_done:
+                await self._finish(live, results, "finished", None)
+            else:
+                await self._save(live, results)
+            metrics = st.last_metrics if done and live.phase.feedback == "episodes" else None
+            answer = RunObservation(
+                st.position,
+                st.seq,
+                observation,
+                done=done,
+                end_reason=st.last_metrics.get("end_reason") if done else None,
+                metrics=metrics,
+                run_done=run_done,
+            )
+            live.last_answer = encode(answer.to_wire())
+            return live.last_answer
+
+    async def observe(self, team_id: int, run_id: str) -> bytes:
+        """Where the run stands: the last answer (for a client resuming after a crash)."""
+        live = await self._get_live(team_id, run_id)
+        async with live.lock:
+            await self._expire_due(live)
+            if live.last_answer is None and live.state.episode_active:
+                await self._rebuild(live)  # after a restart: replay to the same step
+            if live.last_answer is not None and live.state.episode_active:
+                return live.last_answer
+            st = live.state
+            answer = RunObservation(
+                st.position, st.seq, {}, done=True, run_done=live.run_id not in self.live
+            )
+            return encode(answer.to_wire())
+
+    async def abandon(self, team_id: int, run_id: str) -> RunStatus:
+        """End a run now: its missing episodes count as failures (the quota stays used)."""
+        live = await self._get_live(team_id, run_id)
+        async with live.lock:
+            await self._check_running(live)
+            results = [self._result(live, "abandoned")] if live.state.episode_active else []
+            await self._finish(live, results, "ended", "abandoned")
+        return await self.status(team_id, run_id)
+
+    # ------------------------------------------------------------------ status
+    async def status(self, team_id: int | None, run_id: str) -> RunStatus:
+        live = self.live.get(run_id)
+        if live is not None and (team_id is None or live.team_id == team_id):
+            async with live.lock:
+                await self._expire_due(live)
+
+        def read(session: Any) -> RunStatus:
+            run = session.get(Run, run_id)
+            if run is None or (team_id is not None and run.team_id != team_id):
+                raise errors.RunNotFound(f"no run {run_id!r} for this team")
+            return describe_run(session, self.challenge, run)
+
+        return await self._db(read)
+
+    async def list_runs(self, team_id: int) -> list[RunStatus]:
+        def read(session: Any) -> list[RunStatus]:
+            runs = session.scalars(
+                select(Run).where(Run.team_id == team_id).order_by(Run.created_at.desc())
+            ).all()
+            return [describe_run(session, self.challenge, run, episodes=False) for run in runs]
+
+        return await self._db(read)
+
+    # ------------------------------------------------------------------ expiry
+    async def expire_forever(self, interval_s: float) -> None:
+        """Expire late episodes of running runs, also of clients that never come back."""
+        while True:
+            await asyncio.sleep(interval_s)
+            try:
+                await self.expire_all()
+            except Exception:  # noqa: BLE001 - the loop must outlive any one failure
+                log.exception("expiring runs failed")
+
+    async def expire_all(self) -> None:
+        now = utcnow()
+
+        def due(session: Any) -> list[tuple[str, int]]:
+            rows = session.execute(
+                select(Run.id, Run.team_id).where(Run.state == "running", Run.deadline < now)
+            ).all()
+            return [(r[0], r[1]) for r in rows]
+
+        for run_id, team_id in await self._db(due):
+            try:
+                live = await self._get_live(team_id, run_id)
+                async with live.lock:
+                    await self._expire_due(live)
+            except errors.MultiONError:
+                continue
+
+    async def _expire_due(self, live: LiveRun) -> None:
+        """Score late episodes as they stand; end the run on too many or on its time budget."""
+        if live.run_id not in self.live:
+            return
+        limits, st = self.challenge.limits, live.state
+        now = utcnow()
+        results: list[EpisodeResult] = []
+        if now > live.created_at + dt.timedelta(seconds=limits.run_timeout_s):
+            if st.episode_active:
+                results.append(self._result(live, "timeout"))
+            await self._finish(live, results, "ended", "run_timeout")
+            return
+        while st.deadline is not None and now > st.deadline:
+            if st.episode_active:
+                results.append(self._result(live, "timeout"))
+                st.episode_active = False
+            elif st.position + 1 < len(live.order):  # the next episode was never started
+                st.position += 1
+                st.seq, st.actions, st.last_metrics = 0, [], None
+                results.append(self._result(live, "timeout"))
+            st.consecutive_timeouts += 1
+            st.deadline += dt.timedelta(seconds=limits.step_timeout_s)
+            if st.position == len(live.order) - 1 and not st.episode_active:
+                await self._finish(live, results, "finished", None)
+                return
+            if st.consecutive_timeouts >= limits.max_consecutive_timeouts:
+                await self._finish(live, results, "ended", "timeouts")
+                return
+        if results:
+            live.last_answer = None
+            await self._save(live, results)
+
+    # ------------------------------------------------------------------ internals
+    def _track_phase(self, track_name: str, phase_name: str) -> tuple[Track, Phase]:
+        track = self.challenge.track(track_name)
+        if track is None:
+            names = [t.name for t in self.challenge.tracks]
+            raise errors.UnknownTrack(f"no track {track_name!r}; tracks are {names}")
+        phase = track.phase(phase_name)
+        if phase is None:
+            names = [p.name for p in track.phases]
+            raise errors.UnknownTrack(
+                f"track {track_name!r} has no phase {phase_name!r}; phases are {names}"
+            )
+        return track, phase
+
+    def _live_from(self, row: Run, track: Track, phase: Phase, hidden: list[Episode]) -> LiveRun:
+        episodes = [hidden[i] for i in row.order]
+        config = track.env_config(phase, tuple(row.sensors), row.maps)
+        config["episodes"] = [e.to_dict() for e in episodes]
+        return LiveRun(
+            run_id=row.id,
+            team_id=row.team_id,
+            track=track,
+            phase=phase,
+            episodes=episodes,
+            order=list(row.order),
+            config=config,
+            created_at=row.created_at,
+            state=RunState.of(row),
+        )
+
+    async def _get_live(self, team_id: int, run_id: str) -> LiveRun:
+        live = self.live.get(run_id) or self.ended.get(run_id)
+        if live is not None:
+            if live.team_id != team_id:
+                raise errors.RunNotFound(f"no run {run_id!r} for this team")
+            return live
+        row = await self._db(lambda s: s.get(Run, run_id))
+        if row is None or row.team_id != team_id:
+            raise errors.RunNotFound(f"no run {run_id!r} for this team")
+        if row.state != "running":
+            raise errors.RunOver(_over(row.state, row.end_reason))
+        track, phase = self._track_phase(row.track, row.phase)
+        hidden = await asyncio.to_thread(self.hidden.get, track, phase)
+        live = self.live.setdefault(run_id, self._live_from(row, track, phase, hidden))
+        return live
+
+    async def _check_running(self, live: LiveRun) -> None:
+        if live.run_id not in self.live:
+            row = await self._db(lambda s: s.get(Run, live.run_id))
+            raise errors.RunOver(_over(row.state, row.end_reason) if row else "the run is over")
+
+    async def _open_session(self, live: LiveRun) -> dict[str, Any]:
+        """Create the run's session; on a server fault the run fails and is refunded."""
+        try:
+            answer = await self.registry.create(CreateSession(live.config, 1, False))
+        except (errors.WorkerFailed, errors.LimitExceeded, errors.InternalError) as error:
+            await self._finish(live, [], "failed", "server_error", refunded=True)
+            raise type(error)(f"{error.message} (the run was refunded)") from None
+        info = decode(answer)
+        live.session_id = info["session_id"]
+        from multion_client.protocol import space_from_wire
+
+        return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
+
+    async def _session_call(self, live: LiveRun, verb: str, argument: int) -> dict[str, Any]:
+        """Reset (argument: episode index) or step (argument: action) the run's environment,
+        rebuilding the session first if it is gone (restart, idle reaper, another replica)."""
+        for attempt in range(2):
+            try:
+                if live.session_id is None:
+                    await self._rebuild(live)
+                assert live.session_id is not None
+                if verb == "reset":
+                    options = [{"episode_index": argument}]
+                    reply = await self.registry.reset(live.session_id, Reset([None], options))
+                else:
+                    reply = await self.registry.step(live.session_id, Step([argument]))
+                return decode(reply)
+            except errors.SessionNotFound:
+                live.session_id = None
+                if attempt == 1:
+                    raise
+            except (errors.WorkerFailed, errors.InternalError) as error:
+                await self._close_session(live)
+                await self._finish(live, [], "failed", "server_error", refunded=True)
+                raise errors.WorkerFailed(
+                    f"the simulator failed during this run ({error.message}); the run is over "
+                    "and refunded: it does not count against your quota"
+                ) from None
+        raise AssertionError("unreachable")
+
+    async def _rebuild(self, live: LiveRun) -> None:
+        """A new session in the run's state: the current episode reset and its actions replayed."""
+        await self._close_session(live)
+        await self._open_session(live)
+        st = live.state
+        if not st.episode_active or live.session_id is None:
+            return
+        reply = decode(
+            await self.registry.reset(
+                live.session_id, Reset([None], [{"episode_index": st.position}])
+            )
+        )
+        done = False
+        for action in st.actions:
+            reply = decode(await self.registry.step(live.session_id, Step([action])))
+            done = bool(reply["terminated"][0] or reply["truncated"][0])
+        st.last_metrics = reply["infos"][0]["metrics"]
+        end_reason = st.last_metrics.get("end_reason") if done else None
+        run_done = False
+        if done:  # defensive: a saved state whose last action ended the episode unrecorded
+            st.episode_active = False
+            results = [self._result(live, str(end_reason))]
+            run_done = st.position == len(live.order) - 1
+            if run_done:
+                await self._finish(live, results, "finished", None)
+            else:
+                await self._save(live, results)
+        metrics = st.last_metrics if done and live.phase.feedback == "episodes" else None
+        answer = RunObservation(
+            st.position, st.seq, reply["observations"][0], done=done, end_reason=end_reason,
+            metrics=metrics, run_done=run_done,
+        )  # fmt: skip
+        live.last_answer = encode(answer.to_wire())
+
+    def _result(self, live: LiveRun, end_reason: str) -> EpisodeResult:
+        from multion.leaderboard.results import missed_metrics
+
+        st = live.state
+        live.last_end_reason = end_reason
+        metrics = st.last_metrics or missed_metrics(live.track.num_goals, end_reason)
+        return EpisodeResult(
+            position=st.position,
+            episode_index=live.order[st.position],
+            episode_id=live.episodes[st.position].episode_id,
+            end_reason=end_reason,
+            metrics=metrics,
+            actions="".join(str(a) for a in st.actions),
+            seconds=time.monotonic() - live.episode_clock if st.actions else 0.0,
+        )
+
+    async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
+        def save() -> None:
+            if results:
+                with self.db.sessions.begin() as session:
+                    save_state(session, live.run_id, live.state, results)
+            else:  # the per-step save: one UPDATE on a bare connection, no ORM session
+                with self.db.engine.begin() as connection:
+                    save_state(connection, live.run_id, live.state, results)
+
+        try:
+            await asyncio.to_thread(save)
+        except RunMoved:
+            self.live.pop(live.run_id, None)
+            await self._close_session(live)
+            raise errors.SequenceMismatch(
+                "this run was changed elsewhere (another server replica or an organiser); "
+                "GET its observe route and continue from there"
+            ) from None
+
+    async def _finish(
+        self,
+        live: LiveRun,
+        results: list[EpisodeResult],
+        outcome: str,
+        reason: str | None,
+        refunded: bool = False,
+    ) -> None:
+        ids = [e.episode_id for e in live.episodes]
+        await self._db(
+            lambda s: finish_run(
+                s,
+                live.run_id,
+                live.state,
+                results,
+                outcome,
+                reason,
+                live.track,
+                ids,
+                live.order,
+                refunded,
+            )
+        )
+        self.live.pop(live.run_id, None)
+        self.ended[live.run_id] = live
+        while len(self.ended) > ENDED_KEPT:
+            self.ended.popitem(last=False)
+        await self._close_session(live)
+
+    async def _close_session(self, live: LiveRun) -> None:
+        if live.session_id is not None:
+            with contextlib.suppress(errors.MultiONError):
+                await self.registry.close(live.session_id)
+            live.session_id = None
+
+    def _deadline(self) -> dt.datetime:
+        return utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
+
+    async def _db(self, work: Any) -> Any:
+        """Run ``work(session)`` in a thread, in one transaction."""
+
+        def run() -> Any:
+            with self.db.sessions.begin() as session:
+                return work(session)
+
+        return await asyncio.to_thread(run)
+
+    async def close(self) -> None:
+        for live in list(self.live.values()):
+            await self._close_session(live)
+
+
+def _over(state: str, reason: str | None) -> str:
+    return f"the run is over ({state}{', ' + reason if reason else ''})"

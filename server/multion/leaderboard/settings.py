@@ -1,0 +1,29 @@
+"""Leaderboard settings of a server, from ``multion serve`` options or environment variables."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class LeaderboardSettings(BaseSettings):
+    """``multion serve --challenge FILE --database URL``; e.g. ``MULTION_LEADERBOARD_DATABASE``."""
+
+    model_config = SettingsConfigDict(env_prefix="MULTION_LEADERBOARD_", frozen=True)
+
+    challenge: Path = Field(description="the challenge file (TOML): tracks, phases, secret")
+    database: str = Field(
+        "sqlite:///leaderboard.db",
+        description="SQLAlchemy URL (sqlite:///FILE, postgresql+psycopg://…) or a SQLite path",
+    )
+    token_cache_s: float = Field(
+        5.0, ge=0, description="a checked token is trusted this long (revocations take this long)"
+    )
+    expire_interval_s: float = Field(
+        5.0, gt=0, description="how often late episodes of silent clients are expired"
+    )
+    warm_up: bool = Field(
+        True, description="generate the hidden episodes at start-up rather than at the first run"
+    )

@@ -1,0 +1,180 @@
+"""Opening the results database, migrating it, and the team / token operations.
+
+A database URL is SQLAlchemy's: ``sqlite:///leaderboard.db`` (the embedded default: one file,
+opened in WAL mode so readers never wait for the writer) or
+``postgresql+psycopg://user:pass@host/db`` when several server replicas share one database.
+A plain path is taken as a SQLite file.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import hmac
+import re
+import secrets
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import Engine, create_engine, event, func, select
+from sqlalchemy.exc import ArgumentError, OperationalError
+from sqlalchemy.orm import Session, sessionmaker
+
+from multion.leaderboard.models import Run, Team, Token, utcnow
+
+MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
+TOKEN_PREFIX = "mlb"
+_TOKEN = re.compile(rf"{TOKEN_PREFIX}_([A-Za-z0-9]{{12}})_([A-Za-z0-9_-]{{20,100}})")
+_TEAM = re.compile(r"[A-Za-z0-9][A-Za-z0-9 ._-]{0,79}")
+
+
+class StorageError(ValueError):
+    """A database that cannot be opened, or an admin operation that cannot be done."""
+
+
+def database_url(value: str) -> str:
+    """A SQLAlchemy URL; a bare path (``results.db``) means a SQLite file."""
+    if "://" in value:
+        return value
+    return f"sqlite:///{Path(value).expanduser().resolve()}"
+
+
+def open_engine(url: str) -> Engine:
+    """An engine for ``url``; SQLite files get WAL mode, a busy timeout and foreign keys."""
+    url = database_url(url)
+    try:
+        if url.startswith("sqlite"):
+            engine = create_engine(url, connect_args={"timeout": 30, "check_same_thread": False})
+            event.listen(engine, "connect", _sqlite_pragmas)
+        else:
+            engine = create_engine(url, pool_pre_ping=True)
+    except (ArgumentError, ImportError) as error:
+        raise StorageError(f"cannot use database URL {url!r}: {error}") from None
+    return engine
+
+
+def _sqlite_pragmas(connection: Any, record: Any) -> None:
+    cursor = connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA synchronous=NORMAL")  # WAL + NORMAL: durable across app crashes
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.close()
+
+
+def upgrade(engine: Engine) -> None:
+    """Create or upgrade the schema to the newest Alembic revision."""
+    from alembic import command
+    from alembic.config import Config
+
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS_DIR))
+    try:
+        with engine.begin() as connection:
+            config.attributes["connection"] = connection
+            command.upgrade(config, "head")
+    except OperationalError as error:
+        raise StorageError(
+            f"cannot open or migrate the database {engine.url!r}: {error.orig}"
+        ) from None
+
+
+def current_revision(engine: Engine) -> str | None:
+    from alembic.runtime.migration import MigrationContext
+
+    with engine.connect() as connection:
+        return MigrationContext.configure(connection).get_current_revision()
+
+
+@dataclass
+class Database:
+    """An engine and its session factory; ``Database.open(url)`` migrates to the newest schema."""
+
+    engine: Engine
+    sessions: sessionmaker[Session]
+
+    @classmethod
+    def open(cls, url: str, migrate: bool = True) -> Database:
+        engine = open_engine(url)
+        if migrate:
+            upgrade(engine)
+        return cls(engine, sessionmaker(engine, expire_on_commit=False))
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+
+# ---------------------------------------------------------------------- teams and tokens
+def hash_secret(secret: str) -> str:
+    return hashlib.sha256(secret.encode("utf-8")).hexdigest()
+
+
+def add_team(session: Session, name: str) -> tuple[Team, str]:
+    """A new team and its first token (returned once, never stored in clear)."""
+    if not _TEAM.fullmatch(name):
+        raise StorageError(
+            f"team name {name!r}: 1–80 letters, digits, spaces, '.', '_' or '-', starting with a "
+            "letter or digit"
+        )
+    if session.scalar(select(Team).where(Team.name == name)) is not None:
+        raise StorageError(
+            f"a team named {name!r} already exists (`multion leaderboard token add`)"
+        )
+    team = Team(name=name)
+    session.add(team)
+    session.flush()
+    return team, add_token(session, team)
+
+
+def add_token(session: Session, team: Team) -> str:
+    key = "".join(secrets.choice("abcdefghijkmnpqrstuvwxyz23456789") for _ in range(12))
+    secret = secrets.token_urlsafe(32)
+    session.add(Token(key=key, secret_hash=hash_secret(secret), team=team))
+    session.flush()
+    return f"{TOKEN_PREFIX}_{key}_{secret}"
+
+
+def find_team(session: Session, name: str) -> Team:
+    team = session.scalar(select(Team).where(Team.name == name))
+    if team is None:
+        raise StorageError(f"no team named {name!r}")
+    return team
+
+
+def revoke_tokens(session: Session, team: Team, key: str | None = None) -> int:
+    """Revoke the team's tokens (or the one whose key is ``key``); returns how many."""
+    count = 0
+    for token in team.tokens:
+        if token.revoked_at is None and (key is None or token.key == key):
+            token.revoked_at = utcnow()
+            count += 1
+    if key is not None and count == 0:
+        raise StorageError(f"team {team.name!r} has no live token with key {key!r}")
+    return count
+
+
+def team_for_token(session: Session, presented: str) -> Team | None:
+    """The team of a live token, or None; the secret part is compared in constant time."""
+    match = _TOKEN.fullmatch(presented)
+    if match is None:
+        return None
+    key, secret = match.groups()
+    token = session.scalar(select(Token).where(Token.key == key))
+    candidate = hash_secret(secret)
+    stored = token.secret_hash if token is not None else hash_secret("")
+    if not hmac.compare_digest(candidate, stored) or token is None or token.revoked_at is not None:
+        return None
+    return token.team
+
+
+# ---------------------------------------------------------------------- quotas
+def runs_counted(
+    session: Session, team_id: int, track: str, phase: str, since: dt.datetime | None
+) -> int:
+    """Runs that count against a quota: every run created (abandoned ones too), minus refunds."""
+    query = select(func.count(Run.id)).where(
+        Run.team_id == team_id, Run.track == track, Run.phase == phase, Run.refunded.is_(False)
+    )
+    if since is not None:
+        query = query.where(Run.created_at >= since)
+    return int(session.scalar(query) or 0)

@@ -1,0 +1,231 @@
+"""Leaderboard fixtures: a tiny challenge (one-room hidden houses, 32×32 camera, 50-step
+episodes), a SQLite results database in a temp dir, team tokens, and a real HTTP server."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from multion.api.local_server import LocalServer, free_port
+from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.storage import Database, add_team
+
+SECRET = "test-secret-0123456789abcdef"
+
+CHALLENGE = """
+[challenge]
+name = "tiny"
+secret = "{secret}"
+
+[limits]
+step_timeout_s = {step_timeout_s}
+max_consecutive_timeouts = 2
+
+[hidden]
+rooms = [1, 1]
+
+[[tracks]]
+name = "1-on"
+num_goals = 1
+kind = "standard"
+camera = {{ width = 32, height = 32 }}
+max_steps = 40
+
+[[tracks.phases]]
+name = "minival"
+episodes = 3
+houses = 1
+feedback = "episodes"
+
+[[tracks.phases]]
+name = "test-standard"
+episodes = 2
+houses = 1
+feedback = "aggregate"
+total_quota = 1
+
+[[tracks]]
+name = "1-on-oracle"
+num_goals = 1
+kind = "oracle"
+camera = {{ width = 32, height = 32 }}
+max_steps = 40
+
+[[tracks.phases]]
+name = "minival"
+episodes = 2
+houses = 1
+feedback = "episodes"
+
+[[tracks.phases]]
+name = "test-challenge"
+episodes = 2
+houses = 1
+feedback = "sealed"
+sealed_until = 2999-01-01T00:00:00Z
+"""
+
+
+def write_challenge(directory: Path, step_timeout_s: float = 60.0) -> Path:
+    path = directory / "challenge.toml"
+    path.write_text(CHALLENGE.format(secret=SECRET, step_timeout_s=step_timeout_s))
+    return path
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("leaderboard")
+
+
+@pytest.fixture(scope="session")
+def make_challenge() -> Callable[..., Path]:
+    """``make_challenge(directory, step_timeout_s=60.0)``: write the tiny challenge file."""
+    return write_challenge
+
+
+@pytest.fixture(scope="module")
+def challenge_file(workdir: Path) -> Path:
+    return write_challenge(workdir)
+
+
+@pytest.fixture(scope="module")
+def challenge(challenge_file: Path) -> Challenge:
+    return load_challenge(challenge_file)
+
+
+@pytest.fixture(scope="module")
+def database(workdir: Path) -> str:
+    url = f"sqlite:///{workdir / 'results.db'}"
+    Database.open(url).close()
+    return url
+
+
+@pytest.fixture(scope="module")
+def new_team(database: str) -> Callable[[str], str]:
+    """``new_team(name)`` adds a team and returns its token."""
+
+    def make(name: str) -> str:
+        db = Database.open(database)
+        try:
+            with db.sessions.begin() as session:
+                return add_team(session, name)[1]
+        finally:
+            db.close()
+
+    return make
+
+
+def start_server(
+    challenge_file: Path, database: str, extra_env: dict[str, str] | None = None
+) -> LocalServer:
+    """A real server with the leaderboard on; tokens are checked at every request."""
+    env = {
+        "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
+        "MULTION_LEADERBOARD_EXPIRE_INTERVAL_S": "0.2",
+        "MULTION_LEADERBOARD_WARM_UP": "false",  # only the phases a test plays are generated
+        **(extra_env or {}),
+    }
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        server = LocalServer(
+            options=["--challenge", str(challenge_file), "--database", database,
+                     "--max-request-bytes", "65536"],
+        )  # fmt: skip
+        return server.start()
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+@pytest.fixture(scope="session")
+def launch() -> Callable[..., LocalServer]:
+    """``launch(challenge_file, database)``: start a server (the caller stops it)."""
+    return start_server
+
+
+@pytest.fixture(scope="module")
+def server(challenge_file: Path, database: str) -> Iterator[LocalServer]:
+    server = start_server(challenge_file, database)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+# ---------------------------------------------------------------------- PostgreSQL
+REQUIRE_POSTGRES = "MULTION_REQUIRE_POSTGRES"
+POSTGRES_HINT = (
+    "PostgreSQL is not installed: `apt-get install postgresql` (Debian) runs these tests; "
+    f"{REQUIRE_POSTGRES}=1 (set by .ci/run) makes them required"
+)
+
+
+def _postgres_bin() -> Path | None:
+    found = shutil.which("pg_ctl")
+    if found:
+        return Path(found).resolve().parent
+    versions = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"))
+    return versions[-1].parent if versions else None
+
+
+@pytest.fixture(scope="session")
+def postgres_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A throwaway PostgreSQL server (initdb + pg_ctl in a temp dir) and an empty database.
+
+    As root (CI), the cluster runs as the ``postgres`` user that Debian's package creates.
+    """
+    bindir = _postgres_bin()
+    if bindir is None:
+        if os.environ.get(REQUIRE_POSTGRES) == "1":
+            pytest.fail(POSTGRES_HINT)
+        pytest.skip(POSTGRES_HINT)
+    root = tmp_path_factory.mktemp("postgres")
+    data = root / "data"
+    prefix: list[str] = []
+    if os.geteuid() == 0:
+        prefix = ["runuser", "-u", "postgres", "--"]
+        shutil.chown(root, "postgres")
+        root.chmod(0o700)
+        for parent in root.parents:  # postgres must reach its directory
+            if parent == Path(tempfile.gettempdir()).parent:
+                break
+            parent.chmod(parent.stat().st_mode | 0o011)
+    port = free_port()
+
+    def run(*command: str) -> None:
+        subprocess.run([*prefix, *command], check=True, capture_output=True, timeout=120)
+
+    run(str(bindir / "initdb"), "-D", str(data), "-U", "postgres", "-A", "trust", "-E", "UTF8")
+    options = f"-p {port} -k {root} -c listen_addresses=127.0.0.1 -c fsync=off"
+    run(
+        str(bindir / "pg_ctl"),
+        "-D",
+        str(data),
+        "-o",
+        options,
+        "-l",
+        str(root / "log"),
+        "-w",
+        "start",
+    )
+    try:
+        import psycopg
+
+        with psycopg.connect(
+            f"host=127.0.0.1 port={port} user=postgres dbname=postgres", autocommit=True
+        ) as conn:
+            conn.execute("CREATE DATABASE multion")
+        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/multion"
+    finally:
+        subprocess.run([*prefix, str(bindir / "pg_ctl"), "-D", str(data), "-m", "fast", "stop"],
+                       capture_output=True, timeout=60)  # fmt: skip

@@ -1,0 +1,104 @@
+"""The challenge file: a valid one reads, every mistake is named with its field and range, and
+the hidden houses and episodes come from the secret alone."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from multion.leaderboard.challenge import ChallengeError, load_challenge
+from multion.leaderboard.hidden import (
+    HIDDEN_HOUSE_BASE,
+    generate_hidden_episodes,
+    hidden_houses,
+    run_order,
+)
+from multion.scenes.registry import SPLIT_SIZES, layout_for, scene_split
+
+
+def test_the_tiny_challenge_reads(challenge_file: Path) -> None:
+    challenge = load_challenge(challenge_file)
+    assert [t.name for t in challenge.tracks] == ["1-on", "1-on-oracle"]
+    standard, oracle = challenge.tracks
+    assert "oracle_map" not in standard.allowed_sensors and "oracle_map" in oracle.allowed_sensors
+    assert standard.phase("minival").feedback == "episodes"
+    assert oracle.phase("test-challenge").sealed_until.year == 2999
+    assert "secret" not in str(challenge.describe())
+    assert standard.metric == "ppl"  # the MultiON challenge's ranking metric by default
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('name = "tiny"', 'name = "tiny"\ncolour = 1', r"unknown field\(s\) \['colour'\]"),
+        (
+            "max_consecutive_timeouts = 2",
+            "max_consecutive_timeouts = 0",
+            r"max_consecutive_timeouts must be in \[1, 1000\], got 0",
+        ),
+        ("rooms = [1, 1]", "rooms = [3, 9]", r"hidden.rooms\[1\] must be in \[3, 8\]"),
+        ('kind = "standard"', 'kind = "cheating"', "kind must be one of"),
+        ("episodes = 3", "episodes = 0", r"episodes must be in \[1, 100000\], got 0"),
+        ('feedback = "aggregate"', 'feedback = "sealed"', "needs sealed_until"),
+        (
+            "camera = { width = 32, height = 32 }",
+            "camera = { widht = 32 }",
+            "unknown field 'camera.widht'",
+        ),
+        (
+            'num_goals = 1\nkind = "oracle"',
+            'num_goals = 1\nkind = "oracle"\nsensors = ["x-ray"]',
+            r"unknown sensor\(s\) \['x-ray'\]",
+        ),
+        ("episodes = 3", 'episodes = "3"', "episodes must be int"),
+        ('secret = "test-secret-0123456789abcdef"', 'secret = "short"', "at least 16 characters"),
+    ],
+)
+def test_mistakes_are_named(
+    challenge_file: Path, tmp_path: Path, old: str, new: str, message: str
+) -> None:
+    text = challenge_file.read_text()
+    assert old in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(old, new, 1))
+    with pytest.raises(ChallengeError, match=message):
+        load_challenge(bad)
+
+
+def test_the_secret_may_come_from_the_environment(challenge_file: Path, tmp_path: Path) -> None:
+    text = challenge_file.read_text().replace(
+        'secret = "test-secret-0123456789abcdef"', 'secret_env = "LB_SECRET"'
+    )
+    path = tmp_path / "env.toml"
+    path.write_text(text)
+    with pytest.raises(ChallengeError, match="LB_SECRET"):
+        load_challenge(path, environ={})
+    assert load_challenge(path, environ={"LB_SECRET": "x" * 20}).secret == "x" * 20
+    with pytest.raises(ChallengeError, match="not a readable TOML"):
+        (tmp_path / "broken.toml").write_text("[challenge\n")
+        load_challenge(tmp_path / "broken.toml")
+
+
+def test_hidden_houses_and_episodes_come_from_the_secret(
+    challenge_file: Path, tmp_path: Path, make_challenge: Callable[..., Path]
+) -> None:
+    challenge = load_challenge(challenge_file)
+    track = challenge.tracks[0]
+    phase = track.phase("minival")
+    houses = hidden_houses(challenge, phase)
+    assert len(houses) == phase.houses
+    for house in houses:
+        number = int(house.split("-")[1])
+        assert number >= HIDDEN_HOUSE_BASE > sum(SPLIT_SIZES.values())  # never a packaged house
+        assert scene_split(house) is None
+        assert len(layout_for(house).rooms) == 1  # hidden.rooms = [1, 1]
+    first = generate_hidden_episodes(challenge, track, phase)
+    assert first == generate_hidden_episodes(challenge, track, phase)  # same secret, same episodes
+    assert {e.scene_id for e in first} <= set(houses)
+    other = load_challenge(challenge_file, environ={})
+    object.__setattr__(other, "secret", "another-secret-0123456789")
+    assert hidden_houses(other, phase) != houses
+    assert sorted(run_order(challenge, "a", 10)) == list(range(10))
+    assert run_order(challenge, "a", 10) != run_order(challenge, "b", 10)

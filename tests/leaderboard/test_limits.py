@@ -1,0 +1,94 @@
+"""Time budgets and server faults, on a server whose episodes expire after 1 s of silence."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from multion_client import errors
+from multion_client.client import Client
+from multion_client.protocol import CreateRun
+from multion_client.run import RunEnv
+
+STEP_TIMEOUT_S = 1.0
+
+
+@pytest.fixture(scope="module")
+def hasty(
+    tmp_path_factory: pytest.TempPathFactory,
+    database: str,
+    make_challenge: Callable[..., Path],
+    launch: Callable[..., Any],
+) -> Iterator[Any]:
+    directory = tmp_path_factory.mktemp("hasty")
+    server = launch(make_challenge(directory, step_timeout_s=STEP_TIMEOUT_S), database)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def _wait_until(predicate: Callable[[], bool], timeout_s: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, "condition not met in time"
+        time.sleep(0.1)
+
+
+def test_a_late_action_finds_its_episode_scored_as_it_stood(
+    hasty: Any, new_team: Callable[[str], str]
+) -> None:
+    env = RunEnv(hasty.url, "1-on", "minival", "slow", token=new_team("slow"), sensors=["goal"])
+    env.reset()
+    env.step(2)
+    time.sleep(STEP_TIMEOUT_S + 0.3)
+    with pytest.raises(errors.EpisodeOver, match="timeout"):
+        env.client.run_step(env.run_id, 0, 2, 2)
+    # RunEnv turns the expiry into a truncated episode, so an agent's loop simply goes on
+    _, _, terminated, truncated, info = env.step(2)
+    assert truncated and not terminated and info["end_reason"] == "timeout"
+    status = env.status()
+    assert status.state == "running" and status.episodes_done == 1
+    assert status.episodes[0]["metrics"]["end_reason"] == "timeout"
+    assert status.episodes[0]["metrics"]["steps"] == 1  # scored as it stood
+    _, info = env.reset()
+    assert info["episode"] == 1
+    assert env.step(1)[4]["seq"] == 1
+    env.abandon()
+
+
+def test_a_silent_client_loses_its_run(hasty: Any, new_team: Callable[[str], str]) -> None:
+    client = Client(hasty.url, token=new_team("silent"))
+    info = client.create_run(CreateRun("1-on", "minival", "silent", ["goal"]))
+    client.start_episode(info.run_id, 0)
+    # two expiries in a row (the episode, then the next one never started) end the run
+    _wait_until(lambda: client.run_status(info.run_id).state != "running")
+    status = client.run_status(info.run_id)
+    assert status.state == "ended" and status.end_reason == "timeouts"
+    reasons = [e["metrics"]["end_reason"] for e in status.episodes]
+    assert reasons == ["timeout", "timeout", "not_played"]  # missing episodes are failures
+    assert status.results["success"]["mean"] == 0.0
+    with pytest.raises(errors.RunOver):
+        client.start_episode(info.run_id, 1)
+
+
+def test_a_run_the_server_broke_is_refunded(hasty: Any, new_team: Callable[[str], str]) -> None:
+    client = Client(hasty.url, token=new_team("unlucky"))
+    info = client.create_run(CreateRun("1-on", "test-standard", "unlucky", ["goal"]))
+    client.start_episode(info.run_id, 0)
+    for worker in client.health()["workers"]:
+        os.kill(worker["pid"], signal.SIGKILL)
+    with pytest.raises(errors.WorkerFailed, match="refunded"):
+        client.run_step(info.run_id, 0, 1, 1)
+    status = client.run_status(info.run_id)
+    assert status.state == "failed" and status.refunded and status.end_reason == "server_error"
+    # the phase allows one run in total: the refunded one does not count
+    _wait_until(lambda: client.health()["status"] == "ok")
+    again = client.create_run(CreateRun("1-on", "test-standard", "retry", ["goal"]))
+    client.abandon_run(again.run_id)
