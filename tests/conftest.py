@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -12,6 +12,17 @@ from multion.task.dataset import sample_episode
 from multion.task.episode import Episode
 
 ROOM = "room-6x4"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def navgrid_cache_in_a_temporary_directory(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[None]:
+    """Tests (and the servers they start, which inherit the environment) cache navigable grids
+    in a fresh directory, never in the user's ~/.cache."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("MULTION_NAVGRID_CACHE", str(tmp_path_factory.mktemp("navgrids")))
+        yield
 
 
 @pytest.fixture(scope="session")

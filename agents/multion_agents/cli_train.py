@@ -42,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frames", type=int, default=defaults.frames, help="environment steps, all ranks together"
     )
     parser.add_argument(
-        "--envs", type=int, default=defaults.envs, help="environments per rank (default 4)"
+        "--envs", type=int, default=defaults.envs, help=f"environments per rank (default {defaults.envs}, the paper's)"
     )
     parser.add_argument(
         "--server",
@@ -119,7 +119,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=defaults.update_threads,
         help="torch threads for PPO updates, while simulators wait (default 0: this rank's cores)",
     )
-    parser.add_argument("--device", default="auto", help="cpu, cuda or auto")
+    parser.add_argument(
+        "--device", default="auto", help="cpu, cuda, cuda:N or auto (cuda when available)"
+    )
+    reference = parser.add_argument_group(
+        "PPO schedule (defaults follow the reference code, ppo_multinav.yaml)"
+    )
+    reference.add_argument(
+        "--lr-decay",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.lr_decay,
+        help="decay the learning rate linearly to 0 over the run",
+    )
+    reference.add_argument(
+        "--clip-decay",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.clip_decay,
+        help="decay the PPO clip range linearly to 0 over the run",
+    )
+    reference.add_argument(
+        "--normalize-advantages",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.normalize_advantages,
+        help="normalise advantages per rollout",
+    )
     parser.add_argument("--no-tensorboard", action="store_true")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     for name, kind, text in _HYPER:
@@ -182,6 +205,9 @@ def run(args: argparse.Namespace) -> int:
         threads=args.threads,
         update_threads=args.update_threads,
         device=args.device,
+        lr_decay=args.lr_decay,
+        clip_decay=args.clip_decay,
+        normalize_advantages=args.normalize_advantages,
         tensorboard=not args.no_tensorboard,
         progress=not args.quiet,
         extra={"argv": sys.argv},

@@ -234,6 +234,16 @@ def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
     return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
 
 
+def scene_order(episodes: Sequence[Episode]) -> list[int]:
+    """Episode indices grouped by scene (scenes in order of first appearance, episodes in
+    order within a scene): each environment then builds each house once. Results do not
+    depend on the order (agents are seeded per episode index)."""
+    first: dict[str, int] = {}
+    for index, episode in enumerate(episodes):
+        first.setdefault(episode.scene_id, index)
+    return sorted(range(len(episodes)), key=lambda i: (first[episodes[i].scene_id], i))
+
+
 def play_all(
     settings: EvalSettings,
     episodes: Sequence[Episode],
@@ -270,7 +280,7 @@ def play_all(
     )
     try:
         with ThreadPoolExecutor(max_workers=max(1, settings.workers)) as pool:
-            for record in pool.map(play, range(len(episodes))):
+            for record in pool.map(play, scene_order(episodes)):
                 records.append(record)
                 done = [r.metrics.get("success", 0.0) for r in records]
                 bar.set_postfix(success=f"{100 * float(np.mean(done)):.0f}%")
@@ -315,15 +325,19 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:
+        from multion.sim.camera import resolve_renderer
+
         config, records = play_all(settings, episodes, local_env_factory(), progress)
         server: dict[str, Any] = {"url": None, "local": False, "in_process": True}
+        server["renderer"] = resolve_renderer(_requested_renderer(config))
     elif settings.server is not None:
         with Client(settings.server, retries=1) as client:
-            health = client.health()
+            health, spec = client.health(), client.spec()
         config, records = play_all(
             settings, episodes, remote_env_factory(settings.server), progress
         )
         server = {"url": settings.server, "local": False, "api_version": health.get("api_version")}
+        server["renderer"] = _served_renderer(config, spec)
     else:
         from multion.api.local_server import LocalServer
 
@@ -335,9 +349,10 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         )
         with LocalServer(workers=max(1, settings.workers), options=allow) as local:
             with Client(local.url) as client:
-                health = client.health()
+                health, spec = client.health(), client.spec()
             config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)
         server = {"url": None, "local": True, "api_version": health.get("api_version")}
+        server["renderer"] = _served_renderer(config, spec)
     return EvalResult(
         settings,
         config,
@@ -348,3 +363,17 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         resolved_config=resolved,
         dataset_sha256=dataset_sha256(dataset_file(settings)),
     )
+
+
+def _requested_renderer(config: dict[str, Any]) -> str:
+    from multion.task.env import EnvConfig
+
+    return str(config.get("camera", {}).get("renderer", EnvConfig().camera.renderer))
+
+
+def _served_renderer(config: dict[str, Any], spec: dict[str, Any]) -> str | None:
+    """The renderer the server's environments used ("auto" resolved by the server's spec)."""
+    requested = _requested_renderer(config)
+    if requested != "auto":
+        return requested
+    return spec.get("renderer", {}).get("auto")  # None from servers older than the field

@@ -370,6 +370,12 @@ class ServerSpec:
     action_space: spaces.Space[Any]
     metadata: dict[str, Any] = field(metadata=schema("the environment's Gymnasium metadata"))
     autoreset_mode: str = field(metadata=schema(enum=["same_step"]))
+    renderer: dict[str, Any] = field(
+        metadata=schema(
+            "`camera.renderer`: its `choices`, the `default`, and what `auto` renders with on "
+            "this server (`egl` or `tiny`)"
+        )
+    )
     limits: dict[str, Any] = field(metadata=schema("this server's limits (sessions, envs, bytes)"))
 
     def to_wire(self) -> dict[str, Any]:

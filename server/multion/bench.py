@@ -1,21 +1,27 @@
-"""``multion bench``: speed measured in one run, printed as ratios (SPEC; issues 2, 3 and 5).
+"""``multion bench``: speed measured in one run, printed as ratios (SPEC; issues 2, 3, 5, 14).
 
 Timed unit tests are useless on shared, noisy machines; ratios measured back to back in one
-process are not. ``sim`` compares the task's steps per second with PyBullet's bare
-``getCameraImage`` on the same scene; ``http`` compares the server with the in-process env.
+process are not. ``sim`` measures the task's frames per second with each available renderer
+(TinyRenderer, EGL) at 256² and 128² on the same poses, and compares each with PyBullet's bare
+``getCameraImage``; ``cache`` times house builds with a cold and a warm navigable-grid cache
+and a 100-episode oracle-planner evaluation without and with the cache; ``http`` compares the
+server with the in-process env.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
+import tempfile
 import time
 
 import numpy as np
 import pybullet as p
 
 from multion.api.cli_serve import add_http_stack_arguments
-from multion.sim.camera import CameraConfig
+from multion.sim import grid_cache, simulator
+from multion.sim.camera import CameraConfig, resolve_renderer
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.generate import generate_episodes
 
@@ -25,9 +31,9 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "http", "train", "memory", "leaderboard"],
+        choices=["sim", "cache", "http", "train", "memory", "leaderboard"],
         action="append",
-        help="run only these parts (repeatable; default: sim and http)",
+        help="run only these parts (repeatable; default: sim, cache and http)",
     )
     add_http_stack_arguments(parser, " of the benchmarked servers")
     parser.add_argument(
@@ -38,6 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=1000,
         help="3-ON episodes to generate for the generation timing (default 1000)",
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=100,
+        help="3-ON val episodes of the timed oracle-planner evaluations (default 100)",
     )
     train = parser.add_argument_group("training bench (--only train, needs torch)")
     train.add_argument(
@@ -54,9 +66,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    parts = args.only or ["sim", "http"]
+    parts = args.only or ["sim", "cache", "http"]
     if "sim" in parts:
         bench_sim(args.steps, args.episodes)
+    if "cache" in parts:
+        bench_cache(args.eval_episodes)
     if "memory" in parts:
         from multion.api.bench_memory import bench_memory
 
@@ -85,26 +99,38 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
     episode_list = generate_episodes(3, "val", 4, seed=0, scenes=[SCENE], progress=False)
     results["scene_build_s"] = time.perf_counter() - start  # includes 4 episodes (~0.2 s)
     print(f"scene {SCENE}: build + navigable grid + 4 episodes: {results['scene_build_s']:.2f} s")
-    print(f"{'resolution':>10} {'env steps/s':>12} {'raw renders/s':>14} {'ratio':>6}")
+    renderers = ["tiny"] + (["egl"] if resolve_renderer("auto") == "egl" else [])
+    if len(renderers) == 1:
+        print("EGL: the eglRenderer plugin does not load here (see docs/learned.md); tiny only")
+    print(
+        f"{'resolution':>10} {'renderer':>8} {'env frames/s':>13} {'raw renders/s':>14} "
+        f"{'env/raw':>8}   (RGB-D + goal, one process, same poses)"
+    )
     for size in (256, 128):
-        config = EnvConfig(
-            task=TaskConfig(num_goals=3),
-            camera=CameraConfig(width=size, height=size),
-            sensors=("rgb", "depth", "goal"),
-        )
-        env = MultiONEnv(config, episodes=episode_list)
-        env_rate, poses = _env_rate(env, steps)
-        raw_rate = _raw_render_rate(env, poses)
-        env.close()
-        ratio = env_rate / raw_rate
-        results[f"env_sps_{size}"], results[f"raw_sps_{size}"], results[f"ratio_{size}"] = (
-            env_rate,
-            raw_rate,
-            ratio,
-        )
-        print(
-            f"{size:>8}² {env_rate:>12.1f} {raw_rate:>14.1f} {ratio:>6.2f}   (target ratio ≥ 0.90)"
-        )
+        for renderer in renderers:
+            config = EnvConfig(
+                task=TaskConfig(num_goals=3),
+                camera=CameraConfig(width=size, height=size, renderer=renderer),
+                sensors=("rgb", "depth", "goal"),
+            )
+            env = MultiONEnv(config, episodes=episode_list)
+            env_rate, walked = _env_rate(env, steps)
+            raw_rate = _raw_render_rate(env, walked)
+            used = env.sim.renderer
+            env.close()
+            ratio = env_rate / raw_rate
+            results[f"env_sps_{renderer}_{size}"] = env_rate
+            results[f"raw_sps_{renderer}_{size}"] = raw_rate
+            results[f"ratio_{renderer}_{size}"] = ratio
+            print(
+                f"{size:>8}² {used:>8} {env_rate:>13.1f} {raw_rate:>14.1f} {ratio:>8.2f}"
+                "   (target env/raw ≥ 0.90)"
+            )
+        if "egl" in renderers:
+            speedup = results[f"env_sps_egl_{size}"] / results[f"env_sps_tiny_{size}"]
+            results[f"egl_speedup_{size}"] = speedup
+            target = "   (target ≥ 1.3 at 256², one EGL thread per process)" if size == 256 else ""
+            print(f"{size:>8}² EGL / TinyRenderer frames per second: {speedup:.2f}×{target}")
     start = time.perf_counter()
     generate_episodes(3, "val", episodes, seed=0, progress=False)
     results["generate_s"] = time.perf_counter() - start
@@ -115,7 +141,8 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
 
 
 def _env_rate(env: MultiONEnv, steps: int) -> tuple[float, list[tuple[float, float, float]]]:
-    """Steps per second of the full task step (motion, render, depth, measures), and its poses."""
+    """Steps per second of the full task step (motion, render, depth, measures), and its poses.
+    The actions are seeded, so every renderer walks the same poses."""
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     done_steps, elapsed, poses = 0, 0.0, []
@@ -135,6 +162,7 @@ def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -
     """Bare ``getCameraImage`` calls with the same camera, scene and lighting, at the same poses."""
     camera, grid, world = env.sim.camera, env.sim.grid, env.sim.world
     assert camera is not None and grid is not None and world is not None
+    flag = p.ER_BULLET_HARDWARE_OPENGL if camera.renderer == "egl" else p.ER_TINY_RENDERER
     cfg = camera.config
     elapsed = 0.0
     for x, y, yaw in poses:
@@ -150,9 +178,75 @@ def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -
             lightAmbientCoeff=0.6,
             lightDiffuseCoeff=0.4,
             lightSpecularCoeff=0.0,
-            renderer=p.ER_TINY_RENDERER,
+            renderer=flag,
             flags=p.ER_NO_SEGMENTATION_MASK,
             physicsClientId=world.client,
         )
         elapsed += time.perf_counter() - begin
     return len(poses) / elapsed
+
+
+# ---------------------------------------------------------------------- navigable-grid cache
+CACHE_SCENES = ("house-00061", "house-00066")
+
+
+def bench_cache(eval_episodes: int = 100) -> dict[str, float]:
+    """House builds (world + navigable grid) with a cold and a warm disk cache, and the wall
+    time of an oracle-planner evaluation without the cache and with a warm one (a private
+    temporary cache directory: the user's cache is not touched)."""
+    results: dict[str, float] = {}
+    saved = os.environ.get(grid_cache.CACHE_ENV)
+    with tempfile.TemporaryDirectory(prefix="multion-bench-navgrids-") as directory:
+        os.environ[grid_cache.CACHE_ENV] = directory
+        try:
+            cold = [_build_seconds(scene) for scene in CACHE_SCENES]
+            warm = [_build_seconds(scene) for scene in CACHE_SCENES]
+            results["build_cold_s"] = float(np.mean(cold))
+            results["build_warm_s"] = float(np.mean(warm))
+            ratio = results["build_cold_s"] / results["build_warm_s"]
+            results["build_speedup"] = ratio
+            print(
+                f"house build (world + navigable grid), mean of {', '.join(CACHE_SCENES)}: "
+                f"cold {results['build_cold_s']:.2f} s, cached {results['build_warm_s']:.3f} s: "
+                f"{ratio:.1f}× faster   (target ≥ 10×)"
+            )
+            if eval_episodes > 0:
+                os.environ[grid_cache.CACHE_ENV] = "off"
+                before = _eval_seconds(eval_episodes)
+                os.environ[grid_cache.CACHE_ENV] = directory
+                _eval_seconds(eval_episodes)  # fills the cache with every val house
+                after = _eval_seconds(eval_episodes)
+                results["eval_no_cache_s"], results["eval_warm_cache_s"] = before, after
+                print(
+                    f"{eval_episodes}-episode 3-ON val oracle-planner evaluation (local server, "
+                    f"1 worker): no grid cache {before:.1f} s, warm cache {after:.1f} s: "
+                    f"{before / after:.1f}× faster"
+                )
+        finally:
+            if saved is None:
+                os.environ.pop(grid_cache.CACHE_ENV, None)
+            else:
+                os.environ[grid_cache.CACHE_ENV] = saved
+    return results
+
+
+def _build_seconds(scene: str) -> float:
+    """Seconds to load ``scene`` in a fresh simulator, as a new worker process would (the
+    in-process grid cache emptied first; the disk cache as it is)."""
+    simulator._GRID_CACHE.clear()
+    start = time.perf_counter()
+    sim = simulator.Simulator()
+    sim.load_scene(scene)
+    seconds = time.perf_counter() - start
+    sim.close()
+    return seconds
+
+
+def _eval_seconds(episodes: int) -> float:
+    """Wall time of ``multion eval --agent oracle-planner --task 3-on --split val``."""
+    from multion_agents.evaluate import EvalSettings, evaluate
+
+    settings = EvalSettings(agent="oracle-planner", num_goals=3, split="val", episodes=episodes)
+    start = time.perf_counter()
+    evaluate(settings, progress=False)
+    return time.perf_counter() - start

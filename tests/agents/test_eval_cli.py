@@ -52,6 +52,7 @@ def test_local_and_remote_server_give_the_same_metrics(
     assert summary["run"]["agent"] == "random-oracle-found"
     assert summary["run"]["seed"] == 5 and summary["run"]["episodes"] == 3
     assert summary["run"]["server"]["local"] is True
+    assert summary["run"]["server"]["renderer"] == "tiny"  # the default camera.renderer
     assert "goal_distance" in summary["run"]["env_config"]["sensors"]
     for key in ("success", "progress", "spl", "ppl"):
         estimate = summary["metrics"][key]

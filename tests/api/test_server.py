@@ -85,6 +85,8 @@ def test_health_spec_and_docs(api: TestClient) -> None:
     assert status == 200
     assert spec["actions"] == {"FOUND": 0, "MOVE_FORWARD": 1, "TURN_LEFT": 2, "TURN_RIGHT": 3}
     assert "rgb" in spec["sensors"] and spec["defaults"]["camera"]["width"] == 256
+    assert spec["renderer"]["default"] == spec["defaults"]["camera"]["renderer"] == "tiny"
+    assert spec["renderer"]["auto"] in ("tiny", "egl")
     assert space_from_wire(spec["observation_space"]) == build_observation_space(EnvConfig())
     assert spec["limits"]["max_sessions"] == 4
     paths = api.get("/openapi.json").json()["paths"]

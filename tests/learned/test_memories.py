@@ -26,6 +26,10 @@ NEW_MODELS = [
 SIZE = 64
 G = map_ops.GLOBAL_SIZE
 C0 = G // 2
+GEOMETRY = map_ops.MapGeometry(
+    cell_size=0.8, crop_size=25, hfov_deg=79.0, min_depth=0.5, max_depth=5.0, normalized_depth=True
+)
+CELL = GEOMETRY.cell_size
 
 
 def _space(name: str):
@@ -126,7 +130,7 @@ def test_reset_mid_sequence_equals_fresh_run(name: str) -> None:
 
 def test_frmqn_empty_memory_reads_zeros() -> None:
     memory = FRMQN(observation_dim=10, hidden_dim=5, memory_size=4, key_dim=6, out_dim=8)
-    state = memory.initial_state(2)
+    state = memory.initial_state(2, torch.device("cpu"))
     read, new_state = memory.step({}, torch.randn(2, 15), state)
     assert torch.equal(read, torch.zeros(2, 8))
     assert new_state["valid"].sum(1).tolist() == [1.0, 1.0]
@@ -144,7 +148,7 @@ def test_masked_attention_ignores_empty_slots() -> None:
 
 def test_frmqn_ring_buffer_keeps_the_last_m() -> None:
     memory = FRMQN(observation_dim=3, hidden_dim=2, memory_size=4, key_dim=2, out_dim=2)
-    state = memory.initial_state(1)
+    state = memory.initial_state(1, torch.device("cpu"))
     for _ in range(6):
         _, state = memory.step({}, torch.randn(1, 5), state)
     assert state["count"].item() == 6 and state["valid"].sum().item() == 4
@@ -168,7 +172,7 @@ def test_smt_empty_memory_has_no_nan() -> None:
 
 
 def _normalised(metres: float) -> float:
-    return (metres - map_ops.MIN_DEPTH) / (map_ops.MAX_DEPTH - map_ops.MIN_DEPTH)
+    return (metres - GEOMETRY.min_depth) / (GEOMETRY.max_depth - GEOMETRY.min_depth)
 
 
 def test_recognition_label_nearest_goal_within_2_5_m() -> None:
@@ -185,13 +189,13 @@ def test_recognition_label_nearest_goal_within_2_5_m() -> None:
     depth[2, 3, 3] = _normalised(2.4)
     # frame 3: nothing, though the background is near
     depth[3] = 0.0
-    assert recognition_label(mask, depth).tolist() == [6, 0, 2, 0]
+    assert recognition_label(mask, depth, GEOMETRY).tolist() == [6, 0, 2, 0]
 
 
 def test_obj_recog_map_writes_prediction_at_agent_cell() -> None:
     _, space = _space("obj-recog-map")
-    memory = ObjRecogMap(space)
-    grid = memory.initial_state(3)["map"]
+    memory = ObjRecogMap(space, GEOMETRY)
+    grid = memory.initial_state(3, torch.device("cpu"))["map"]
     gps = torch.tensor([[1.6, 0.8], [0.0, 0.0], [0.3, -0.3]])
     out = memory.write(grid, torch.tensor([4.0, 0.0, 8.0]), gps)
     assert out[0, C0 - 2, C0 - 1] == 4.0 and out[0].count_nonzero() == 1
@@ -217,7 +221,7 @@ def test_egocentric_crop_is_rotated_to_the_heading(position: tuple[float, float]
         grid = torch.zeros(1, 1, G, G)
         grid[0, 0, ahead_cell[0], ahead_cell[1]] = 1.0
         grid[0, 0, left_cell[0], left_cell[1]] = 2.0
-        out = map_ops.egocentric_crop(grid, gps, torch.tensor([[compass]]), crop)[0, 0]
+        out = map_ops.egocentric_crop(grid, gps, torch.tensor([[compass]]), crop, CELL)[0, 0]
         assert out[half - 2, half] == 1.0, compass
         assert out[half, half - 2] == 2.0, compass
         assert out.count_nonzero() == 2
@@ -225,7 +229,7 @@ def test_egocentric_crop_is_rotated_to_the_heading(position: tuple[float, float]
 
 def test_dynamic_obj_recog_map_reads_only_the_current_goal() -> None:
     _, space = _space("dynamic-obj-recog-map")
-    memory = ObjRecogMap(space, dynamic=True)
+    memory = ObjRecogMap(space, GEOMETRY, dynamic=True)
     seen = []
     memory.embedding.register_forward_hook(lambda module, args, out: seen.append(args[0].clone()))
     grid = torch.zeros(1, G, G)
@@ -243,6 +247,10 @@ def test_dynamic_obj_recog_map_reads_only_the_current_goal() -> None:
 # ProjNeuralMap / EgoMap ------------------------------------------------------------------
 
 
+def project(features, depth, valid):
+    return map_ops.project_egocentric(features, depth, valid, GEOMETRY.hfov_deg, CELL)
+
+
 def _single_feature(metres: float, column: int = 2, width: int = 5) -> tuple[torch.Tensor, ...]:
     features = torch.zeros(1, 2, 3, width)
     features[0, 0, 1, column] = 1.0
@@ -255,7 +263,7 @@ def _single_feature(metres: float, column: int = 2, width: int = 5) -> tuple[tor
 
 @pytest.mark.parametrize("metres", [0.3, 0.5, 1.0, 2.1, 3.9, 5.0, 5.1])
 def test_projection_centre_column_lands_straight_ahead(metres: float) -> None:
-    ego = map_ops.project_egocentric(*_single_feature(metres))
+    ego = project(*_single_feature(metres))
     assert ego.shape == (1, 2, map_ops.EGO_ROWS, map_ops.EGO_COLS)
     row = map_ops.EGO_ROWS - 1 - round(metres / 0.8)  # row k ahead: (k ± 0.5)·0.8 m
     assert ego[0, 0, row, map_ops.EGO_COLS // 2] == 1.0
@@ -264,13 +272,13 @@ def test_projection_centre_column_lands_straight_ahead(metres: float) -> None:
 
 def test_projection_drops_far_and_invalid_points_and_maps_sides() -> None:
     for metres in (5.3, 5.7, 8.0):  # beyond the grid
-        assert map_ops.project_egocentric(*_single_feature(metres)).count_nonzero() == 0
+        assert project(*_single_feature(metres)).count_nonzero() == 0
     features, depth, valid = _single_feature(2.0)
-    assert map_ops.project_egocentric(features, depth, valid & False).count_nonzero() == 0
+    assert project(features, depth, valid & False).count_nonzero() == 0
     # rightmost column at 4 m: bearing tan = 0.8·tan(39.5°) → 2.64 m to the right
-    ego = map_ops.project_egocentric(*_single_feature(4.0, column=4))
+    ego = project(*_single_feature(4.0, column=4))
     assert ego[0, 0, map_ops.EGO_ROWS - 1 - 5, map_ops.EGO_COLS // 2 + 3] == 1.0
-    ego = map_ops.project_egocentric(*_single_feature(4.0, column=0))
+    ego = project(*_single_feature(4.0, column=0))
     assert ego[0, 0, map_ops.EGO_ROWS - 1 - 5, map_ops.EGO_COLS // 2 - 3] == 1.0
 
 
@@ -280,7 +288,7 @@ def test_projection_combines_by_max_and_passes_gradients() -> None:
     features.requires_grad_(True)
     depth = torch.full((1, 1, 3), 3.0)  # all three in the cell 3 m ahead (±0.35 m sideways)
     ego = map_ops.project_egocentric(
-        features, depth, torch.ones(1, 1, 3, dtype=torch.bool), hfov_deg=20.0
+        features, depth, torch.ones(1, 1, 3, dtype=torch.bool), 20.0, CELL
     )
     assert ego.count_nonzero() == 1 and ego.max().item() == pytest.approx(0.7)
     ego.sum().backward()
@@ -292,7 +300,7 @@ def test_pool_depth_ignores_far_pixels() -> None:
     depth[0, :2, :2] = _normalised(2.0)
     depth[0, 2:, :2] = _normalised(1.0)
     depth[0, 3, :2] = 1.0  # half far: still valid, mean of the near half
-    metres, valid = map_ops.pool_depth(depth, (2, 2))
+    metres, valid = map_ops.pool_depth(depth, (2, 2), GEOMETRY)
     assert valid.tolist() == [[[True, False], [True, False]]]
     assert metres[0, 0, 0].item() == pytest.approx(2.0) and metres[0, 1, 0].item() == pytest.approx(
         1.0
@@ -311,7 +319,7 @@ def test_registration_puts_features_in_the_world_cell(gps, compass, cell) -> Non
     ego = torch.zeros(1, 2, map_ops.EGO_ROWS, map_ops.EGO_COLS)
     ego[0, 1, map_ops.EGO_ROWS - 1 - 3, map_ops.EGO_COLS // 2] = 1.5  # centre 2.4 m ahead
     out = map_ops.register(
-        torch.zeros(1, 2, G, G), ego, torch.tensor([gps]), torch.tensor([[compass]])
+        torch.zeros(1, 2, G, G), ego, torch.tensor([gps]), torch.tensor([[compass]]), CELL
     )
     assert out[0, 1, cell[0], cell[1]] == 1.5
     assert out.count_nonzero() == 1
@@ -324,7 +332,7 @@ def test_registration_max_merge_and_gradients() -> None:
     old = torch.zeros(1, 1, G, G)
     old[0, 0, C0, C0], old[0, 0, C0 + 5, C0] = 0.5, 3.0
     old.requires_grad_(True)
-    out = map_ops.register(old, ego, torch.zeros(1, 2), torch.zeros(1, 1))
+    out = map_ops.register(old, ego, torch.zeros(1, 2), torch.zeros(1, 1), CELL)
     assert out[0, 0, C0, C0] == 1.0 and out[0, 0, C0 + 5, C0] == 3.0
     out.sum().backward()
     assert ego.grad[0, 0, map_ops.EGO_ROWS - 1, map_ops.EGO_COLS // 2] == 1.0
@@ -333,7 +341,11 @@ def test_registration_max_merge_and_gradients() -> None:
     for compass in (math.pi / 6, -2 * math.pi / 3, 0.4):
         ego = torch.eye(91).view(1, 91, 7, 13)  # channel k marks egocentric cell k
         full = map_ops.register(
-            torch.zeros(1, 91, G, G), ego, torch.tensor([[0.3, -0.5]]), torch.tensor([[compass]])
+            torch.zeros(1, 91, G, G),
+            ego,
+            torch.tensor([[0.3, -0.5]]),
+            torch.tensor([[compass]]),
+            CELL,
         )[0]
         assert (full.flatten(1).amax(1) == 1.0).all()
         written = full.amax(0) > 0
@@ -370,13 +382,13 @@ def test_registration_matches_a_reference_near_the_edges() -> None:
     compass = torch.tensor([[0.3], [2.0], [-1.0], [math.pi]])
     ego = torch.rand(4, 3, map_ops.EGO_ROWS, map_ops.EGO_COLS, generator=gen)
     old = torch.rand(4, 3, G, G, generator=gen) * 0.8
-    out = map_ops.register(old, ego, gps, compass)
+    out = map_ops.register(old, ego, gps, compass, CELL)
     torch.testing.assert_close(out, _register_reference(old, ego, gps, compass))
 
 
 def test_ego_map_attention_over_empty_map() -> None:
     _, space = _space("ego-map")
-    memory = EgoMap(space, query_dim=12)
+    memory = EgoMap(space, GEOMETRY, query_dim=12)
     grid = torch.zeros(2, 32, G, G, requires_grad=True)
     query = torch.randn(2, 12, requires_grad=True)
     read = memory.attend(grid, torch.zeros(2, 2), torch.zeros(2, 1), query)
@@ -387,7 +399,7 @@ def test_ego_map_attention_over_empty_map() -> None:
     grid = torch.zeros(1, 32, G, G)
     grid[0, :, 10, 20] = torch.rand(32) + 0.1
     read = memory.attend(grid, torch.zeros(1, 2), torch.zeros(1, 1), torch.randn(1, 12))
-    blocks = map_ops.relative_cell_positions(torch.zeros(1, 2), torch.zeros(1, 1), pool=2)
+    blocks = map_ops.relative_cell_positions(torch.zeros(1, 2), torch.zeros(1, 1), G, CELL, pool=2)
     assert blocks.shape == (1, 32 * 32, 2)
     relative = blocks[0, 5 * 32 + 10]  # the 2 × 2 block of rows 10–11, columns 20–21
     torch.testing.assert_close(relative, torch.tensor([(C0 - 10.5) * 0.8, (C0 - 20.5) * 0.8]))
@@ -445,3 +457,37 @@ def _hidden_after(policy, frames, starts, initial, steps: int) -> torch.Tensor:
             initial,
         )
     return out.state["hidden"].clone()
+
+
+@pytest.mark.parametrize("name", ["obj-recog-map", "proj-neural-map", "ego-map", "oracle-map"])
+def test_maps_take_every_parameter_from_the_env_config(name: str) -> None:
+    """Field of view, depth range, cell size and crop size come from the env config (the one
+    stored in a checkpoint), not from constants of the agents."""
+    from multion_agents.learned.checkpoint import build_policy
+
+    config = {
+        "camera": {
+            "width": SIZE,
+            "height": SIZE,
+            "hfov_deg": 90.0,
+            "min_depth": 0.2,
+            "max_depth": 4.0,
+        },
+        "maps": {"cell_size": 0.5, "ego_size": 13},
+        "sensors": list(model_spec(name).train_sensors),
+    }
+    memory = build_policy(name, config).memory
+    assert memory is not None
+    if name != "oracle-map":
+        assert memory.geometry == map_ops.MapGeometry(
+            cell_size=0.5,
+            crop_size=13,
+            hfov_deg=90.0,
+            min_depth=0.2,
+            max_depth=4.0,
+            normalized_depth=True,
+        )
+        assert memory.crop_size == 13
+    first_conv = next(m for m in memory.cnn.net if isinstance(m, torch.nn.Conv2d))
+    # the CNN is built for a 13-cell crop: 13 → 6 (stride 2) → 3×3 conv, 32 × 6 × 6 features
+    assert memory.cnn.net[-2].in_features == 32 * 6 * 6 and first_conv.stride == (2, 2)

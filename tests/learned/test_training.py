@@ -26,7 +26,9 @@ from multion_agents.learned.ppo import (
     Rollout,
     _save,
     compute_gae,
+    ppo_loss,
     ppo_update,
+    schedule,
     set_found_prior,
     train,
 )
@@ -96,6 +98,55 @@ def test_every_model_runs_forward_and_backward_on_env_shapes(name: str) -> None:
         assert grads and sum(float(g.abs().sum()) for g in grads) > 0
 
 
+def test_schedule_follows_the_reference_by_default_and_can_be_switched_off() -> None:
+    args = Args(learning_rate=1e-3, clip=0.2)
+    assert not args.normalize_advantages and args.envs == 16
+    assert schedule(args, 0, 4) == pytest.approx((1e-3, 0.2))
+    assert schedule(args, 3, 4) == pytest.approx((0.25e-3, 0.05))
+    assert schedule(args, 9, 4) == (0.0, 0.0)  # never negative
+    fixed = Args(learning_rate=1e-3, clip=0.2, lr_decay=False, clip_decay=False)
+    assert schedule(fixed, 3, 4) == pytest.approx((1e-3, 0.2))
+
+
+def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:
+    """ppo_update hands ppo_loss the raw advantages by default (the reference), normalised ones
+    with ``normalize_advantages``."""
+    import multion_agents.learned.ppo as ppo
+
+    seen: list[torch.Tensor] = []
+
+    def spy(policy, batch, clip, args):
+        seen.append(batch.advantages)
+        return ppo_loss(policy, batch, clip, args)
+
+    monkeypatch.setattr(ppo, "ppo_loss", spy)
+    space = space_for("no-map")
+    torch.manual_seed(0)
+    policy = MODELS["no-map"].build(space)
+    optimizer = torch.optim.Adam(policy.parameters(), lr=1e-4)
+    rollout = _rollout(space, 0)
+    rollout.initial_state = policy.initial_state(2)
+    rollout.advantages = rollout.advantages * 10 + 5
+    ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1))
+    # the one mini-batch holds every environment, in a random order
+    torch.testing.assert_close(seen[-1].flatten().sort()[0], rollout.advantages.flatten().sort()[0])
+    ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1, normalize_advantages=True))
+    assert abs(float(seen[-1].mean())) < 1e-5 and float(seen[-1].std()) == pytest.approx(1, rel=1e-4)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_training_runs_end_to_end_on_cuda(tmp_path: Path, room_dataset: Path) -> None:
+    summary = train(tiny_args(tmp_path, room_dataset, agent="ego-map", device="cuda"))
+    assert summary["frames"] == 192 and math.isfinite(summary["policy_loss"])
+
+
+def test_a_cuda_device_without_a_gpu_is_a_clear_error(tmp_path: Path, room_dataset: Path) -> None:
+    if torch.cuda.is_available():
+        pytest.skip("a GPU is present")
+    with pytest.raises(ValueError, match="no CUDA GPU"):
+        train(tiny_args(tmp_path, room_dataset, device="cuda"))
+
+
 def test_gae_matches_hand_computation() -> None:
     rewards = torch.tensor([[1.0], [0.0], [2.0]])
     values = torch.tensor([[0.5], [0.2], [0.1]])
@@ -126,6 +177,14 @@ def test_every_model_trains_a_few_hundred_frames(
         assert math.isfinite(summary[key])
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
     assert [int(r["frames"]) for r in rows] == [64, 128, 192]
+    # the reference schedule: learning rate and clip range decay linearly over the 3 updates
+    # (progress.csv keeps 3 significant digits)
+    assert [float(r["learning_rate"]) for r in rows] == pytest.approx(
+        [args.learning_rate * f for f in (1, 2 / 3, 1 / 3)], rel=1e-2
+    )
+    assert [float(r["clip"]) for r in rows] == pytest.approx(
+        [args.clip * f for f in (1, 2 / 3, 1 / 3)], rel=1e-2
+    )
     payload = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
     assert payload["agent"] == name and payload["update"] == 3
     fresh = copy.deepcopy(MODELS[name].build(space_for(name)))
@@ -295,7 +354,9 @@ def test_a_checkpoint_is_evaluated_through_the_eval_path(
     )
     first, second = evaluate(settings, progress=False), evaluate(settings, progress=False)
     assert len(first.records) == 2
-    assert first.config["camera"] == {"width": SIZE, "height": SIZE}  # the trained camera
+    camera = first.config["camera"]  # the trained camera, every field but the renderer
+    assert camera["width"] == camera["height"] == SIZE and camera["hfov_deg"] == 79.0
+    assert "renderer" not in camera  # the evaluating machine picks its own
     assert [r.metrics for r in first.records] == [r.metrics for r in second.records]
     with pytest.raises(AgentError, match="holds a 'oracle-map' agent"):
         evaluate(

@@ -38,17 +38,18 @@ class LearnedAgent(Agent):
     @torch.no_grad()
     def act(self, observation: Observation) -> int:
         assert self.policy is not None
+        device = self.policy.device
         out = self.policy.step(
             {
-                k: v.unsqueeze(0)
+                k: v.unsqueeze(0).to(device)
                 for k, v in frames_to_tensors(observation, self.policy.sensors).items()
             },
-            torch.tensor([self._prev_action]),
-            torch.tensor([float(self._start)]),
+            torch.tensor([self._prev_action], device=device),
+            torch.tensor([float(self._start)], device=device),
             self._state,
         )
         self._state, self._start = out.state, False
-        logits = out.logits[0, 0].double()
+        logits = out.logits[0, 0].double().cpu()
         if self.deterministic:
             action = int(logits.argmax())
         else:

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from multion_agents.agent import ConfigOverrides, merge_overrides
+from multion_agents.learned.map_ops import MapGeometry
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.policy import RecurrentPolicy
 
@@ -34,6 +35,7 @@ def save_checkpoint(path: Path, payload: dict[str, Any]) -> None:
         "format_version": FORMAT_VERSION,
         "rng": {
             "torch": torch.get_rng_state(),
+            "torch_cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else [],
             "numpy": np.random.get_state(),
             "python": random.getstate(),
         },
@@ -69,6 +71,9 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
 def restore_random_states(payload: dict[str, Any]) -> None:
     rng = payload["rng"]
     torch.set_rng_state(rng["torch"])
+    cuda_states = rng.get("torch_cuda", [])
+    if cuda_states and len(cuda_states) == torch.cuda.device_count():
+        torch.cuda.set_rng_state_all(cuda_states)
     np.random.set_state(rng["numpy"])
     random.setstate(rng["python"])
 
@@ -78,8 +83,9 @@ def build_policy(agent: str, env_config: dict[str, Any]) -> RecurrentPolicy:
     from multion.api.config_io import env_config_from_dict
     from multion.task.env import build_observation_space
 
-    space = build_observation_space(env_config_from_dict(env_config))
-    return model_spec(agent).build(space)
+    config = env_config_from_dict(env_config)
+    space = build_observation_space(config)
+    return model_spec(agent).build(space, MapGeometry.from_env_config(config))
 
 
 def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str]:
@@ -94,7 +100,9 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
             f"{path}: weights do not fit model {payload['agent']!r}: {error}"
         ) from None
     config = payload["env_config"]
-    # the sections that shape observations; rewards and episode sources do not matter to eval
-    shaping = {section: config[section] for section in ("camera", "maps") if section in config}
+    # the sections that shape observations; rewards and episode sources do not matter to eval,
+    # nor does the renderer (the evaluating machine picks its own)
+    shaping = {section: dict(config[section]) for section in ("camera", "maps") if section in config}
+    shaping.get("camera", {}).pop("renderer", None)
     overrides = merge_overrides(shaping, model_spec(payload["agent"]).config_overrides)
     return policy, overrides, payload["agent"]

@@ -89,13 +89,13 @@ class FRMQN(Memory):
         self.value = nn.Linear(observation_dim, out_dim)
         self.context = nn.Linear(observation_dim + hidden_dim, key_dim)
 
-    def initial_state(self, batch: int) -> State:
+    def initial_state(self, batch: int, device: torch.device) -> State:
         m = self.memory_size
         return {
-            "keys": torch.zeros(batch, m, self.key_dim),
-            "values": torch.zeros(batch, m, self.out_dim),
-            "valid": torch.zeros(batch, m),
-            "count": torch.zeros(batch, 1),
+            "keys": torch.zeros(batch, m, self.key_dim, device=device),
+            "values": torch.zeros(batch, m, self.out_dim, device=device),
+            "valid": torch.zeros(batch, m, device=device),
+            "count": torch.zeros(batch, 1, device=device),
         }
 
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
@@ -158,11 +158,11 @@ class SMT(Memory):
         self.decoder = _Block(dim, heads, 2 * dim)
         self.out = nn.Sequential(nn.Linear(dim, out_dim), nn.ReLU())
 
-    def initial_state(self, batch: int) -> State:
+    def initial_state(self, batch: int, device: torch.device) -> State:
         return {
-            "memory": torch.zeros(batch, self.memory_size, self.dim),
-            "valid": torch.zeros(batch, self.memory_size),
-            "count": torch.zeros(batch, 1),
+            "memory": torch.zeros(batch, self.memory_size, self.dim, device=device),
+            "valid": torch.zeros(batch, self.memory_size, device=device),
+            "count": torch.zeros(batch, 1, device=device),
         }
 
     def read(self, current: Tensor, memory: Tensor, valid: Tensor) -> Tensor:
@@ -191,9 +191,9 @@ def policy_query_dim(observation_space: spaces.Dict) -> int:
     return IMAGE_EMBED_DIM * sees + GOAL_EMBED_DIM + ACTION_EMBED_DIM
 
 
-def build_frmqn(observation_space: spaces.Dict) -> FRMQN:
+def build_frmqn(observation_space: spaces.Dict, geometry: object = None) -> FRMQN:
     return FRMQN(policy_query_dim(observation_space), HIDDEN_SIZE)
 
 
-def build_smt(observation_space: spaces.Dict) -> SMT:
+def build_smt(observation_space: spaces.Dict, geometry: object = None) -> SMT:
     return SMT(policy_query_dim(observation_space))

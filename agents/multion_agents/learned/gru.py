@@ -62,9 +62,7 @@ class MaskedGRU(torch.autograd.Function):
     def backward(ctx: Any, grad_outputs: Tensor) -> tuple[Tensor | None, ...]:
         keep, w_hh, previous, resets, updates, candidates, h_news = ctx.saved_tensors
         steps = grad_outputs.shape[0]
-        grad_gates_x = torch.empty(
-            *grad_outputs.shape[:2], 3 * grad_outputs.shape[2], dtype=grad_outputs.dtype
-        )
+        grad_gates_x = grad_outputs.new_empty(*grad_outputs.shape[:2], 3 * grad_outputs.shape[2])
         grad_gates_h = torch.empty_like(grad_gates_x)
         grad_next = torch.zeros_like(grad_outputs[0])
         for t in reversed(range(steps)):

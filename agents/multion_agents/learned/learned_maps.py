@@ -10,8 +10,11 @@ pose (``gps``, ``compass``), and reads an egocentric, rotated crop of it with a 
   max-merged into a neural global map.
 * :class:`EgoMap`: the same neural map, also read with attention (Beeching et al. 2020).
 
-Where we differ from the paper: the global map is 63 × 63 cells (50 m), not 300 × 300, since our
-houses are smaller; the crop read by the CNN is 25 × 25 cells (20 m).
+Cell size, crop size, field of view and depth range are those of the env config the agent is
+trained with (:class:`~multion_agents.learned.map_ops.MapGeometry`, stored in the checkpoint):
+the crop read by the CNN is ``maps.ego_size`` cells, like the oracle maps'. Where we differ from
+the paper: the global map is 63 × 63 cells (50 m at 0.8 m), not 300 × 300, since our houses are
+smaller.
 """
 
 from __future__ import annotations
@@ -27,15 +30,14 @@ from torch import Tensor, nn
 from multion_agents.learned import map_ops
 from multion_agents.learned.encoders import EMBED_DIM, NUM_CATEGORY_VALUES, MapCNN
 from multion_agents.learned.episodic import policy_query_dim
+from multion_agents.learned.map_ops import MapGeometry
 from multion_agents.learned.policy import HIDDEN_SIZE, Batch, Memory, State
 
-CROP_SIZE = 25
-"""Side of the egocentric crop read by the map CNN, cells (20 m)."""
 RECOGNITION_DISTANCE = 2.5
 """A goal counts as "in view" for the recognition label within this distance, metres."""
 
 
-def recognition_label(goal_mask: Tensor, depth: Tensor) -> Tensor:
+def recognition_label(goal_mask: Tensor, depth: Tensor, geometry: MapGeometry) -> Tensor:
     """ObjRecogMap's training target per frame: ``c + 1`` for the nearest visible goal of
     category ``c`` if it is within 2.5 m, else 0 ("no goal").
 
@@ -43,7 +45,7 @@ def recognition_label(goal_mask: Tensor, depth: Tensor) -> Tensor:
     normalised planar depth. Pixels are in the 79° field of view by construction; "within
     2.5 m" uses the pixel's planar depth (the nearest pixel of each goal)."""
     mask = goal_mask.long().flatten(1)
-    metres = map_ops.depth_metres(depth.float().flatten(1))
+    metres = geometry.depth_metres(depth.float().flatten(1))
     near = (mask > 0) & (metres <= RECOGNITION_DISTANCE)
     distance = torch.where(near, metres, torch.full_like(metres, math.inf))
     nearest = distance.argmin(dim=1, keepdim=True)
@@ -73,12 +75,12 @@ class ObjRecogMap(Memory):
     def __init__(
         self,
         observation_space: spaces.Dict,
+        geometry: MapGeometry,
         dynamic: bool = False,
-        global_size: int = map_ops.GLOBAL_SIZE,
-        crop_size: int = CROP_SIZE,
     ) -> None:
         super().__init__()
-        self.dynamic, self.global_size, self.crop_size = dynamic, global_size, crop_size
+        self.geometry, self.dynamic = geometry, dynamic
+        self.global_size, self.crop_size = geometry.global_size, geometry.crop_size
         self.classifier = nn.Sequential(
             nn.Conv2d(32, 64, 1),
             nn.ReLU(),
@@ -87,11 +89,11 @@ class ObjRecogMap(Memory):
             nn.Linear(64, NUM_CATEGORY_VALUES),
         )
         self.embedding = nn.Embedding(NUM_CATEGORY_VALUES, EMBED_DIM)
-        self.cnn = MapCNN(EMBED_DIM, crop_size)
+        self.cnn = MapCNN(EMBED_DIM, self.crop_size)
         self.out_dim = self.cnn.out_dim
 
-    def initial_state(self, batch: int) -> State:
-        return {"map": torch.zeros(batch, self.global_size, self.global_size)}
+    def initial_state(self, batch: int, device: torch.device) -> State:
+        return {"map": torch.zeros(batch, self.global_size, self.global_size, device=device)}
 
     def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:
         if image_features is None:
@@ -101,7 +103,7 @@ class ObjRecogMap(Memory):
 
     def write(self, grid: Tensor, prediction: Tensor, gps: Tensor) -> Tensor:
         """The map (B, G, G) with ``prediction`` (B,) written at each agent's cell (unless 0)."""
-        row, col, inside = map_ops.world_cell(gps, self.global_size)
+        row, col, inside = map_ops.world_cell(gps, self.global_size, self.geometry.cell_size)
         index = (row * self.global_size + col).clamp(0, self.global_size**2 - 1)
         cell = F.one_hot(index, self.global_size**2).bool().view_as(grid)
         write = cell & (inside & (prediction > 0)).view(-1, 1, 1)
@@ -110,7 +112,9 @@ class ObjRecogMap(Memory):
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
         gps, compass = frame["gps"].float(), frame["compass"].float()
         grid = self.write(state["map"], frame["recog_prediction"], gps)
-        crop = map_ops.egocentric_crop(grid.unsqueeze(1), gps, compass, self.crop_size)
+        crop = map_ops.egocentric_crop(
+            grid.unsqueeze(1), gps, compass, self.crop_size, self.geometry.cell_size
+        )
         cells = crop[:, 0].round().long().clamp(0, NUM_CATEGORY_VALUES - 1)
         if self.dynamic:
             current = frame["goal"].long().view(-1, 1, 1) + 1
@@ -121,7 +125,7 @@ class ObjRecogMap(Memory):
     def auxiliary_loss(self, frames: Batch, precomputed: Batch) -> Tensor | None:
         if "goal_mask" not in frames or "depth" not in frames:
             return None
-        label = recognition_label(frames["goal_mask"], frames["depth"])
+        label = recognition_label(frames["goal_mask"], frames["depth"], self.geometry)
         return F.cross_entropy(precomputed["recog_logits"], label)
 
 
@@ -148,33 +152,40 @@ class ProjNeuralMap(Memory):
     def __init__(
         self,
         observation_space: spaces.Dict,
-        global_size: int = map_ops.GLOBAL_SIZE,
-        crop_size: int = CROP_SIZE,
+        geometry: MapGeometry,
         channels: int = 32,
     ) -> None:
         super().__init__()
-        self.global_size, self.crop_size, self.channels = global_size, crop_size, channels
-        self.cnn = MapCNN(channels, crop_size)
+        self.geometry, self.channels = geometry, channels
+        self.global_size, self.crop_size = geometry.global_size, geometry.crop_size
+        self.cnn = MapCNN(channels, self.crop_size)
         self.out_dim = self.cnn.out_dim
 
-    def initial_state(self, batch: int) -> State:
+    def initial_state(self, batch: int, device: torch.device) -> State:
         size = self.global_size
-        return {"map": torch.zeros(batch, self.channels, size, size)}
+        return {"map": torch.zeros(batch, self.channels, size, size, device=device)}
 
     def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:
         if image_features is None:
             raise ValueError(f"{type(self).__name__} needs the RGB-D image features")
-        metres, valid = map_ops.pool_depth(frames["depth"], image_features.shape[-2:])
-        return {"ego_map": map_ops.project_egocentric(image_features, metres, valid)}
+        geometry = self.geometry
+        metres, valid = map_ops.pool_depth(frames["depth"], image_features.shape[-2:], geometry)
+        ego = map_ops.project_egocentric(
+            image_features, metres, valid, geometry.hfov_deg, geometry.cell_size
+        )
+        return {"ego_map": ego}
 
     def update(self, frame: Batch, state: State) -> tuple[Tensor, Tensor, Tensor]:
         """Register this step's egocentric map: the new global map, gps and compass."""
         gps, compass = frame["gps"].float(), frame["compass"].float()
-        return map_ops.register(state["map"], frame["ego_map"], gps, compass), gps, compass
+        grid = map_ops.register(
+            state["map"], frame["ego_map"], gps, compass, self.geometry.cell_size
+        )
+        return grid, gps, compass
 
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
         grid, gps, compass = self.update(frame, state)
-        crop = map_ops.egocentric_crop(grid, gps, compass, self.crop_size)
+        crop = map_ops.egocentric_crop(grid, gps, compass, self.crop_size, self.geometry.cell_size)
         return self.cnn(crop), {"map": grid}
 
 
@@ -199,20 +210,19 @@ class EgoMap(ProjNeuralMap):
     def __init__(
         self,
         observation_space: spaces.Dict,
+        geometry: MapGeometry,
         query_dim: int,
-        global_size: int = map_ops.GLOBAL_SIZE,
-        crop_size: int = CROP_SIZE,
         channels: int = 32,
         attention_dim: int = 32,
         frequencies: int = 6,
         attention_pool: int = 2,
     ) -> None:
-        super().__init__(observation_space, global_size, crop_size, channels)
+        super().__init__(observation_space, geometry, channels)
         self.attention_dim, self.attention_pool = attention_dim, attention_pool
         wavelengths = 2.0 ** torch.arange(frequencies, dtype=torch.float32)
         self.register_buffer(
             "frequencies",
-            math.pi * wavelengths / (global_size * map_ops.CELL_SIZE),
+            math.pi * wavelengths / (self.global_size * geometry.cell_size),
             persistent=False,
         )
         self.query = nn.Linear(query_dim, attention_dim)
@@ -224,7 +234,7 @@ class EgoMap(ProjNeuralMap):
     def positional_features(self, relative: Tensor) -> Tensor:
         """(…, 2) metres → (…, 2 + 4F): scaled coordinates and their sines and cosines."""
         scaled = relative.unsqueeze(-1) * self.frequencies
-        scale = self.global_size * map_ops.CELL_SIZE / 2
+        scale = self.global_size * self.geometry.cell_size / 2
         return torch.cat([relative / scale, scaled.sin().flatten(-2), scaled.cos().flatten(-2)], -1)
 
     def attend(self, grid: Tensor, gps: Tensor, compass: Tensor, query: Tensor) -> Tensor:
@@ -235,7 +245,7 @@ class EgoMap(ProjNeuralMap):
         cells = grid.flatten(2).transpose(1, 2)  # (B, N, C)
         written = cells.detach().amax(dim=2) > 0
         relative = map_ops.relative_cell_positions(
-            gps, compass, self.global_size, self.attention_pool
+            gps, compass, self.global_size, self.geometry.cell_size, self.attention_pool
         )
         keys, values = (
             self.key_value(cells) + self.position(self.positional_features(relative))
@@ -246,23 +256,24 @@ class EgoMap(ProjNeuralMap):
 
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
         grid, gps, compass = self.update(frame, state)
-        crop = map_ops.egocentric_crop(grid, gps, compass, self.crop_size)
+        crop = map_ops.egocentric_crop(grid, gps, compass, self.crop_size, self.geometry.cell_size)
         read = self.attend(grid, gps, compass, query)
         return self.out(torch.cat([self.cnn(crop), read], dim=1)), {"map": grid}
 
 
-def obj_recog_map(dynamic: bool = False) -> Callable[[spaces.Dict], ObjRecogMap]:
+def obj_recog_map(dynamic: bool = False) -> Callable[[spaces.Dict, MapGeometry], ObjRecogMap]:
     """Builder of an :class:`ObjRecogMap` (``dynamic``: DynamicObjRecogMap) for models.py."""
 
-    def build(observation_space: spaces.Dict) -> ObjRecogMap:
-        return ObjRecogMap(observation_space, dynamic=dynamic)
+    def build(observation_space: spaces.Dict, geometry: MapGeometry) -> ObjRecogMap:
+        return ObjRecogMap(observation_space, geometry, dynamic=dynamic)
 
     return build
 
 
-def build_proj_neural_map(observation_space: spaces.Dict) -> ProjNeuralMap:
-    return ProjNeuralMap(observation_space)
+def build_proj_neural_map(observation_space: spaces.Dict, geometry: MapGeometry) -> ProjNeuralMap:
+    return ProjNeuralMap(observation_space, geometry)
 
 
-def build_ego_map(observation_space: spaces.Dict) -> EgoMap:
-    return EgoMap(observation_space, policy_query_dim(observation_space) + HIDDEN_SIZE)
+def build_ego_map(observation_space: spaces.Dict, geometry: MapGeometry) -> EgoMap:
+    query_dim = policy_query_dim(observation_space) + HIDDEN_SIZE
+    return EgoMap(observation_space, geometry, query_dim)

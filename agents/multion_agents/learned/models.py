@@ -16,10 +16,12 @@ from gymnasium import spaces
 
 from multion_agents.learned.episodic import build_frmqn, build_smt
 from multion_agents.learned.learned_maps import build_ego_map, build_proj_neural_map, obj_recog_map
+from multion_agents.learned.map_ops import MapGeometry, default_geometry
 from multion_agents.learned.oracle_maps import OracleMapMemory
 from multion_agents.learned.policy import Memory, RecurrentPolicy
 
-MemoryBuilder = Callable[[spaces.Dict], Memory | None]
+MemoryBuilder = Callable[[spaces.Dict, MapGeometry], Memory | None]
+"""Builds a memory from the env's observation space and map geometry (both from its config)."""
 
 
 @dataclass(frozen=True)
@@ -46,20 +48,23 @@ class ModelSpec:
     def train_sensors(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.sensors + self.train_only_sensors))
 
-    def build(self, observation_space: spaces.Dict) -> RecurrentPolicy:
-        return RecurrentPolicy(
-            observation_space, self.build_memory(observation_space), self.use_rgb, self.use_depth
-        )
+    def build(
+        self, observation_space: spaces.Dict, geometry: MapGeometry | None = None
+    ) -> RecurrentPolicy:
+        """The policy for an env with ``observation_space`` whose config gives ``geometry``
+        (None: the default env config's, for tests)."""
+        memory = self.build_memory(observation_space, geometry or default_geometry())
+        return RecurrentPolicy(observation_space, memory, self.use_rgb, self.use_depth)
 
 
 def _oracle(sensor: str, channels: str = "occ+obj", dynamic: bool = False) -> MemoryBuilder:
-    def build(observation_space: spaces.Dict) -> Memory:
-        return OracleMapMemory(observation_space, sensor, channels, dynamic)
+    def build(observation_space: spaces.Dict, geometry: MapGeometry) -> Memory:
+        return OracleMapMemory(observation_space, geometry.crop_size, sensor, channels, dynamic)
 
     return build
 
 
-def _no_memory(observation_space: spaces.Dict) -> None:
+def _no_memory(observation_space: spaces.Dict, geometry: MapGeometry) -> None:
     return None
 
 

@@ -25,6 +25,7 @@ class OracleMapMemory(Memory):
     def __init__(
         self,
         observation_space: spaces.Dict,
+        crop_size: int,
         sensor: str = "oracle_map",
         channels: str = "occ+obj",
         dynamic: bool = False,
@@ -35,8 +36,12 @@ class OracleMapMemory(Memory):
         self.sensor, self.dynamic = sensor, dynamic
         self.sensors = (sensor,)
         self.embedding = SemanticMapEmbedding(channels)
-        size = observation_space[sensor].shape[0] if sensor in observation_space.spaces else 51
-        self.cnn = MapCNN(self.embedding.out_channels, size)
+        if sensor in observation_space.spaces and observation_space[sensor].shape[0] != crop_size:
+            raise ValueError(
+                f"{sensor} is {observation_space[sensor].shape[0]} cells wide but maps.ego_size "
+                f"is {crop_size}"
+            )
+        self.cnn = MapCNN(self.embedding.out_channels, crop_size)
         self.out_dim = self.cnn.out_dim
 
     def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:

@@ -53,8 +53,8 @@ class Memory(nn.Module, ABC):
     (zero at an episode's first step), as in FRMQN and EgoMap, whose reads are queried by the
     agent's recurrent state. The memory and the GRU then advance together, one step at a time."""
 
-    def initial_state(self, batch: int) -> State:
-        """The empty memory of ``batch`` environments (all zeros)."""
+    def initial_state(self, batch: int, device: torch.device) -> State:
+        """The empty memory of ``batch`` environments (all zeros), on ``device``."""
         return {}
 
     def precompute(self, frames: Batch, image_features: Tensor | None) -> Batch:
@@ -122,10 +122,18 @@ class RecurrentPolicy(nn.Module):
         extra = self.memory.train_sensors if self.memory is not None else ()
         return tuple(dict.fromkeys(self.sensors + extra))
 
+    @property
+    def device(self) -> torch.device:
+        """Where the weights are; states and inputs must be there too."""
+        return self.actor.weight.device
+
     def initial_state(self, batch: int) -> State:
-        state = {"hidden": torch.zeros(batch, HIDDEN_SIZE)}
+        """The empty state of ``batch`` environments, on the policy's device."""
+        device = self.device
+        state = {"hidden": torch.zeros(batch, HIDDEN_SIZE, device=device)}
         if self.memory is not None:
-            state.update({f"memory.{k}": v for k, v in self.memory.initial_state(batch).items()})
+            memory = self.memory.initial_state(batch, device)
+            state.update({f"memory.{k}": v for k, v in memory.items()})
         return state
 
     def forward(

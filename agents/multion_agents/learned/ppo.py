@@ -51,15 +51,18 @@ FOUND = int(Action.FOUND)
 
 @dataclass
 class Args:
-    """A training run. Defaults are the paper's PPO hyper-parameters (SPEC §6)."""
+    """A training run. Defaults are the reference configuration's PPO (saimwani/multiON,
+    ``ppo_multinav.yaml``; SPEC §6): 16 environments, learning rate and clip range decayed
+    linearly to zero over the run, advantages not normalised. docs/learned.md lists what still
+    differs from the paper."""
 
     agent: str = "oracle-map"
     """Model name, one of ``multion_agents.learned.models.MODELS``."""
     task: str = "1-on"
     frames: int = 1_000_000
     """Environment steps to train for, summed over all ranks."""
-    envs: int = 4
-    """Environments per rank."""
+    envs: int = 16
+    """Environments per rank (the paper: 16)."""
     servers: tuple[str, ...] = ()
     """MultiON server URLs to step the environments on; empty: local simulator processes."""
     image_size: int = 256
@@ -70,6 +73,14 @@ class Args:
     rollout_steps: int = 128
     learning_rate: float = 2.5e-4
     clip: float = 0.2
+    lr_decay: bool = True
+    """Decay the learning rate linearly to 0 over the run (reference: use_linear_lr_decay)."""
+    clip_decay: bool = True
+    """Decay the clip range (policy and value) linearly to 0 over the run (reference:
+    use_linear_clip_decay)."""
+    normalize_advantages: bool = False
+    """Normalise advantages per rollout (reference: use_normalized_advantage False; this
+    trainer's earlier default was True)."""
     epochs: int = 2
     minibatches: int = 4
     """Mini-batches per epoch (at most the number of environments per rank)."""
@@ -155,15 +166,37 @@ def set_found_prior(policy: RecurrentPolicy, probability: float) -> None:
         policy.actor.bias[FOUND] = math.log(probability)
 
 
+def linear_decay(update: int, total_updates: int) -> float:
+    """The factor of a hyper-parameter decayed linearly to 0: 1 at the first update (index 0),
+    ``1 - update / total`` later. Derived from the update count, so a resumed run continues
+    the schedule exactly."""
+    return max(0.0, 1.0 - update / max(1, total_updates))
+
+
+def schedule(args: Args, update: int, total_updates: int) -> tuple[float, float]:
+    """(learning rate, clip range) of update number ``update`` (0-based)."""
+    factor = linear_decay(update, total_updates)
+    learning_rate = args.learning_rate * (factor if args.lr_decay else 1.0)
+    clip = args.clip * (factor if args.clip_decay else 1.0)
+    return learning_rate, clip
+
+
 def ppo_update(
-    policy: RecurrentPolicy, optimizer: torch.optim.Optimizer, rollout: Rollout, args: Args
+    policy: RecurrentPolicy,
+    optimizer: torch.optim.Optimizer,
+    rollout: Rollout,
+    args: Args,
+    clip: float | None = None,
 ) -> dict[str, float]:
-    """PPO's clipped-objective update on one rollout; gradients are averaged over DD-PPO ranks."""
+    """PPO's clipped-objective update on one rollout (``clip``: this update's clip range, by
+    default ``args.clip``); gradients are averaged over DD-PPO ranks."""
+    clip = args.clip if clip is None else clip
     num_envs = rollout.rewards.shape[1]
     groups = max(1, min(args.minibatches, num_envs))
     advantages = rollout.advantages
-    advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-    device = next(policy.parameters()).device
+    if args.normalize_advantages:
+        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    device = policy.device
     totals: dict[str, float] = {}
     updates = 0
     policy.train()
@@ -174,42 +207,59 @@ def ppo_update(
             def pick(x: Tensor, chunk: Tensor = chunk) -> Tensor:
                 return x[:, chunk].to(device)
 
-            logprob, entropy, value, aux = policy.evaluate_actions(
-                {k: pick(v) for k, v in rollout.frames.items()},
-                pick(rollout.prev_actions),
-                pick(rollout.starts),
-                {k: v[chunk].to(device) for k, v in rollout.initial_state.items()},
-                pick(rollout.actions),
+            minibatch = Rollout(
+                frames={k: pick(v) for k, v in rollout.frames.items()},
+                prev_actions=pick(rollout.prev_actions),
+                starts=pick(rollout.starts),
+                actions=pick(rollout.actions),
+                logprobs=pick(rollout.logprobs),
+                values=pick(rollout.values),
+                rewards=pick(rollout.rewards),
+                dones=pick(rollout.dones),
+                initial_state={k: v[chunk].to(device) for k, v in rollout.initial_state.items()},
+                advantages=pick(advantages),
+                returns=pick(rollout.returns),
             )
-            ratio = torch.exp(logprob - pick(rollout.logprobs))
-            adv = pick(advantages)
-            policy_loss = -torch.min(
-                ratio * adv, ratio.clamp(1 - args.clip, 1 + args.clip) * adv
-            ).mean()
-            old_values, returns = pick(rollout.values), pick(rollout.returns)
-            clipped = old_values + (value - old_values).clamp(-args.clip, args.clip)
-            value_loss = 0.5 * torch.max((value - returns) ** 2, (clipped - returns) ** 2).mean()
-            entropy_mean = entropy.mean()
-            loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy_mean
-            if aux is not None:
-                loss = loss + args.aux_coef * aux
+            loss, losses = ppo_loss(policy, minibatch, clip, args)
             optimizer.zero_grad(set_to_none=False)
             loss.backward()
             average_gradients(policy)
             grad_norm = nn.utils.clip_grad_norm_(policy.parameters(), args.max_grad_norm)
             optimizer.step()
-            stats = {
-                "policy_loss": policy_loss.item(),
-                "value_loss": value_loss.item(),
-                "entropy": entropy_mean.item(),
-                "aux_loss": aux.item() if aux is not None else math.nan,
-                "grad_norm": float(grad_norm),
-                "clip_fraction": ((ratio - 1).abs() > args.clip).float().mean().item(),
-            }
+            stats = {k: v.item() if v is not None else math.nan for k, v in losses.items()}
+            stats["grad_norm"] = float(grad_norm)
             for key, value_ in stats.items():
                 totals[key] = totals.get(key, 0.0) + value_
             updates += 1
     return {k: v / updates for k, v in totals.items()}
+
+
+def ppo_loss(
+    policy: RecurrentPolicy, batch: Rollout, clip: float, args: Args
+) -> tuple[Tensor, dict[str, Tensor | None]]:
+    """PPO's loss on one recurrent mini-batch (every tensor on the policy's device): the
+    clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
+    the entropy bonus and the model's auxiliary loss; and those terms for logging."""
+    logprob, entropy, value, aux = policy.evaluate_actions(
+        batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
+    )
+    ratio = torch.exp(logprob - batch.logprobs)
+    adv = batch.advantages
+    policy_loss = -torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv).mean()
+    old_values, returns = batch.values, batch.returns
+    clipped = old_values + (value - old_values).clamp(-clip, clip)
+    value_loss = 0.5 * torch.max((value - returns) ** 2, (clipped - returns) ** 2).mean()
+    entropy_mean = entropy.mean()
+    loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy_mean
+    if aux is not None:
+        loss = loss + args.aux_coef * aux
+    return loss, {
+        "policy_loss": policy_loss.detach(),
+        "value_loss": value_loss.detach(),
+        "entropy": entropy_mean.detach(),
+        "aux_loss": aux.detach() if aux is not None else None,
+        "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
+    }
 
 
 # ---------------------------------------------------------------------- distributed
@@ -255,10 +305,11 @@ def broadcast_parameters(policy: nn.Module) -> None:
             dist.broadcast(tensor, src=0)
 
 
-def _sum_over_ranks(values: list[float]) -> list[float]:
+def _sum_over_ranks(values: list[float], device: torch.device) -> list[float]:
+    """Element-wise sums over DD-PPO ranks (on ``device``: NCCL reduces CUDA tensors only)."""
     if not (dist.is_available() and dist.is_initialized()):
         return values
-    tensor = torch.tensor(values, dtype=torch.float64)
+    tensor = torch.tensor(values, dtype=torch.float64, device=device)
     dist.all_reduce(tensor)
     return tensor.tolist()
 
@@ -270,13 +321,29 @@ def _cores_per_rank() -> int:
 
 
 def _device(name: str) -> torch.device:
+    """The torch device of ``--device``: ``auto`` is CUDA when torch sees a GPU. A plain
+    ``cuda`` under torchrun is this rank's GPU (``LOCAL_RANK``, wrapped around the GPUs)."""
     if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise ValueError(f"--device {name!r}: expected cpu, cuda, cuda:N or auto") from None
+    if device.type == "cuda":
+        if not torch.cuda.is_available():
+            raise ValueError(
+                f"--device {name}: torch sees no CUDA GPU (a CPU build of torch, or no driver)"
+            )
+        if device.index is None:
+            local_rank = int(os.environ.get("LOCAL_RANK", "0"))
+            device = torch.device("cuda", local_rank % torch.cuda.device_count())
+        torch.cuda.set_device(device)
+    return device
 
 
 def train(args: Args) -> dict[str, Any]:
     """Run (or resume) a training run; returns a summary of the last update."""
+    from multion.api.config_io import env_config_from_dict, env_config_to_dict
     from multion.task.dataset import parse_task
 
     spec = model_spec(args.agent)
@@ -298,6 +365,9 @@ def train(args: Args) -> dict[str, Any]:
     )
     env_config = merge_overrides(env_config, args.env_overrides)
     env_config["episodes_per_scene"] = args.episodes_per_scene
+    # every field spelled out: the checkpoint then fixes the map geometry, crop size and
+    # camera even if the env's defaults change later
+    env_config = env_config_to_dict(env_config_from_dict(env_config))
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)
     if args.found_prior is not None:
@@ -307,7 +377,8 @@ def train(args: Args) -> dict[str, Any]:
     checkpoint_path = out / "checkpoint.pt"
     if args.resume:
         payload = load_checkpoint(checkpoint_path)
-        if payload["agent"] != args.agent or payload["env_config"] != env_config:
+        stored = env_config_from_dict(payload["env_config"])
+        if payload["agent"] != args.agent or stored != env_config_from_dict(env_config):
             raise CheckpointError(
                 f"{checkpoint_path} was trained with agent {payload['agent']!r} and env config "
                 f"{payload['env_config']}; this run asks for {args.agent!r} and {env_config}"
@@ -327,7 +398,7 @@ def train(args: Args) -> dict[str, Any]:
     keys = policy.train_sensors
     try:
         observation, _ = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
-        state = {k: v.to(device) for k, v in policy.initial_state(args.envs).items()}
+        state = policy.initial_state(args.envs)
         prev_action = torch.zeros(args.envs, dtype=torch.long)
         start = torch.ones(args.envs)
         returns = np.zeros(args.envs)
@@ -402,8 +473,11 @@ def train(args: Args) -> dict[str, Any]:
             compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
             update_tick = time.perf_counter()
             torch.set_num_threads(update_threads)
+            learning_rate, clip = schedule(args, update, total_updates)
+            for group in optimizer.param_groups:
+                group["lr"] = learning_rate
             try:
-                stats = ppo_update(policy, optimizer, rollout, args)
+                stats = ppo_update(policy, optimizer, rollout, args, clip)
             finally:
                 torch.set_num_threads(act_threads)
             update_seconds = time.perf_counter() - update_tick
@@ -417,7 +491,9 @@ def train(args: Args) -> dict[str, Any]:
                 "sim_seconds": sim_seconds,
                 "act_seconds": act_seconds,
                 "update_seconds": update_seconds,
-                **_window_means(window),
+                "learning_rate": learning_rate,
+                "clip": clip,
+                **_window_means(window, device),
                 **stats,
             }
             bar.update(frames_per_update)
@@ -447,10 +523,10 @@ def train(args: Args) -> dict[str, Any]:
             log.close()
 
 
-def _window_means(window: deque[dict[str, float]]) -> dict[str, float]:
+def _window_means(window: deque[dict[str, float]], device: torch.device) -> dict[str, float]:
     names = [*SUMMARY_METRICS, "return"]
     sums = [sum(e.get(k, 0.0) for e in window) for k in names] + [float(len(window))]
-    sums = _sum_over_ranks(sums)
+    sums = _sum_over_ranks(sums, device)
     count = sums[-1]
     means = {
         f"train_{k}": (s / count if count else math.nan)

@@ -24,6 +24,10 @@ SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
 SPLITS: tuple[str, ...] = tuple(SPLIT_SIZES)
 MAX_ROOM_SIDE_M = 50.0
 """A ``room-WxD`` side is at most this (the grid, and so memory, grows with the room's area)."""
+GENERATOR_VERSION = 1
+"""Version of the procedural scenes (houses, rooms, furniture). Bump it whenever a change makes
+an id produce different geometry: navigable grids cached on disk under an older version are
+then rebuilt (``multion.sim.grid_cache``)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 
 _HOUSE = re.compile(r"house-(\d+)")

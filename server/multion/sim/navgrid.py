@@ -22,6 +22,9 @@ from scipy import ndimage
 from multion.ranges import Range, bounded, check_fields, require
 from multion.sim.world import PyBulletWorld
 
+NAVGRID_VERSION = 1
+"""Version of :func:`build_navgrid`'s algorithm. Bump it whenever a change alters the cells it
+computes: navigable grids cached on disk under an older version are then rebuilt."""
 MAX_OBSTACLE_SWEEPS = 8
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from multion.ranges import bounded, check_fields
 from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim import grid_cache
 from multion.sim.camera import Camera, CameraConfig, CameraImage
 from multion.sim.navgrid import NavGrid, NavGridConfig, build_navgrid
 from multion.sim.world import PyBulletWorld
@@ -40,20 +41,25 @@ class AgentConfig:
         check_fields(self, "agent")
 
 
-def load_world(scene_id: str) -> PyBulletWorld:
-    """Build the PyBullet world of a scene id (``house-00042``, ``room-6x4``, or a mesh path)."""
+def load_world(scene_id: str, renderer: str = "tiny") -> PyBulletWorld:
+    """Build the PyBullet world of a scene id (``house-00042``, ``room-6x4``, or a mesh path),
+    ready for ``renderer`` (``CameraConfig.renderer``)."""
     if is_mesh_scene(scene_id):
-        return PyBulletWorld.from_mesh(scene_id)
-    return PyBulletWorld.from_layout(layout_for(scene_id))
+        return PyBulletWorld.from_mesh(scene_id, renderer)
+    return PyBulletWorld.from_layout(layout_for(scene_id), renderer)
 
 
 def navgrid_for(scene_id: str, world: PyBulletWorld, config: NavGridConfig) -> NavGrid:
-    """The navigable grid of a scene, computed once per process and configuration."""
+    """The navigable grid of a scene: from this process's memory, else from the disk cache
+    (:mod:`multion.sim.grid_cache`), else computed by ray casts and saved there."""
     key = (scene_id, config)
     if key in _GRID_CACHE:
         _GRID_CACHE.move_to_end(key)
         return _GRID_CACHE[key]
-    grid = build_navgrid(world, config)
+    grid, path, disk_key = grid_cache.cached_grid(scene_id, config)
+    if grid is None:
+        grid = build_navgrid(world, config)
+        grid_cache.store(path, grid, disk_key)
     _GRID_CACHE[key] = grid
     while len(_GRID_CACHE) > _GRID_CACHE_SIZE:
         _GRID_CACHE.popitem(last=False)
@@ -92,12 +98,17 @@ class Simulator:
         """Switch to ``scene_id`` (a no-op when it is already loaded); returns its grid."""
         if scene_id != self.scene_id or self.world is None:
             self.close()
-            self.world = load_world(scene_id)
+            self.world = load_world(scene_id, self.camera_config.renderer)
             self.grid = navgrid_for(scene_id, self.world, self.navgrid_config)
-            self.camera = Camera(self.camera_config, self.world.client)
+            self.camera = Camera(self.camera_config, self.world.client, self.world.renderer)
             self.scene_id = scene_id
         assert self.grid is not None
         return self.grid
+
+    @property
+    def renderer(self) -> str | None:
+        """The renderer in use ("tiny" or "egl"), None before a scene is loaded."""
+        return self.world.renderer if self.world is not None else None
 
     def close(self) -> None:
         if self.world is not None:

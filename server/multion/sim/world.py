@@ -13,6 +13,7 @@ import numpy as np
 import pybullet as p
 
 from multion.scenes.layout import SceneLayout
+from multion.sim.camera import attach_renderer
 
 # pybullet refuses ray batches above this size
 RAY_BATCH_LIMIT = 16_384
@@ -27,16 +28,22 @@ class PyBulletWorld:
     cylinders are visual-only bodies: they are rendered but neither block the agent nor rays.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, renderer: str = "tiny") -> None:
         self.client = p.connect(p.DIRECT)
+        try:  # a renderer plugin must be in place before the first body
+            self.renderer = attach_renderer(self.client, renderer)
+        except BaseException:
+            p.disconnect(physicsClientId=self.client)
+            raise
+        """The renderer cameras of this world use: "tiny" or "egl" (see ``sim.camera``)."""
         self.scene_bodies: list[int] = []
         self._goal_bodies: dict[tuple[int, float, float], list[int]] = {}
         self._goal_in_use: list[int] = []
 
     # ------------------------------------------------------------------ building
     @classmethod
-    def from_layout(cls, layout: SceneLayout) -> PyBulletWorld:
-        world = cls()
+    def from_layout(cls, layout: SceneLayout, renderer: str = "tiny") -> PyBulletWorld:
+        world = cls(renderer)
         for box in layout.boxes:
             col = p.createCollisionShape(
                 p.GEOM_BOX, halfExtents=box.half_extents, physicsClientId=world.client
@@ -58,7 +65,7 @@ class PyBulletWorld:
         return world
 
     @classmethod
-    def from_mesh(cls, path: str | Path) -> PyBulletWorld:
+    def from_mesh(cls, path: str | Path, renderer: str = "tiny") -> PyBulletWorld:
         """Load a scan (OBJ / GLB / GLTF / PLY) as one static, concave triangle mesh.
 
         Non-OBJ formats are converted to OBJ with trimesh first (PyBullet only reads OBJ).
@@ -71,7 +78,7 @@ class PyBulletWorld:
         if not path.is_file():
             raise FileNotFoundError(f"mesh scene file not found: {path}")
         obj_path = path if path.suffix.lower() == ".obj" else _convert_to_obj(path)
-        world = cls()
+        world = cls(renderer)
         col = p.createCollisionShape(
             p.GEOM_MESH,
             fileName=str(obj_path),

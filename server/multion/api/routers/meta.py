@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 from gymnasium import spaces
+from starlette.concurrency import run_in_threadpool
 
 from multion.api.config_io import config_ranges, env_config_to_dict
 from multion.api.deps import MsgpackResponse, Registry, Settings
 from multion.api.openapi import answers
+from multion.sim.camera import RENDERERS, resolve_renderer
 from multion.task.env import SENSORS, EnvConfig, MultiONEnv, build_observation_space
 from multion.task.memory import mib
 from multion_client.constants import GOAL_CATEGORIES, NUM_ACTIONS, Action
@@ -78,6 +80,12 @@ async def spec(settings: Settings) -> MsgpackResponse:
         action_space=spaces.Discrete(NUM_ACTIONS),
         metadata=dict(MultiONEnv.metadata),
         autoreset_mode="same_step",
+        # what camera.renderer "auto" renders with here (probed once in this process)
+        renderer={
+            "choices": list(RENDERERS),
+            "default": default.camera.renderer,
+            "auto": await run_in_threadpool(resolve_renderer, "auto"),
+        },
         limits={
             "max_sessions": settings.max_sessions,
             "max_envs_per_session": settings.max_envs_per_session,

@@ -1,0 +1,132 @@
+"""TinyRenderer and the EGL plugin render the same poses alike: depth within a small tolerance,
+``goal_mask`` equal up to edge pixels, RGB close; ``auto`` and ``egl`` fail or fall back clearly.
+
+EGL tests skip with a message naming the packages where the plugin does not load; CI installs
+Mesa's EGL and sets ``MULTION_REQUIRE_EGL=1``, which turns those skips into failures.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from multion.sim import camera as camera_module
+from multion.sim.camera import EGL_PACKAGES, CameraConfig, RendererUnavailableError
+from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.episode import Episode, Goal
+
+SIZE = 64
+REQUIRE_EGL = os.environ.get("MULTION_REQUIRE_EGL") == "1"
+
+
+@pytest.fixture(scope="module")
+def egl() -> None:
+    if camera_module.resolve_renderer("auto") == "egl":
+        return
+    message = (
+        f"PyBullet's EGL plugin does not load here; install Mesa's EGL "
+        f"(apt-get install {EGL_PACKAGES}) or NVIDIA's driver"
+    )
+    if REQUIRE_EGL:
+        pytest.fail(f"MULTION_REQUIRE_EGL=1 but {message}")
+    pytest.skip(message)
+
+
+def _episode() -> Episode:
+    """Two goals in the empty 6 × 4 room, in front of the start, at different distances."""
+    return Episode(
+        episode_id="render-0",
+        scene_id="room-6x4",
+        start_position=(0.8, 2.0, 0.0),
+        start_yaw=0.0,
+        goals=(Goal(0, (3.0, 1.6, 0.0)), Goal(3, (4.5, 2.8, 0.0))),
+    )
+
+
+def _observations(renderer: str, actions: list[int]) -> tuple[list[dict], str | None]:
+    config = EnvConfig(
+        task=TaskConfig(num_goals=2),
+        camera=CameraConfig(width=SIZE, height=SIZE, renderer=renderer),
+        sensors=("rgb", "depth", "goal_mask"),
+    )
+    env = MultiONEnv(config, episodes=[_episode()])
+    try:
+        observation, _ = env.reset(seed=0)
+        frames = [observation]
+        for action in actions:
+            frames.append(env.step(action)[0])
+        return frames, env.sim.renderer
+    finally:
+        env.close()
+
+
+def _depth_edges(depth: np.ndarray, jump: float = 0.02) -> np.ndarray:
+    """Pixels within two pixels of a depth jump larger than ``jump`` (9 cm) between neighbours."""
+    return _edges(
+        np.zeros(depth.shape),
+        np.abs(np.diff(depth, axis=0)) > jump,
+        np.abs(np.diff(depth, axis=1)) > jump,
+    )
+
+
+def _edges(mask: np.ndarray, rows: np.ndarray | None = None, cols: np.ndarray | None = None):
+    """Pixels within two pixels of a label boundary."""
+    rows = mask[:-1] != mask[1:] if rows is None else rows
+    cols = mask[:, :-1] != mask[:, 1:] if cols is None else cols
+    boundary = np.zeros(mask.shape, dtype=bool)
+    boundary[:-1] |= rows
+    boundary[1:] |= rows
+    boundary[:, :-1] |= cols
+    boundary[:, 1:] |= cols
+    return ndimage.binary_dilation(boundary, iterations=1)
+
+
+def test_egl_and_tiny_agree_on_the_same_poses(egl: None) -> None:
+    actions = [1, 1, 2, 1, 3, 3, 1]  # forward, a left turn, right turns: both goals in and out
+    tiny, used_tiny = _observations("tiny", actions)
+    hardware, used_egl = _observations("egl", actions)
+    assert (used_tiny, used_egl) == ("tiny", "egl")
+    goals_seen = 0
+    for a, b in zip(tiny, hardware, strict=True):
+        depth = np.abs(a["depth"] - b["depth"])[..., 0]
+        assert np.median(depth) < 0.002  # of 4.5 m: under a centimetre
+        # away from depth discontinuities (silhouettes), every pixel agrees within 4.5 cm
+        assert (depth[~_depth_edges(a["depth"][..., 0])] < 0.01).all()
+        mask_a, mask_b = a["goal_mask"], b["goal_mask"]
+        assert not ((mask_a != mask_b) & ~_edges(mask_a)).any()
+        goals_seen += int(mask_a.any())
+        # the two renderers light surfaces differently (TinyRenderer's ambient/diffuse
+        # coefficients, OpenGL's own light): colours are close, not equal
+        rgb_a, rgb_b = a["rgb"].astype(float), b["rgb"].astype(float)
+        assert np.abs(rgb_a - rgb_b).mean() < 40
+        assert np.abs(rgb_a.mean((0, 1)) - rgb_b.mean((0, 1))).max() < 30
+    assert goals_seen >= 3  # the masks compared were not all empty
+
+
+def test_egl_is_deterministic(egl: None) -> None:
+    first, _ = _observations("egl", [1, 2])
+    second, _ = _observations("egl", [1, 2])
+    for a, b in zip(first, second, strict=True):
+        for key in a:
+            assert np.array_equal(a[key], b[key]), key
+
+
+def test_auto_falls_back_to_tiny_and_egl_names_the_packages(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(camera_module, "_egl_failed", False)
+    monkeypatch.setattr(camera_module, "_egl_loaded", False)  # as in a fresh process
+    monkeypatch.setattr(camera_module, "egl_plugin_path", lambda: None)  # a pybullet without it
+    _, used = _observations("auto", [1])
+    assert used == "tiny"
+    assert camera_module.resolve_renderer("auto") == "tiny"
+    with pytest.raises(RendererUnavailableError, match="libegl-mesa0"):
+        _observations("egl", [])
+
+
+def test_an_unknown_renderer_is_refused_naming_the_choices() -> None:
+    with pytest.raises(ValueError, match="camera.renderer.*tiny.*egl.*auto"):
+        CameraConfig(renderer="vulkan")
