@@ -25,6 +25,9 @@ BYTES_PER_GRID_CELL_AND_FIELD = 8
 SCRATCH_FIELDS = 4
 BYTES_PER_MAP_CELL = 64
 """Per cell of the egocentric map crop: its coordinates and indices while it is cut (float64)."""
+EGL_WORLD_BYTES = 768 * MiB
+"""A world rendered through the EGL plugin (measured with Mesa: ~360 MiB resident, ~720 MiB of
+address space); counted for ``egl`` and for ``auto``, which may pick EGL."""
 MAX_SCENE_SIDE_M = MAX_ROOM_SIDE_M
 """The largest scene side a session may reach (procedural houses are smaller)."""
 
@@ -38,7 +41,8 @@ def estimate_env_bytes(config: EnvConfig) -> int:
     maps = 0
     if {"oracle_map", "oracle_ego_map"} & set(config.sensors):
         maps = config.maps.ego_size**2 * BYTES_PER_MAP_CELL
-    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + maps
+    renderer = EGL_WORLD_BYTES if config.camera.renderer != "tiny" else 0
+    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + maps + renderer
 
 
 def mib(size: int) -> int:
