@@ -19,6 +19,11 @@ from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
 
 SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
+
+GENERATOR_VERSION = 2
+"""Version of the procedural scenes: bump it whenever ``house-N`` (or ``room-WxD``) changes, so
+datasets and caches made for other houses are refused or rebuilt. 1: the small 3–8 room houses;
+2: Matterport3D-calibrated houses (issue 12)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 
 _HOUSE = re.compile(r"house-(\d+)")
