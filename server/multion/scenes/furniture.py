@@ -62,7 +62,7 @@ class PlacementConfig:
     wall_gap: float = 0.02  # gap between furniture and the wall behind it
     item_gap: float = 0.05  # minimum gap between two items
     clearance: float = 0.15  # agent radius (0.1) plus a margin, for the free-area check
-    check_radii: tuple[float, ...] = (0.05, 0.075, 0.1, 0.125, 0.15, 0.175, 0.2)
+    check_radii: tuple[float, ...] = (0.05, 0.075, 0.1, 0.125, 0.15, 0.175)
     cell: float = 0.05  # raster resolution of the connectivity check
     max_depth_fraction: float = 0.6  # an item reaches at most this far across the room
     min_free_fraction: float = 0.35  # this much of the room stays free (at ``clearance``)

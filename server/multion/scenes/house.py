@@ -27,7 +27,7 @@ import numpy as np
 from multion.scenes.floorplan import PlanConfig, make_plan
 from multion.scenes.furniture import furnish_room
 from multion.scenes.layout import Box, Door, Room, SceneLayout
-from multion.scenes.palette import CEILING, ROOM_COLOURS, muted, varied
+from multion.scenes.palette import CEILING, ROOM_COLOURS, ROOM_TEXTURES, muted, varied
 
 Rect = tuple[float, float, float, float]  # (x0, y0, x1, y1)
 
@@ -42,7 +42,7 @@ class HouseConfig:
     """Rooms including corridors, after corner cuts; valid range 1..max_rooms."""
     max_rooms: int = 16
     """Valid range min_rooms..40."""
-    room_area: tuple[float, float] = (12.0, 26.0)
+    room_area: tuple[float, float] = (11.0, 24.0)
     """m² per room (wall centre to wall centre), drawn per room to size the footprint."""
     footprint_aspect: tuple[float, float] = (1.2, 2.0)
     """Long side / short side of the footprint's rectangle."""
@@ -56,7 +56,7 @@ class HouseConfig:
     """… nor this far beside the door opening."""
     furniture_density: float = 1.0
     """Multiplies each furniture item's probability; 0 = empty rooms. Valid range 0..5."""
-    clutter: int = 3
+    clutter: int = 6
     """Rounds of clutter (tables, islands, lamps, boxes, plants … in the middle of rooms) tried
     per room after the furniture along the walls; 0 leaves the middle free. Valid range 0..10."""
     colour_variation: float = 0.04
@@ -106,7 +106,10 @@ def _room_types(rng: np.random.Generator, rects: list[Rect], corridors: frozense
     return types
 
 
-def _box(x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgba, kind: str) -> Box:
+def _box(
+    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgba, kind: str,
+    texture: str = "",
+) -> Box:
     # Round to a micrometre so walls that should meet do meet, without float crumbs between them.
     x0, y0, z0, x1, y1, z1 = (round(v, 6) for v in (x0, y0, z0, x1, y1, z1))
     return Box(
@@ -114,11 +117,12 @@ def _box(x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgba,
         ((x1 - x0) / 2, (y1 - y0) / 2, (z1 - z0) / 2),
         rgba,
         kind,
+        texture,
     )
 
 
 def _room_walls(
-    cell: Rect, outer: dict[str, bool], doors: list[Door], cfg: HouseConfig, rgba
+    cell: Rect, outer: dict[str, bool], doors: list[Door], cfg: HouseConfig, rgba, texture: str = ""
 ) -> list[Box]:
     """The wall boxes one room owns, with gaps where its doors are.
 
@@ -151,9 +155,9 @@ def _room_walls(
         for p0, p1 in pieces:
             if p1 - p0 > 1e-6:
                 if axis == "x":
-                    boxes.append(_box(p0, a0, 0.0, p1, a1, h, rgba, "wall"))
+                    boxes.append(_box(p0, a0, 0.0, p1, a1, h, rgba, "wall", texture))
                 else:
-                    boxes.append(_box(a0, p0, 0.0, a1, p1, h, rgba, "wall"))
+                    boxes.append(_box(a0, p0, 0.0, a1, p1, h, rgba, "wall", texture))
     return boxes
 
 
@@ -198,6 +202,9 @@ def generate_house(
             varied(floor_rgb, rng, cfg.colour_variation),
             varied(wall_rgb, rng, cfg.colour_variation),
         )
+        floor_textures, wall_textures = ROOM_TEXTURES[room_type]
+        floor_texture = str(rng.choice(floor_textures))
+        wall_texture = str(rng.choice(wall_textures))
         outer = {
             "south": cells[i][1] == 0,
             "north": cells[i][3] == depth,
@@ -213,9 +220,11 @@ def generate_house(
             cell[2] + (t / 2 if outer["east"] else 0),
             cell[3] + (t / 2 if outer["north"] else 0),
         )
-        boxes.append(_box(sx0, sy0, -cfg.floor_thickness, sx1, sy1, 0.0, floor, "floor"))
+        boxes.append(
+            _box(sx0, sy0, -cfg.floor_thickness, sx1, sy1, 0.0, floor, "floor", floor_texture)
+        )
         mine = [dr for dr in doors if i in dr.rooms]
-        boxes += _room_walls(cell, outer, mine, cfg, wall)
+        boxes += _room_walls(cell, outer, mine, cfg, wall, wall_texture)
         zones = [door_clear_zone(dr, rect, cfg) for dr in mine]
         boxes += furnish_room(rng, rect, room_type, zones, cfg.furniture_density, cfg.clutter)
     h = cfg.wall_height

@@ -33,6 +33,17 @@ ROOM_COLOURS: dict[str, tuple[tuple[float, float, float], tuple[float, float, fl
 }
 CEILING = (0.78, 0.77, 0.74)
 
+# Per room type: the floor and wall textures a room may get (one is drawn per room).
+ROOM_TEXTURES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "living_room": (("planks",), ("plaster", "stripes")),
+    "kitchen": (("tiles",), ("plaster", "small_tiles")),
+    "bedroom": (("planks", "carpet"), ("stripes", "plaster")),
+    "bathroom": (("small_tiles",), ("small_tiles", "plaster")),
+    "dining_room": (("planks", "tiles"), ("plaster", "stripes")),
+    "office": (("carpet",), ("plaster",)),
+    "hallway": (("planks", "tiles"), ("plaster",)),
+}
+
 # Furniture materials.
 MATERIALS: dict[str, tuple[float, float, float]] = {
     "wood_light": (0.72, 0.60, 0.45),

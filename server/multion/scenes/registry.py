@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import re
 
-from multion.scenes.house import generate_house
+from multion.scenes.house import HouseConfig, generate_house
 from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
 
@@ -38,6 +38,18 @@ def _first_seeds() -> dict[str, int]:
         first[split] = start
         start += size
     return first
+
+
+HOUSE_CONFIG = HouseConfig()
+"""The generator parameters of every ``house-N``: a house is a pure function of (N, these)."""
+
+
+def house_parameters(scene_id: str) -> tuple[int, HouseConfig]:
+    """The (seed, generator parameters) that build procedural house ``scene_id``."""
+    match = _HOUSE.fullmatch(scene_id)
+    if match is None:
+        raise ValueError(f"{scene_id!r} is not a procedural house id ('house-NNNNN')")
+    return int(match.group(1)), HOUSE_CONFIG
 
 
 def house_id(seed: int) -> str:
@@ -73,8 +85,9 @@ def is_mesh_scene(scene_id: str) -> bool:
 @functools.lru_cache(maxsize=64)
 def layout_for(scene_id: str) -> SceneLayout:
     """The layout of a procedural scene id (see the module docstring for the accepted forms)."""
-    if match := _HOUSE.fullmatch(scene_id):
-        return generate_house(int(match.group(1)), scene_id=scene_id)
+    if _HOUSE.fullmatch(scene_id):
+        seed, config = house_parameters(scene_id)
+        return generate_house(seed, config, scene_id=scene_id)
     if match := _ROOM.fullmatch(scene_id):
         width, depth = float(match.group(1)), float(match.group(2))
         if width <= 0 or depth <= 0:

@@ -42,9 +42,12 @@ class CameraImage:
 class Camera:
     """Renders from a pose; the projection is computed once."""
 
-    def __init__(self, config: CameraConfig, client: int) -> None:
+    def __init__(
+        self, config: CameraConfig, client: int, lighting: tuple[float, float] = (0.6, 0.4)
+    ) -> None:
         self.config = config
         self.client = client
+        self.ambient, self.diffuse = lighting
         self.projection = p.computeProjectionMatrixFOV(
             fov=config.vfov_deg,
             aspect=config.width / config.height,
@@ -66,8 +69,8 @@ class Camera:
             view,
             self.projection,
             shadow=0,
-            lightAmbientCoeff=0.6,
-            lightDiffuseCoeff=0.4,
+            lightAmbientCoeff=self.ambient,
+            lightDiffuseCoeff=self.diffuse,
             lightSpecularCoeff=0.0,
             renderer=p.ER_TINY_RENDERER,
             flags=flags,

@@ -89,7 +89,7 @@ class Simulator:
             self.close()
             self.world = load_world(scene_id)
             self.grid = navgrid_for(scene_id, self.world, self.navgrid_config)
-            self.camera = Camera(self.camera_config, self.world.client)
+            self.camera = Camera(self.camera_config, self.world.client, self.world.lighting)
             self.scene_id = scene_id
         assert self.grid is not None
         return self.grid
