@@ -249,36 +249,35 @@ def sample_episode(
         )
     rows, cols = np.nonzero(grid.navigable)
     cells = grid.cell_to_world(rows, cols)
+    z = grid.floor_z
     for _ in range(constraints.max_tries):
         start = cells[rng.integers(len(cells))]
         points = [start]
-        distances: list[float] = []
+        measured: list[float] = []
+        # Each leg's candidates come from the previous point's field: the start's (a point), then
+        # each goal's, made with its footprint as the env makes it, which also gives the leg's
+        # distance exactly as the env measures it. m + 1 fast marchings per episode.
+        field = distance_field(grid, start, 0.0)
         for _goal in range(num_goals):
-            field = distance_field(grid, points[-1], 0.0)[rows, cols]
-            ok = (field >= constraints.min_geodesic) & (field <= constraints.max_geodesic)
+            near = field[rows, cols]
+            ok = (near >= constraints.min_geodesic) & (near <= constraints.max_geodesic)
             for earlier in points[1:]:
                 ok &= np.hypot(*(cells - earlier).T) >= constraints.min_goal_separation
             candidates = np.flatnonzero(ok)
             if len(candidates) == 0:
                 break
             pick = candidates[rng.integers(len(candidates))]
-            points.append(cells[pick])
-            distances.append(float(field[pick]))
+            goal_xy = np.round(cells[pick], 4)
+            field = distance_field(grid, goal_xy, goal_radius)
+            measured.append(float(grid.lookup(field, points[-1], outside=np.inf)))
+            points.append(goal_xy)
         if len(points) != num_goals + 1:
             continue
         categories = rng.choice(NUM_CATEGORIES, size=num_goals, replace=False)
-        z = grid.floor_z
         goals = tuple(
-            Goal(category=int(c), position=(round(float(p[0]), 4), round(float(p[1]), 4), z))
+            Goal(category=int(c), position=(float(p[0]), float(p[1]), z))
             for c, p in zip(categories, points[1:], strict=True)
         )
-        # distances as the env measures them: to the goal's footprint, from the previous point
-        measured = []
-        previous = start
-        for goal in goals:
-            field = distance_field(grid, np.asarray(goal.position[:2]), goal_radius)
-            measured.append(float(grid.lookup(field, previous, outside=np.inf)))
-            previous = np.asarray(goal.position[:2])
         if not all(constraints.min_geodesic <= d <= constraints.max_geodesic for d in measured):
             continue  # the footprint distance can differ from the cell distance by a few cm
         distractors = _sample_distractors(
