@@ -51,7 +51,7 @@ class ExplorerAgent(Agent):
     sensors: ClassVar[tuple[str, ...]] = ("rgb", "depth", "goal", "gps", "compass")
     config_overrides: ClassVar[ConfigOverrides] = {}
     cell_size: float = 0.1
-    map_size: int = 401  # ±20 m around the start: any house fits
+    map_size: int = 601  # ±30 m around the start: any house fits (up to about 25 m long)
     depth_rays: int = 64  # depth is sampled on a 64 × 64 grid of pixels, whatever the resolution
     found_distance: float = 1.0
     replan_every: int = 8

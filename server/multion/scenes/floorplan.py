@@ -45,9 +45,9 @@ class PlanConfig:
     min_shared_wall: float = 1.3
     """Two cells are neighbours if they share this much wall (wall centre to wall centre)."""
     door_width: tuple[float, float] = (0.9, 1.1)
-    extra_door_probability: float = 0.15
+    extra_door_probability: float = 0.3
     """Chance that a neighbour pair off the spanning tree gets a door too (a loop)."""
-    opening_probability: float = 0.2
+    opening_probability: float = 0.3
     """Chance that a door between two rooms (not corridors) is a wide opening instead."""
     opening_min_wall: float = 2.0
     """Openings only where the shared wall is at least this long."""
