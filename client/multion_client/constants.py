@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+import numpy as np
+
 
 class Action(IntEnum):
     """The four actions of MultiON, in the reference code's order."""
@@ -15,6 +17,21 @@ class Action(IntEnum):
 
 
 NUM_ACTIONS = len(Action)
+ACTIONS_TEXT = ", ".join(f"{a.value} {a.name}" for a in Action)
+
+
+def action_id(value: object) -> int | None:
+    """``value`` as an action id, or None if it is not one.
+
+    Actions are integers in 0..3: Python or numpy integers, or 0-d integer arrays. Floats
+    (even ``1.0``), bools and strings are refused, by the in-process env and the server alike.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        return None
+    return int(value) if 0 <= value < NUM_ACTIONS else None
+
 
 # The k = 8 goal categories (paper §3); a category id is the index in this tuple.
 GOAL_CATEGORIES: tuple[str, ...] = (

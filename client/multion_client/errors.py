@@ -115,6 +115,12 @@ class TooManyEnvs(LimitExceeded):
     code, status = "too_many_envs", 429
 
 
+class MemoryBudgetExceeded(LimitExceeded):
+    """The session's memory estimate does not fit what the simulator workers have free now."""
+
+    code, status = "memory_budget_exceeded", 429
+
+
 # ---------------------------------------------------------------------- 5xx: the server's fault
 class InternalError(MultiONError):
     code, status = "internal_error", 500
@@ -151,6 +157,7 @@ ERRORS: dict[str, type[MultiONError]] = {
         LimitExceeded,
         TooManySessions,
         TooManyEnvs,
+        MemoryBudgetExceeded,
         InternalError,
         WorkerFailed,
         ServerUnavailable,

@@ -43,6 +43,9 @@ HEALTH_PATH = f"{PREFIX}/health"
 SPEC_PATH = f"{PREFIX}/spec"
 SESSIONS_PATH = f"{PREFIX}/sessions"
 
+MAX_SEED = 2**63 - 1
+"""Seeds are ints in [0, MAX_SEED] (numpy's generators take non-negative seeds)."""
+
 
 def session_path(session_id: str, verb: str | None = None) -> str:
     """``/v1/sessions/{id}`` or ``/v1/sessions/{id}/{verb}`` (verb: reset, step, observe)."""
@@ -289,9 +292,14 @@ class Reset:
         d = _fields(data, "Reset", (), ("seeds", "options"))
         seeds = _list(d.get("seeds", []), "Reset", "seeds")
         options = _list(d.get("options", []), "Reset", "options")
-        for seed in seeds:
-            if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
-                raise MalformedMessage(f"Reset: seeds must be ints or nil, got {seed!r}")
+        for index, seed in enumerate(seeds):
+            if seed is not None and (
+                isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED
+            ):
+                raise MalformedMessage(
+                    f"Reset: seeds[{index}] = {seed!r:.40} is not allowed: seeds are nil or ints "
+                    f"in [0, {MAX_SEED}]"
+                )
         for option in options:
             if option is not None and not isinstance(option, Mapping):
                 raise MalformedMessage(f"Reset: options must be maps or nil, got {option!r:.100}")
@@ -310,7 +318,10 @@ class Step:
     @classmethod
     def from_wire(cls, data: Any) -> Step:
         d = _fields(data, "Step", ("actions",))
-        return cls(_list(d["actions"], "Step", "actions"))
+        actions = d["actions"]
+        if isinstance(actions, np.ndarray) and actions.ndim == 1:
+            return cls(list(actions))  # a client's integer array (its dtype is checked per action)
+        return cls(_list(actions, "Step", "actions"))
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from multion_client.client import DEFAULT_TIMEOUT_S, Client
-from multion_client.errors import MultiONError
+from multion_client.constants import ACTIONS_TEXT
+from multion_client.errors import InvalidAction, MultiONError
 from multion_client.protocol import SessionInfo
 
 T = TypeVar("T")
@@ -116,7 +117,12 @@ class RemoteVectorEnv(VectorEnv):
     def step(
         self, actions: Any
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        actions = [int(a) for a in np.asarray(actions).reshape(-1)]
+        array = np.asarray(actions).reshape(-1)
+        if array.dtype.kind not in "iu":
+            raise InvalidAction(
+                f"step: actions must be integers ({ACTIONS_TEXT}), got dtype {array.dtype}"
+            )
+        actions = [int(a) for a in array]
         if len(actions) != self.num_envs:
             raise ValueError(f"step: need {self.num_envs} actions, got {len(actions)}")
         results = self._each(

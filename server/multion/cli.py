@@ -11,6 +11,8 @@ import argparse
 import importlib
 import sys
 
+from multion.processes import exit_on_sigterm
+
 # command name → (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "serve": (
@@ -50,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    exit_on_sigterm()  # so that servers and workers a command started are stopped with it
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:

@@ -7,12 +7,14 @@ import os
 import signal
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+import multion
 from multion.api.app import create_app
 from multion.api.config_io import ConfigError, env_config_from_dict, env_config_to_dict
 from multion.api.settings import ServerSettings
@@ -159,7 +161,7 @@ def test_unknown_session(api: TestClient, method: str, verb: str | None, body: A
 def test_bad_actions(api: TestClient, small_config: dict[str, Any]) -> None:
     with session(api, small_config, num_envs=2) as sid:
         call(api, "POST", session_path(sid, "reset"), {})
-        for bad in (7, -1, 1.5, "1", None, [1]):
+        for bad in (7, -1, 1.5, 1.0, True, np.float32(1.0), "1", None, [1], np.array([1])):
             status, code, message = error_of(
                 call(api, "POST", session_path(sid, "step"), {"actions": [1, bad]})
             )
@@ -172,6 +174,32 @@ def test_bad_actions(api: TestClient, small_config: dict[str, Any]) -> None:
         # nothing was stepped by the refused requests
         _, body = call(api, "GET", session_path(sid, "observe"))
         assert body["infos"][0]["metrics"]["steps"] == 0
+        # numpy integers and integer arrays are actions
+        for actions in ([np.int64(2), np.uint8(3)], np.array([2, 3], dtype=np.int32)):
+            status, body = call(api, "POST", session_path(sid, "step"), {"actions": actions})
+            assert status == 200 and len(body["rewards"]) == 2
+
+
+def test_strict_reset_seeds_and_options(api: TestClient, small_config: dict[str, Any]) -> None:
+    with session(api, small_config) as sid:
+        for seeds, match in (([-1], "seeds[0] = -1"), ([2**63], "seeds[0] = 9223372036854775808")):
+            status, code, message = error_of(
+                call(api, "POST", session_path(sid, "reset"), {"seeds": seeds})
+            )
+            assert (status, code) == (400, "malformed_message") and match in message
+            assert "[0, 9223372036854775807]" in message
+        for options, match in (
+            ({"episode_idx": 0}, "unknown reset option(s) ['episode_idx']; reset options are"),
+            ({"episode_index": "0"}, "'episode_index' must be an int"),
+            ({"episode_index": True}, "'episode_index' must be an int"),
+            ({"episode_index": 0, "episode_id": "x"}, "at most one of the reset options"),
+        ):
+            status, code, message = error_of(
+                call(api, "POST", session_path(sid, "reset"), {"options": [options]})
+            )
+            assert (status, code) == (400, "bad_request") and match in message
+            assert message.startswith("environment 0: ")
+        assert call(api, "POST", session_path(sid, "reset"), {"seeds": [2**63 - 1]})[0] == 200
 
 
 @pytest.mark.parametrize(
@@ -200,7 +228,17 @@ def test_malformed_bodies(
         ({"sensors": ["sonar"]}, "unknown sensor"),
         ({"task": {"num_goals": 3}}, "has 2 goals but task.num_goals is 3"),
         ({"episodes": [{"scene_id": "room-6x4"}]}, "episodes[0] is not a valid episode"),
-        ({"episodes": None, "split": "nowhere"}, "no packaged"),  # found by the worker
+        ({"split": "nowhere"}, "split = 'nowhere' is not allowed"),
+        ({"split": "../../tmp/x"}, "allowed one of 'train', 'val', 'test'"),
+        ({"camera": {"width": 0}}, "camera.width = 0 is out of range: allowed an integer in [1,"),
+        (
+            {"maps": {"ego_size": 100001}},
+            "maps.ego_size = 100001 is out of range: allowed an integer in [1, 1001]",
+        ),
+        ({"navgrid": {"cell_size": 1e-6}}, "navgrid.cell_size = 1e-06 is out of range"),
+        ({"camera": {"min_depth": 5.0}}, "camera.min_depth (5.0) must be below camera.max_depth"),
+        # found by the worker; the message names the task, not the server's directories
+        ({"episodes": None, "task": {"num_goals": 5}, "split": "test"}, "no packaged 5-on test"),
     ],
 )
 def test_bad_configs(
@@ -211,6 +249,7 @@ def test_bad_configs(
         config.pop("episodes")
     status, code, message = error_of(call(api, "POST", "/v1/sessions", {"config": config}))
     assert (status, code) == (422, "invalid_config") and match in message
+    assert str(Path(multion.__file__).parent) not in message  # no server paths
     assert call(api, "GET", "/v1/health")[1]["sessions"] == 0
 
 

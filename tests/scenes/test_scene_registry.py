@@ -58,9 +58,11 @@ def test_bad_ids_raise_a_clear_error(bad):
     assert repr(bad) in message and "house-NNNNN" in message and "room-WxD" in message
 
 
-def test_zero_sized_room_is_rejected():
-    with pytest.raises(ValueError, match="positive"):
-        layout_for("room-0x4")
+def test_zero_sized_and_huge_rooms_are_rejected():
+    for scene in ("room-0x4", "room-4x50.5", "room-100000x100000"):
+        with pytest.raises(ValueError, match=r"must be in \(0, 50\] metres"):
+            layout_for(scene)
+    assert layout_for("room-50x2").scene_id == "room-50x2"
 
 
 def test_mesh_scenes_are_recognised_but_not_built_here():

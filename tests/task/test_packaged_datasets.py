@@ -3,7 +3,12 @@
 import pytest
 
 from multion.scenes.registry import GENERATOR_VERSION, scene_ids
-from multion.task.dataset import DISTRACTOR_VARIANT, load_dataset, packaged_dataset_path, read_header
+from multion.task.dataset import (
+    DISTRACTOR_VARIANT,
+    load_dataset,
+    packaged_dataset_path,
+    read_header,
+)
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 
 

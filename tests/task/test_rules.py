@@ -8,6 +8,7 @@ distance is 3.45 m, and every forward step along +x brings the agent 0.25 m clos
 
 import math
 
+import numpy as np
 import pytest
 
 from multion.task.env import EnvConfig, EpisodeOverError, MultiONEnv, TaskConfig
@@ -154,12 +155,29 @@ def test_collision_leaves_agent_in_place():
 def test_illegal_action_is_refused():
     env = make_env([(RED, (4.5, 2.0))])
     env.reset(seed=0)
-    for bad in (4, -1, "left", 1.5):
-        with pytest.raises(ValueError, match="action"):
+    for bad in (4, -1, "left", 1.5, 1.0, True, np.float64(1.0), np.array([1])):
+        with pytest.raises(ValueError, match="illegal action .*; actions are integers: 0 FOUND"):
             env.step(bad)
-    # a refused action does not count as a step
+    # a refused action does not count as a step; numpy integers are actions
     _, _, _, _, info = env.step(FWD)
-    assert info["metrics"]["steps"] == 1
+    for good in (np.int64(2), np.uint8(3), np.array(1)):
+        _, _, _, _, info = env.step(good)
+    assert info["metrics"]["steps"] == 4
+
+
+def test_bad_seeds_and_reset_options_are_refused():
+    env = make_env([(RED, (4.5, 2.0))])
+    for seed in (-1, 2**63, 1.0, "0", True):
+        with pytest.raises(ValueError, match=r"seed must be an int in \[0, 9223372036854775807\]"):
+            env.reset(seed=seed)
+    for options, match in (
+        ({"episode_idx": 0}, r"unknown reset option\(s\) \['episode_idx'\]"),
+        ({"episode_index": 0.0}, "'episode_index' must be an int"),
+        ({"episode_index": 0, "episode_id": "hand"}, "at most one"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            env.reset(options=options)
+    env.reset(seed=2**63 - 1, options={"episode_id": "hand"})
 
 
 def test_wrong_found_penalty_is_subtracted_only_from_wrong_founds():

@@ -42,7 +42,9 @@ def create_app(settings: ServerSettings | None = None) -> FastAPI:
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        pool = WorkerPool(settings.workers, settings.worker_start_timeout_s)
+        pool = WorkerPool(
+            settings.workers, settings.worker_start_timeout_s, settings.worker_memory_mb * 2**20
+        )
         try:
             await pool.start()
         except BaseException:

@@ -14,12 +14,11 @@ import typing
 from collections.abc import Mapping
 from typing import Any
 
+from multion.ranges import ConfigError
 from multion.task.env import EnvConfig
 from multion.task.episode import Episode
 
-
-class ConfigError(ValueError):
-    """A config that cannot be used; the message names the field and the problem."""
+__all__ = ["ConfigError", "env_config_from_dict", "env_config_to_dict", "session_config_from_dict"]
 
 
 def env_config_to_dict(config: EnvConfig) -> dict[str, Any]:
@@ -88,6 +87,8 @@ def _build(cls: type, data: Any, prefix: str) -> Any:
         values[name] = _convert(hints[name], value, f"{prefix}{name}")
     try:
         return cls(**values)
+    except ConfigError:
+        raise  # it names the field and its range already
     except (TypeError, ValueError) as error:
         raise ConfigError(f"invalid {where}: {error}") from None
 

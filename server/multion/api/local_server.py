@@ -12,6 +12,7 @@ from types import TracebackType
 
 import httpx
 
+from multion.processes import die_with_parent
 from multion_client.protocol import HEALTH_PATH
 
 
@@ -62,7 +63,11 @@ class LocalServer:
 
     def launch(self) -> LocalServer:
         """Launch the server without waiting (start several, then ``wait_ready`` on each)."""
-        self.process = subprocess.Popen(self.command, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        self.process = subprocess.Popen(
+            self.command,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            preexec_fn=die_with_parent,  # no orphan server if this process is killed
+        )
         return self
 
     def wait_ready(self) -> LocalServer:

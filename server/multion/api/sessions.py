@@ -20,8 +20,10 @@ from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings
 from multion.api.workers import Reply, Worker, WorkerPool
+from multion.task.env import check_reset_options
+from multion.task.memory import estimate_env_bytes, mib
 from multion_client import errors
-from multion_client.constants import NUM_ACTIONS, Action
+from multion_client.constants import ACTIONS_TEXT, action_id
 from multion_client.protocol import (
     CreateSession,
     Reset,
@@ -44,6 +46,8 @@ class Shard:
     shard_id: str
     start: int
     count: int
+    reserved_bytes: int
+    """The memory estimate of its environments, reserved on its worker."""
     closed: bool = False
 
 
@@ -79,10 +83,18 @@ class SessionRegistry:
     # ------------------------------------------------------------------ operations
     async def create(self, message: CreateSession) -> bytes:
         """Start the environments of a new session; returns the encoded SessionInfo."""
-        try:
-            session_config_from_dict(message.config)  # fail fast, before any worker is involved
+        try:  # fail fast, before any worker is involved
+            config, _ = session_config_from_dict(message.config)
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
+        env_bytes = estimate_env_bytes(config)
+        if env_bytes > self.pool.capacity_bytes:
+            raise errors.InvalidConfig(
+                f"one environment of this config may need up to {mib(env_bytes)} MiB, more than "
+                f"a simulator worker of this server may hold ({mib(self.pool.capacity_bytes)} "
+                "MiB); use smaller camera images, a coarser navgrid.cell_size or a smaller "
+                "maps.ego_size"
+            )
         # Files the config names are on this server's disk: only allowed directories (403).
         message = dataclasses.replace(message, config=checked_config(message.config, self.roots))
         n, s = message.num_envs, self.settings
@@ -103,7 +115,7 @@ class SessionRegistry:
         self._pending_sessions += 1
         self._pending_envs += n
         try:
-            return await _shielded(self._create(message))
+            return await _shielded(self._create(message, env_bytes))
         finally:
             self._pending_sessions -= 1
             self._pending_envs -= n
@@ -118,6 +130,7 @@ class SessionRegistry:
                 f"reset needs one seed and one options entry per environment ({n}), "
                 f"got {len(seeds)} seeds and {len(options)} options (empty lists mean none)"
             )
+        _check_options(options)
 
         async def run(session: Session) -> bytes:
             session.done = [True] * n  # until the reset succeeds
@@ -226,12 +239,13 @@ class SessionRegistry:
         return idle
 
     # ------------------------------------------------------------------ internals
-    async def _create(self, message: CreateSession) -> bytes:
+    async def _create(self, message: CreateSession, env_bytes: int) -> bytes:
         session_id = uuid.uuid4().hex
         shards, start = [], 0
-        for k, (worker, count) in enumerate(self.pool.choose(message.num_envs)):
-            shards.append(Shard(worker, f"{session_id}/{k}", start, count))
+        for k, (worker, count) in enumerate(self.pool.choose(message.num_envs, env_bytes)):
+            shards.append(Shard(worker, f"{session_id}/{k}", start, count, count * env_bytes))
             worker.env_count += count
+            worker.reserved_bytes += count * env_bytes
             start += count
         payload = {"config": message.config, "auto_reset": message.auto_reset}
         payloads = [{**payload, "num_envs": sh.count} for sh in shards]
@@ -303,6 +317,7 @@ class SessionRegistry:
                 continue
             shard.closed = True
             shard.worker.env_count -= shard.count
+            shard.worker.reserved_bytes -= shard.reserved_bytes
             if shard.worker.alive:
                 try:
                     await shard.worker.request(
@@ -320,33 +335,36 @@ class SessionRegistry:
 
 
 def _check_actions(actions: list[Any], n: int) -> list[int]:
-    """Actions as ints, by the in-process env's rules: integral numbers in 0..3."""
+    """Actions as ints, by the in-process env's rules (:func:`action_id`)."""
     if len(actions) != n:
         raise errors.BadRequest(
             f"expected {n} action(s), one per environment of the session, got {len(actions)}"
         )
-    checked = [_action(a) for a in actions]
-    for index, (action, value) in enumerate(zip(actions, checked, strict=True)):
+    checked = []
+    for index, action in enumerate(actions):
+        value = action_id(action)
         if value is None:
-            names = ", ".join(f"{a.value} {a.name}" for a in Action)
             raise errors.InvalidAction(
-                f"illegal action {action!r} for environment {index}; actions are {names}"
+                f"illegal action {action!r:.80} for environment {index}; actions are integers: "
+                f"{ACTIONS_TEXT}"
             )
-    return checked  # type: ignore[return-value]
+        checked.append(value)
+    return checked
 
 
-def _action(value: Any) -> int | None:
-    if isinstance(value, float) and value.is_integer():
-        value = int(value)
-    if isinstance(value, int) and 0 <= value < NUM_ACTIONS:
-        return int(value)
-    return None
+def _check_options(options: list[Any]) -> None:
+    for index, option in enumerate(options):
+        try:
+            check_reset_options(option or {})
+        except ValueError as error:
+            raise errors.BadRequest(f"environment {index}: {error}") from None
 
 
 def _splice(names: tuple[str, ...], replies: list[Reply], n: int) -> bytes:
     return join_encoded(
         [(name, n, [parts[i] for _, parts in replies]) for i, name in enumerate(names)]
     )
+
 
 
 def _unknown(session_id: str) -> str:

@@ -25,6 +25,13 @@ class ServerSettings(BaseSettings):
         300.0, gt=0, description="a worker that takes longer to answer is killed and replaced"
     )
     worker_start_timeout_s: float = Field(120.0, gt=0)
+    worker_memory_mb: int = Field(
+        8192,
+        ge=1024,
+        description="address-space limit of each simulator worker (RLIMIT_AS); the memory "
+        "estimates of the sessions a worker holds must fit in it, less what the process itself "
+        "needs",
+    )
     allowed_dataset_dirs: list[Path] = Field(
         default_factory=list,
         description="directories whose dataset files (and mesh scenes) clients may name, besides "

@@ -25,22 +25,35 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.api.worker_process import worker_main
-from multion_client.errors import WorkerFailed
+from multion.task.memory import mib
+from multion_client.errors import MemoryBudgetExceeded, WorkerFailed
 from multion_client.protocol import decode
 
 Reply = tuple[dict[str, Any], list[bytes]]
 PIPE_BUFFER_BYTES = 8 * 1024 * 1024
 RESTART_DELAY_S = 5.0
+WORKER_RESERVED_BYTES = 1024 * 2**20
+"""Address space a worker needs besides its sessions' estimates: the interpreter, PyBullet and
+numpy (about 330 MiB of address space when idle), the navigable-grid cache, allocator slack."""
 
 
 class Worker:
     """One simulator process and the server's end of its pipe; it answers one request at a time."""
 
-    def __init__(self, slot: int, generation: int, on_exit: Callable[[Worker], None]) -> None:
+    def __init__(
+        self,
+        slot: int,
+        generation: int,
+        on_exit: Callable[[Worker], None],
+        memory_limit_bytes: int,
+    ) -> None:
         ctx = multiprocessing.get_context("spawn")
         self.slot = slot
         self.generation = generation
+        self.memory_limit_bytes = memory_limit_bytes
         self.env_count = 0
+        self.reserved_bytes = 0
+        """The memory estimates of the environments this worker holds."""
         self.alive = True
         self.failure = ""
         self._loop = asyncio.get_running_loop()
@@ -51,7 +64,10 @@ class Worker:
         self.conn, child = ctx.Pipe(duplex=True)
         _widen(self.conn, child)
         self.process = ctx.Process(
-            target=worker_main, args=(child,), name=f"multion-worker-{slot}", daemon=True
+            target=worker_main,
+            args=(child, memory_limit_bytes),
+            name=f"multion-worker-{slot}",
+            daemon=True,
         )
         self.process.start()
         child.close()  # so that the worker's death shows up as EOF on our end
@@ -64,6 +80,11 @@ class Worker:
     @property
     def pid(self) -> int | None:
         return self.process.pid
+
+    @property
+    def free_bytes(self) -> int:
+        """What more environments may reserve on this worker."""
+        return self.memory_limit_bytes - WORKER_RESERVED_BYTES - self.reserved_bytes
 
     async def request(self, command: str, shard_id: str, payload: Any, timeout_s: float) -> Reply:
         """Send one command and await its reply (header, raw parts)."""
@@ -155,12 +176,14 @@ def _ignore(worker: Worker) -> None:
     pass
 
 
+
 class WorkerPool:
     """``size`` worker slots; a slot whose worker dies gets a new worker at once."""
 
-    def __init__(self, size: int, start_timeout_s: float) -> None:
+    def __init__(self, size: int, start_timeout_s: float, memory_limit_bytes: int) -> None:
         self.size = size
         self.start_timeout_s = start_timeout_s
+        self.memory_limit_bytes = memory_limit_bytes
         self.workers: list[Worker] = []
         self.on_death: Callable[[Worker], None] = _ignore
         self.replaced = 0
@@ -168,7 +191,9 @@ class WorkerPool:
 
     async def start(self) -> None:
         """Start every worker and wait until each has imported the simulator."""
-        self.workers = [Worker(slot, 0, self._exited) for slot in range(self.size)]
+        self.workers = [
+            Worker(slot, 0, self._exited, self.memory_limit_bytes) for slot in range(self.size)
+        ]
         await asyncio.wait_for(
             asyncio.gather(*(w.ready for w in self.workers)), self.start_timeout_s
         )
@@ -177,16 +202,34 @@ class WorkerPool:
         self._stopping = True
         await asyncio.gather(*(worker.stop() for worker in self.workers))
 
-    def choose(self, num_envs: int) -> list[tuple[Worker, int]]:
-        """Spread ``num_envs`` over the least loaded live workers: [(worker, count), ...]."""
+    @property
+    def capacity_bytes(self) -> int:
+        """What one worker's environments may reserve in all."""
+        return self.memory_limit_bytes - WORKER_RESERVED_BYTES
+
+    def choose(self, num_envs: int, env_bytes: int) -> list[tuple[Worker, int]]:
+        """Spread ``num_envs`` environments of ``env_bytes`` each over the least loaded live
+        workers with memory to spare: [(worker, count), ...]; raises
+        :class:`MemoryBudgetExceeded` when they do not fit now."""
         live = [w for w in self.workers if w.alive]
         if not live:
             raise WorkerFailed("no simulator worker is running")
         load = {id(w): w.env_count for w in live}
+        free = {id(w): w.free_bytes for w in live}
         counts: dict[int, int] = {}
-        for _ in range(num_envs):
-            best = min(live, key=lambda w: (load[id(w)], w.slot))
+        for placed in range(num_envs):
+            room = [w for w in live if free[id(w)] >= env_bytes]
+            if not room:
+                raise MemoryBudgetExceeded(
+                    f"{num_envs} environment(s) of this config need up to {mib(env_bytes)} MiB "
+                    f"each; the simulator workers have room for {placed} now "
+                    f"({', '.join(f'{mib(w.free_bytes)} MiB' for w in live)} free). Close "
+                    "sessions, retry later, or use fewer environments, smaller images or a "
+                    "coarser navgrid.cell_size"
+                )
+            best = min(room, key=lambda w: (load[id(w)], w.slot))
             load[id(best)] += 1
+            free[id(best)] -= env_bytes
             counts[id(best)] = counts.get(id(best), 0) + 1
         return [(w, counts[id(w)]) for w in live if id(w) in counts]
 
@@ -202,4 +245,6 @@ class WorkerPool:
     def _replace(self, worker: Worker) -> None:
         if not self._stopping and self.workers[worker.slot] is worker:
             self.replaced += 1
-            self.workers[worker.slot] = Worker(worker.slot, worker.generation + 1, self._exited)
+            self.workers[worker.slot] = Worker(
+                worker.slot, worker.generation + 1, self._exited, self.memory_limit_bytes
+            )

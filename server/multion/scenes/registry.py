@@ -5,7 +5,8 @@ Accepted ids:
 * ``house-NNNNN``: procedural house number N (any non-negative integer, usually 5 digits);
   the default splits use houses 0–60 (train), 61–71 (val) and 72–89 (test), the same counts
   as Matterport3D's 61 / 11 / 18 scenes.
-* ``room-WxD``: one empty W × D metre room, e.g. ``room-6x4`` or ``room-10x2.5``.
+* ``room-WxD``: one empty W × D metre room, e.g. ``room-6x4`` or ``room-10x2.5`` (sides up to
+  50 m).
 * a path ending in ``.obj``, ``.glb``, ``.gltf`` or ``.ply``: a mesh scan, loaded elsewhere.
 """
 
@@ -19,6 +20,9 @@ from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
 
 SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
+SPLITS: tuple[str, ...] = tuple(SPLIT_SIZES)
+MAX_ROOM_SIDE_M = 50.0
+"""A ``room-WxD`` side is at most this (the grid, and so memory, grows with the room's area)."""
 
 GENERATOR_VERSION = 2
 """Version of the procedural scenes: bump it whenever ``house-N`` (or ``room-WxD``) changes, so
@@ -90,8 +94,11 @@ def layout_for(scene_id: str) -> SceneLayout:
         return generate_house(seed, config, scene_id=scene_id)
     if match := _ROOM.fullmatch(scene_id):
         width, depth = float(match.group(1)), float(match.group(2))
-        if width <= 0 or depth <= 0:
-            raise ValueError(f"scene id {scene_id!r}: room width and depth must be positive")
+        if not (0 < width <= MAX_ROOM_SIDE_M and 0 < depth <= MAX_ROOM_SIDE_M):
+            raise ValueError(
+                f"scene id {scene_id!r}: room width and depth must be in (0, {MAX_ROOM_SIDE_M:g}] "
+                "metres"
+            )
         return make_room(width, depth, scene_id=scene_id)
     if is_mesh_scene(scene_id):
         raise ValueError(

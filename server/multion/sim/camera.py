@@ -8,23 +8,39 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
+from multion.ranges import bounded, check_fields, require
+
 
 @dataclass(frozen=True)
 class CameraConfig:
     """The RGB-D sensor (SPEC §2; the reference code's values)."""
 
-    width: int = 256
-    height: int = 256
-    hfov_deg: float = 79.0
-    """Horizontal field of view."""
-    sensor_height: float = 0.88
+    width: int = bounded(256, 1, 1024)
+    """Image width in pixels (1024 bounds an image's memory, about 100 bytes a pixel)."""
+    height: int = bounded(256, 1, 1024)
+    hfov_deg: float = bounded(79.0, 1.0, 170.0)
+    """Horizontal field of view, degrees."""
+    sensor_height: float = bounded(0.88, 0.05, 3.0)
     """Camera height above the floor, metres."""
-    min_depth: float = 0.5
-    max_depth: float = 5.0
+    min_depth: float = bounded(0.5, 0.0, 100.0)
+    max_depth: float = bounded(5.0, 0.0, 100.0, low_open=True)
     normalize_depth: bool = True
     """Depth in metres clipped to ``[min_depth, max_depth]``, then mapped to ``[0, 1]``."""
-    near: float = 0.02
-    far: float = 60.0
+    near: float = bounded(0.02, 0.001, 1.0)
+    """Near clipping plane, metres."""
+    far: float = bounded(60.0, 1.0, 1000.0)
+    """Far clipping plane, metres."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "camera")
+        require(
+            self.min_depth < self.max_depth,
+            f"camera.min_depth ({self.min_depth}) must be below camera.max_depth "
+            f"({self.max_depth})",
+        )
+        require(
+            self.near < self.far, f"camera.near ({self.near}) must be below camera.far ({self.far})"
+        )
 
     @property
     def vfov_deg(self) -> float:

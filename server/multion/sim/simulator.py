@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multion.ranges import bounded, check_fields
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim.camera import Camera, CameraConfig, CameraImage
 from multion.sim.navgrid import NavGrid, NavGridConfig, build_navgrid
@@ -27,12 +28,16 @@ _GRID_CACHE_SIZE = 32
 class AgentConfig:
     """The agent's body and its action magnitudes (paper §3)."""
 
-    radius: float = 0.1
-    height: float = 1.5
-    forward_step: float = 0.25
+    radius: float = bounded(0.1, 0.02, 1.0)
+    """Metres; free space is eroded by it."""
+    height: float = bounded(1.5, 0.2, 3.0)
+    forward_step: float = bounded(0.25, 0.01, 2.0)
     """Metres per MOVE_FORWARD."""
-    turn_angle_deg: float = 30.0
+    turn_angle_deg: float = bounded(30.0, 0.1, 180.0)
     """Degrees per TURN_LEFT / TURN_RIGHT."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "agent")
 
 
 def load_world(scene_id: str) -> PyBulletWorld:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -11,7 +11,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from multion.scenes.registry import scene_ids
+from multion.ranges import bounded, check_fields, one_of, require
+from multion.scenes.registry import SPLITS, scene_ids
 from multion.sim.camera import CameraConfig
 from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGridConfig
@@ -26,7 +27,15 @@ from multion.task.dataset import (
 from multion.task.episode import Episode
 from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
-from multion_client.constants import GOAL_RGBA, NUM_ACTIONS, NUM_CATEGORIES, Action
+from multion_client.constants import (
+    ACTIONS_TEXT,
+    GOAL_RGBA,
+    NUM_ACTIONS,
+    NUM_CATEGORIES,
+    Action,
+    action_id,
+)
+from multion_client.protocol import MAX_SEED
 
 SENSORS = (
     "rgb",
@@ -42,6 +51,15 @@ SENSORS = (
 )
 
 
+RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
+    "episode_index": (int, "an int"),
+    "episode_id": (str, "a string"),
+    "episode": ((Mapping, Episode), "an Episode map"),
+}
+"""What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
+its id, or inline; with their types."""
+
+
 class EpisodeOverError(RuntimeError):
     """``step`` was called after the episode ended; call ``reset``."""
 
@@ -50,24 +68,24 @@ class EpisodeOverError(RuntimeError):
 class TaskConfig:
     """Rules and rewards of MultiON (SPEC §2)."""
 
-    num_goals: int = 3
+    num_goals: int = bounded(3, 1, NUM_CATEGORIES)
     """m, the number of ordered goals."""
-    success_distance: float = 1.5
+    success_distance: float = bounded(1.5, 0.0, 20.0, low_open=True)
     """FOUND succeeds within this geodesic distance of the current goal, metres."""
-    max_steps: int = 2500
-    found_budget: int = 0
+    max_steps: int = bounded(2500, 1, 100_000)
+    found_budget: int = bounded(0, 0, 100_000)
     """Wrong FOUNDs allowed before one ends the episode (0: the first one ends it)."""
-    goal_reward: float = 3.0
-    slack_reward: float = -0.01
-    wrong_found_penalty: float = 0.0
+    goal_reward: float = bounded(3.0, -1000.0, 1000.0)
+    slack_reward: float = bounded(-0.01, -1000.0, 1000.0)
+    wrong_found_penalty: float = bounded(0.0, -1000.0, 1000.0)
     """Subtracted from the reward of a wrong FOUND (the reference code's FALSE_FOUND_PENALTY,
     off in the paper's runs)."""
-    goal_radius: float = 0.05
-    goal_height: float = 0.75
+    goal_radius: float = bounded(0.05, 0.01, 0.5)
+    goal_height: float = bounded(0.75, 0.05, 3.0)
     goals_visible: bool = True
     """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
     ablation); they still count for FOUND, rewards and the oracle maps."""
-    num_distractors: int = 0
+    num_distractors: int = bounded(0, 0, NUM_CATEGORIES - 1)
     """Distractor cylinders per episode, of categories that are not among its goals (the MultiON
     2022 challenge's setting); valid range 0..8 - num_goals. 0 is the paper's task. They are drawn,
     in ``goal_mask`` and the oracle maps with their category + 1 like goals; a FOUND near one is a
@@ -75,10 +93,7 @@ class TaskConfig:
     this many distractors per episode (the packaged ``m-on-distractors`` sets have 3)."""
 
     def __post_init__(self) -> None:
-        if not 0 <= self.num_distractors <= NUM_CATEGORIES - 1:
-            raise ValueError(
-                f"task.num_distractors must be in 0..{NUM_CATEGORIES - 1}, got {self.num_distractors}"
-            )
+        check_fields(self, "task")
 
 
 @dataclass(frozen=True)
@@ -91,29 +106,26 @@ class EnvConfig:
     navgrid: NavGridConfig = field(default_factory=NavGridConfig)
     maps: MapConfig = field(default_factory=MapConfig)
     sensors: tuple[str, ...] = ("rgb", "depth", "goal")
-    split: str = "val"
+    split: str = one_of("val", SPLITS)
+    """Which scenes and packaged episodes: train (sampled online), val or test."""
     dataset: str | None = None
     """A dataset file; None uses the packaged one for (m, split), or samples online for train."""
-    episodes_per_scene: int = 25
+    episodes_per_scene: int = bounded(25, 1, 1_000_000)
     """Online (train) sampling draws this many episodes in a scene before moving to another:
     a scene switch rebuilds the PyBullet world, and early training episodes are a few steps."""
 
     def __post_init__(self) -> None:
+        check_fields(self, "")
         unknown = [s for s in self.sensors if s not in SENSORS]
-        if unknown:
-            raise ValueError(f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
-        if not 1 <= self.task.num_goals <= NUM_CATEGORIES:
-            raise ValueError(f"num_goals must be in 1..{NUM_CATEGORIES}, got {self.task.num_goals}")
-        if self.task.num_goals + self.task.num_distractors > NUM_CATEGORIES:
-            raise ValueError(
-                f"task.num_distractors must be in 0..{NUM_CATEGORIES - self.task.num_goals} with "
-                f"{self.task.num_goals} goals (categories are not shared), "
-                f"got {self.task.num_distractors}"
-            )
-        if self.episodes_per_scene < 1:
-            raise ValueError(f"episodes_per_scene must be ≥ 1, got {self.episodes_per_scene}")
-        if self.maps.ego_size % 2 != 1:
-            raise ValueError(f"maps.ego_size must be odd, got {self.maps.ego_size}")
+        require(not unknown, f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
+        repeated = sorted({s for s in self.sensors if self.sensors.count(s) > 1})
+        require(not repeated, f"sensor(s) {repeated} named more than once in sensors")
+        require(
+            self.task.num_goals + self.task.num_distractors <= NUM_CATEGORIES,
+            f"task.num_distractors must be in 0..{NUM_CATEGORIES - self.task.num_goals} with "
+            f"{self.task.num_goals} goals (categories are not shared), "
+            f"got {self.task.num_distractors}",
+        )
 
 
 class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
@@ -185,8 +197,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         if cfg.split == "train":
             return None  # sampled online from the train scenes
         raise DatasetError(
-            f"{path}: no packaged {variant_name(task.num_goals, task.num_distractors)} "
-            f"{cfg.split} dataset; "
+            f"no packaged {variant_name(task.num_goals, task.num_distractors)} {cfg.split} "
+            "dataset; "
             f"generate one with `multion dataset generate` and pass it as `dataset`"
         )
 
@@ -236,6 +248,13 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        if seed is not None:
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+                raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
+            if not 0 <= seed <= MAX_SEED:
+                raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
+            seed = int(seed)
+        check_reset_options(options or {})
         super().reset(seed=seed)
         if seed is not None and self.episodes:
             self._cursor = seed % len(self.episodes)
@@ -456,41 +475,46 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
 
 
 def build_observation_space(config: EnvConfig) -> spaces.Dict:
+    """The spaces of the configured sensors only (an image Box holds two arrays of its size)."""
     cam, size = config.camera, config.maps.ego_size
-    every = {
-        "rgb": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
-        "depth": spaces.Box(
-            0.0,
-            1.0 if cam.normalize_depth else cam.max_depth,
-            (cam.height, cam.width, 1),
-            np.float32,
+    image = (cam.height, cam.width)
+    builders = {
+        "rgb": lambda: spaces.Box(0, 255, (*image, 3), np.uint8),
+        "depth": lambda: spaces.Box(
+            0.0, 1.0 if cam.normalize_depth else cam.max_depth, (*image, 1), np.float32
         ),
-        "goal": spaces.Discrete(NUM_CATEGORIES),
-        "goal_onehot": spaces.Box(0.0, 1.0, (NUM_CATEGORIES,), np.float32),
-        "gps": spaces.Box(-np.inf, np.inf, (2,), np.float32),
-        "compass": spaces.Box(-np.pi, np.pi, (1,), np.float32),
-        "oracle_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
-        "oracle_ego_map": spaces.Box(0, 255, (size, size, 2), np.uint8),
-        "goal_mask": spaces.Box(0, NUM_CATEGORIES, (cam.height, cam.width), np.uint8),
-        "goal_distance": spaces.Box(0.0, np.inf, (1,), np.float32),
+        "goal": lambda: spaces.Discrete(NUM_CATEGORIES),
+        "goal_onehot": lambda: spaces.Box(0.0, 1.0, (NUM_CATEGORIES,), np.float32),
+        "gps": lambda: spaces.Box(-np.inf, np.inf, (2,), np.float32),
+        "compass": lambda: spaces.Box(-np.pi, np.pi, (1,), np.float32),
+        "oracle_map": lambda: spaces.Box(0, 255, (size, size, 2), np.uint8),
+        "oracle_ego_map": lambda: spaces.Box(0, 255, (size, size, 2), np.uint8),
+        "goal_mask": lambda: spaces.Box(0, NUM_CATEGORIES, image, np.uint8),
+        "goal_distance": lambda: spaces.Box(0.0, np.inf, (1,), np.float32),
     }
-    return spaces.Dict({name: every[name] for name in config.sensors})
+    return spaces.Dict({name: builders[name]() for name in config.sensors})
 
 
 def _check_action(action: Any) -> int:
-    try:
-        value = int(action)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"action {action!r} is not an integer; actions are 0..{NUM_ACTIONS - 1} "
-            f"({', '.join(a.name for a in Action)})"
-        ) from None
-    if value != action or not 0 <= value < NUM_ACTIONS:
-        raise ValueError(
-            f"illegal action {action!r}; actions are 0..{NUM_ACTIONS - 1} "
-            f"({', '.join(a.name for a in Action)})"
-        )
+    value = action_id(action)
+    if value is None:
+        raise ValueError(f"illegal action {action!r:.80}; actions are integers: {ACTIONS_TEXT}")
     return value
+
+
+def check_reset_options(options: Mapping[str, Any]) -> None:
+    """Raise ValueError unless ``options`` holds at most one known reset option of the right type."""
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise ValueError(
+            f"unknown reset option(s) {unknown}; reset options are {', '.join(RESET_OPTIONS)}"
+        )
+    if len(options) > 1:
+        raise ValueError(f"give at most one of the reset options {', '.join(RESET_OPTIONS)}")
+    for name, value in options.items():
+        kind, text = RESET_OPTIONS[name]
+        if isinstance(value, bool) or not isinstance(value, kind):
+            raise ValueError(f"reset option {name!r} must be {text}, got {value!r:.80}")
 
 
 def make_env(

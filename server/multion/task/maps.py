@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multion.ranges import bounded, check_fields, require
 from multion.sim.navgrid import NavGrid
 from multion.task.episode import Goal
 from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN
@@ -25,18 +26,22 @@ from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN
 class MapConfig:
     """Oracle map and visibility settings."""
 
-    cell_size: float = 0.8
+    cell_size: float = bounded(0.8, 0.05, 5.0)
     """Side of an oracle-map cell, metres (paper: 0.8)."""
-    ego_size: int = 13
+    ego_size: int = bounded(13, 1, 1001)
     """Side of the egocentric crop, cells (odd, so the agent has a centre cell). 13 cells of
     0.8 m (about 10 m) is the reference configuration's crop: large enough to plan the next few
     rooms, too small to show a whole house, so an agent must remember what it has seen."""
-    free_fraction: float = 0.5
+    free_fraction: float = bounded(0.5, 0.0, 1.0)
     """A coarse cell is free when at least this fraction of its fine cells is navigable."""
-    view_distance: float = 5.0
+    view_distance: float = bounded(5.0, 0.1, 50.0)
     """How far the agent sees, metres (supplement: 5 m)."""
-    view_rays: int = 80
+    view_rays: int = bounded(80, 1, 1000)
     """Rays traced across the field of view to reveal the ego map."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "maps")
+        require(self.ego_size % 2 == 1, f"maps.ego_size must be odd, got {self.ego_size}")
 
 
 class OracleMap:

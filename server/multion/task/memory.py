@@ -1,0 +1,46 @@
+"""An upper bound on the memory one environment may use, known from its config alone.
+
+A server checks a session's estimate against its workers' memory before any worker allocates,
+so a client cannot make a simulator worker grow without bound. The bound covers the worst
+scene the session could reach (a client may reset into any scene of at most
+``MAX_SCENE_SIDE_M`` metres a side), so it is loose for small scenes and tight for the big
+costs: images, navigable-grid fields and map crops. The coefficients were measured on this
+project's simulator (``multion bench --only memory`` prints measured against estimated).
+"""
+
+from __future__ import annotations
+
+from multion.scenes.registry import MAX_ROOM_SIDE_M
+from multion.task.env import EnvConfig
+
+MiB = 2**20
+
+ENV_BASE_BYTES = 64 * MiB
+"""A PyBullet world with a house in it, the env's objects and their buffers (measured: ~32 MiB)."""
+BYTES_PER_PIXEL = 96
+"""Per camera pixel: PyBullet's RGBA, depth and segmentation buffers, the float64 depth
+conversion and the observation arrays (measured: ~50 held, more while rendering)."""
+BYTES_PER_GRID_CELL_AND_FIELD = 8
+"""A float64 distance field (one per goal, plus the fast-marching scratch) per grid cell."""
+SCRATCH_FIELDS = 4
+BYTES_PER_MAP_CELL = 64
+"""Per cell of the egocentric map crop: its coordinates and indices while it is cut (float64)."""
+MAX_SCENE_SIDE_M = MAX_ROOM_SIDE_M
+"""The largest scene side a session may reach (procedural houses are smaller)."""
+
+
+def estimate_env_bytes(config: EnvConfig) -> int:
+    """An upper bound on the memory one environment of ``config`` holds at its peak."""
+    pixels = config.camera.width * config.camera.height
+    side_cells = MAX_SCENE_SIDE_M / config.navgrid.cell_size + 1
+    fields = config.task.num_goals + SCRATCH_FIELDS
+    grid = int(side_cells**2) * fields * BYTES_PER_GRID_CELL_AND_FIELD
+    maps = 0
+    if {"oracle_map", "oracle_ego_map"} & set(config.sensors):
+        maps = config.maps.ego_size**2 * BYTES_PER_MAP_CELL
+    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + maps
+
+
+def mib(size: int) -> int:
+    """``size`` bytes in MiB, rounded up (for messages)."""
+    return -(-size // MiB)
