@@ -11,6 +11,9 @@ the ``goal`` and ``goal_distance`` sensors, so nothing is rendered; episodes run
                                                                        # current houses (no files
                                                                        # needed: for tuning)
     .venv/bin/python scripts/calibrate_houses.py --houses              # house sizes only
+    .venv/bin/python scripts/calibrate_houses.py --from-runs DIR       # the table from existing
+                                                                       # `multion eval` runs
+                                                                       # DIR/random-oracle-found-Mon
 """
 
 from __future__ import annotations
@@ -66,6 +69,43 @@ def house_table(split: str) -> list[str]:
     return lines
 
 
+def row(m: int, success, progress, count: int, seconds: float) -> tuple[str, bool]:
+    paper_s, paper_p = PAPER[m]
+    good = (
+        abs(100 * success.mean - paper_s) <= TOLERANCE
+        and abs(100 * progress.mean - paper_p) <= TOLERANCE
+    )
+    text = (
+        f"{m}-ON  {count:>6}  "
+        f"{100 * success.mean:5.1f} [{100 * success.low:4.1f}, {100 * success.high:4.1f}]"
+        f"  {paper_s:5.0f}  "
+        f"{100 * progress.mean:5.1f} [{100 * progress.low:4.1f}, {100 * progress.high:4.1f}]"
+        f"  {paper_p:5.0f}  {'yes' if good else 'NO':>4}  {seconds:6.0f}"
+    )
+    return text, good
+
+
+HEADER = "task  episodes  Success % [95% CI]     paper  Progress % [95% CI]    paper  ±5?  seconds"
+
+
+def from_runs(runs: Path, tasks: list[int]) -> bool:
+    """The table from ``multion eval`` output folders (their metrics.json)."""
+    import json
+    from types import SimpleNamespace
+
+    rows, ok = [], True
+    for m in tasks:
+        data = json.loads((runs / f"random-oracle-found-{m}on" / "metrics.json").read_text())
+        metrics = data["metrics"]
+        success, progress = (SimpleNamespace(**metrics[k]) for k in ("success", "progress"))
+        text, good = row(m, success, progress, metrics["episodes"], data["run"]["seconds"])
+        rows.append(text)
+        ok &= good
+    print(HEADER)
+    print("\n".join(rows))
+    return ok
+
+
 def calibrate(tasks: list[int], episodes: int, generate: int, seed: int, workers: int) -> bool:
     from multion.task.generate import generate_dataset
     from multion_agents.evaluate import EvalSettings, evaluate
@@ -88,22 +128,12 @@ def calibrate(tasks: list[int], episodes: int, generate: int, seed: int, workers
             took = time.perf_counter() - tick
             success = bootstrap([float(r.metrics["success"]) for r in result.records])
             progress = bootstrap([float(r.metrics["progress"]) for r in result.records])
-            paper_s, paper_p = PAPER[m]
-            good = (
-                abs(100 * success.mean - paper_s) <= TOLERANCE
-                and abs(100 * progress.mean - paper_p) <= TOLERANCE
-            )
+            text, good = row(m, success, progress, len(result.records), took)
             ok &= good
-            rows.append(
-                f"{m}-ON  {len(result.records):>6}  "
-                f"{100 * success.mean:5.1f} [{100 * success.low:4.1f}, {100 * success.high:4.1f}]"
-                f"  {paper_s:5.0f}  "
-                f"{100 * progress.mean:5.1f} [{100 * progress.low:4.1f}, {100 * progress.high:4.1f}]"
-                f"  {paper_p:5.0f}  {'yes' if good else 'NO':>4}  {took:6.0f}"
-            )
-            print(rows[-1], flush=True)
+            rows.append(text)
+            print(text, flush=True)
     print()
-    print("task  episodes  Success % [95% CI]     paper  Progress % [95% CI]    paper  ±5?  seconds")
+    print(HEADER)
     print("\n".join(rows))
     return ok
 
@@ -118,7 +148,11 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0, help="the agent's seed")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--houses", action="store_true", help="print the val houses' sizes only")
+    parser.add_argument("--from-runs", type=Path,
+                        help="read DIR/random-oracle-found-Mon/metrics.json instead of playing")
     args = parser.parse_args()
+    if args.from_runs is not None:
+        return 0 if from_runs(args.from_runs, args.tasks) else 1
     if args.houses:
         print("\n".join(house_table("val")))
         return 0
