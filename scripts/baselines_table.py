@@ -11,6 +11,7 @@ from pathlib import Path
 
 AGENTS = ("random", "random-oracle-found", "oracle-planner", "explorer")
 METRICS = ("success", "progress", "spl", "ppl")
+TASKS = (("1-ON", "1on"), ("2-ON", "2on"), ("3-ON", "3on"), ("3-ON + 3 distractors", "3on-distractors"))
 
 
 def cell(estimate: dict[str, float]) -> str:
@@ -26,16 +27,16 @@ def main(runs: Path) -> None:
     )
     print("| --- | --- | ---: | --- | --- | --- | --- | ---: | --- |")
     for agent in AGENTS:
-        for m in (1, 2, 3):
-            path = runs / f"{agent}-{m}on" / "metrics.json"
+        for task, folder in TASKS:
+            path = runs / f"{agent}-{folder}" / "metrics.json"
             if not path.exists():
-                print(f"| {agent} | {m}-ON | – | not run | | | | | |")
+                print(f"| {agent} | {task} | – | not run | | | | | |")
                 continue
             metrics = json.loads(path.read_text())["metrics"]
             ends = ", ".join(f"{k} {v}" for k, v in sorted(metrics["end_reasons"].items()))
             cells = " | ".join(cell(metrics[k]) for k in METRICS)
             print(
-                f"| {agent} | {m}-ON | {metrics['episodes']} | {cells} | "
+                f"| {agent} | {task} | {metrics['episodes']} | {cells} | "
                 f"{metrics['mean_steps']:.0f} | {ends} |"
             )
 
