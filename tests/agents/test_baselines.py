@@ -83,9 +83,14 @@ def test_colour_detection_is_exact() -> None:
     image[5:15, 10:12] = 180  # white in shade
     image[5:15, 20:22] = 0  # black
     image[5:15, 30:32] = (199, 199, 190)  # a light scene grey: not white
+    image[5:15, 34:36] = (115, 0, 0)  # red in a dark house (ambient 0.45)
+    image[15:19, 2:4] = (200, 22, 18)  # a red sofa: goal-like, but its off channels are not 0
+    image[15:19, 10:12] = (231, 231, 228)  # a white fridge: not exactly balanced
+    image[15:19, 20:22] = (20, 20, 23)  # black paint: not 0
     found = detect_goals(image)
-    assert sorted(found) == [4, 6, 7]
+    assert sorted(found) == [0, 4, 6, 7]
     assert set(found[4][1].tolist()) == {2, 3}
+    assert set(found[0][1].tolist()) == {34, 35} and set(found[7][0].tolist()) <= set(range(5, 15))
 
 
 def test_start_frame_grid_round_trip() -> None:
