@@ -106,10 +106,13 @@ def from_runs(runs: Path, tasks: list[int]) -> bool:
     return ok
 
 
-def calibrate(tasks: list[int], episodes: int, generate: int, seed: int, workers: int) -> bool:
+def calibrate(
+    tasks: list[int], episodes: int, generate: int, seed: int, workers: int, out: Path | None
+) -> bool:
+    """Play random-oracle-found on val in this process (houses are built once for all tasks)."""
     from multion.task.generate import generate_dataset
     from multion_agents.evaluate import EvalSettings, evaluate
-    from multion_agents.report import bootstrap
+    from multion_agents.report import bootstrap, write_report
 
     rows, ok = [], True
     with tempfile.TemporaryDirectory() as tmp:
@@ -126,6 +129,8 @@ def calibrate(tasks: list[int], episodes: int, generate: int, seed: int, workers
             tick = time.perf_counter()
             result = evaluate(settings, progress=False)
             took = time.perf_counter() - tick
+            if out is not None:  # the same files as `multion eval --out`
+                write_report(result, out / f"random-oracle-found-{m}on", pictures=0)
             success = bootstrap([float(r.metrics["success"]) for r in result.records])
             progress = bootstrap([float(r.metrics["progress"]) for r in result.records])
             text, good = row(m, success, progress, len(result.records), took)
@@ -148,6 +153,8 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0, help="the agent's seed")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--houses", action="store_true", help="print the val houses' sizes only")
+    parser.add_argument("--out", type=Path,
+                        help="also write each task's run to OUT/random-oracle-found-Mon/")
     parser.add_argument("--from-runs", type=Path,
                         help="read DIR/random-oracle-found-Mon/metrics.json instead of playing")
     args = parser.parse_args()
@@ -156,7 +163,8 @@ def main() -> int:
     if args.houses:
         print("\n".join(house_table("val")))
         return 0
-    return 0 if calibrate(args.tasks, args.episodes, args.generate, args.seed, args.workers) else 1
+    ok = calibrate(args.tasks, args.episodes, args.generate, args.seed, args.workers, args.out)
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":
