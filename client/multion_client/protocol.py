@@ -24,22 +24,33 @@ Messages
 
 from __future__ import annotations
 
-import struct
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import msgpack
 import numpy as np
 from gymnasium import spaces
 
 from multion_client.errors import MalformedMessage
+from multion_client.schema import EXT_NDARRAY as EXT_NDARRAY
+from multion_client.schema import EXT_SCALAR as EXT_SCALAR
+from multion_client.schema import NDARRAY, OBSERVATION, schema
+
+# The encoding lives in .wire; it is part of this contract, so it is importable from here.
+from multion_client.wire import decode as decode
+from multion_client.wire import encode as encode
+from multion_client.wire import encode_items as encode_items
+from multion_client.wire import join_encoded as join_encoded
+from multion_client.wire import space_from_wire as space_from_wire
+from multion_client.wire import space_to_wire as space_to_wire
 
 API_VERSION = "v1"
 PREFIX = f"/{API_VERSION}"
 CONTENT_TYPE = "application/x-msgpack"
 
 HEALTH_PATH = f"{PREFIX}/health"
+HEALTH_STATUSES = ("ok", "degraded")
 SPEC_PATH = f"{PREFIX}/spec"
 SESSIONS_PATH = f"{PREFIX}/sessions"
 
@@ -51,144 +62,6 @@ def session_path(session_id: str, verb: str | None = None) -> str:
     """``/v1/sessions/{id}`` or ``/v1/sessions/{id}/{verb}`` (verb: reset, step, observe)."""
     base = f"{SESSIONS_PATH}/{session_id}"
     return base if verb is None else f"{base}/{verb}"
-
-
-# ---------------------------------------------------------------------- encoding
-EXT_NDARRAY = 1
-EXT_SCALAR = 2
-_ALLOWED_KINDS = "biufc"
-
-
-def _array_ext(array: np.ndarray, code: int) -> msgpack.ExtType:
-    if array.dtype.kind not in _ALLOWED_KINDS:
-        raise TypeError(f"cannot encode numpy dtype {array.dtype} (only bool/int/float/complex)")
-    if not array.flags.c_contiguous:
-        array = array.copy(order="C")  # (not ascontiguousarray: it turns 0-d arrays into 1-d)
-    dtype = array.dtype.str.encode("ascii")
-    header = struct.pack(
-        f"<B{len(dtype)}sB{array.ndim}Q", len(dtype), dtype, array.ndim, *array.shape
-    )
-    # One copy: the header and the raw buffer side by side, as the extension's payload.
-    return msgpack.ExtType(code, b"".join((header, array.data)))
-
-
-def _default(obj: Any) -> Any:
-    if isinstance(obj, np.ndarray):
-        return _array_ext(obj, EXT_NDARRAY)
-    if isinstance(obj, np.generic):
-        return _array_ext(np.asarray(obj), EXT_SCALAR)
-    if isinstance(obj, tuple):
-        return list(obj)
-    raise TypeError(f"cannot encode {type(obj).__name__} in a MultiON message")
-
-
-def _ext_hook(code: int, data: bytes) -> Any:
-    if code not in (EXT_NDARRAY, EXT_SCALAR):
-        return msgpack.ExtType(code, data)
-    try:
-        (dtype_len,) = struct.unpack_from("<B", data, 0)
-        dtype = np.dtype(data[1 : 1 + dtype_len].decode("ascii"))
-        (ndim,) = struct.unpack_from("<B", data, 1 + dtype_len)
-        shape = struct.unpack_from(f"<{ndim}Q", data, 2 + dtype_len)
-    except (struct.error, UnicodeDecodeError, TypeError, ValueError) as error:
-        raise MalformedMessage(f"bad array header in msgpack extension: {error}") from None
-    offset = 2 + dtype_len + 8 * ndim
-    count = int(np.prod(shape, dtype=np.int64))
-    if dtype.kind not in _ALLOWED_KINDS or len(data) - offset != count * dtype.itemsize:
-        raise MalformedMessage(f"bad array in msgpack extension: dtype {dtype}, shape {shape}")
-    # Copy out of the message buffer so callers get ordinary writable arrays.
-    array = np.frombuffer(data, dtype, count, offset).reshape(shape).copy()
-    return array[()] if code == EXT_SCALAR else array
-
-
-_packer_options = {"default": _default, "use_bin_type": True}
-
-
-def encode(obj: Any) -> bytes:
-    """msgpack bytes of ``obj`` (dicts, lists, str, numbers, bytes, numpy arrays and scalars)."""
-    return msgpack.packb(obj, **_packer_options)
-
-
-def decode(data: bytes | bytearray | memoryview) -> Any:
-    """The object encoded in ``data``; raises :class:`MalformedMessage` for anything invalid."""
-    try:
-        return msgpack.unpackb(data, ext_hook=_ext_hook, raw=False)
-    except MalformedMessage:
-        raise
-    except (ValueError, TypeError, msgpack.UnpackException) as error:
-        raise MalformedMessage(
-            f"body is not valid msgpack ({type(error).__name__}: {error})"
-        ) from None
-
-
-def encode_items(items: Sequence[Any]) -> bytes:
-    """The msgpack encodings of ``items`` back to back, without an array header.
-
-    With :func:`join_encoded` a server builds one response from parts encoded elsewhere
-    (e.g. in several worker processes) without decoding and re-encoding arrays.
-    """
-    packer = msgpack.Packer(**_packer_options)
-    return b"".join(packer.pack(item) for item in items)
-
-
-def join_encoded(fields: Sequence[tuple[str, int, Sequence[bytes]]]) -> bytes:
-    """Encode a map ``{name: [items...]}`` from ``(name, item count, encode_items parts)``."""
-    packer = msgpack.Packer(**_packer_options)
-    out = [packer.pack_map_header(len(fields))]
-    for name, count, parts in fields:
-        out.append(packer.pack(name))
-        out.append(packer.pack_array_header(count))
-        out.extend(parts)
-    return b"".join(out)
-
-
-# ---------------------------------------------------------------------- spaces
-def space_to_wire(space: spaces.Space[Any]) -> dict[str, Any]:
-    """A msgpack-able description of a Box, Discrete or Dict space."""
-    if isinstance(space, spaces.Box):
-        return {
-            "type": "Box",
-            "low": _compact(space.low),
-            "high": _compact(space.high),
-            "shape": list(space.shape),
-            "dtype": np.dtype(space.dtype).str,
-        }
-    if isinstance(space, spaces.Discrete):
-        return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
-    if isinstance(space, spaces.Dict):
-        return {
-            "type": "Dict",
-            "spaces": {name: space_to_wire(sub) for name, sub in space.spaces.items()},
-        }
-    raise TypeError(f"cannot describe a {type(space).__name__} space on the wire")
-
-
-def _compact(bound: np.ndarray) -> np.ndarray | np.generic:
-    """A uniform bound as one scalar (an image's Box would otherwise cost its size twice)."""
-    flat = bound.reshape(-1)
-    if flat.size and (flat == flat[0]).all():
-        return flat[0]
-    return bound
-
-
-def space_from_wire(data: Any) -> spaces.Space[Any]:
-    """Rebuild a space from :func:`space_to_wire`'s description."""
-    kind = data.get("type") if isinstance(data, Mapping) else None
-    try:
-        if kind == "Box":
-            return spaces.Box(
-                low=data["low"],
-                high=data["high"],
-                shape=tuple(data["shape"]),
-                dtype=np.dtype(data["dtype"]),
-            )
-        if kind == "Discrete":
-            return spaces.Discrete(int(data["n"]), start=int(data.get("start", 0)))
-        if kind == "Dict":
-            return spaces.Dict({k: space_from_wire(v) for k, v in data["spaces"].items()})
-    except (KeyError, TypeError, ValueError, AttributeError) as error:
-        raise MalformedMessage(f"bad {kind} space description: {error}") from None
-    raise MalformedMessage(f"unsupported space description {data!r:.200}")
 
 
 # ---------------------------------------------------------------------- messages
@@ -216,9 +89,22 @@ def _list(value: Any, message: str, name: str) -> list[Any]:
 class CreateSession:
     """``POST /v1/sessions``: ``config`` is an EnvConfig as nested dicts (plus ``episodes``)."""
 
-    config: dict[str, Any] = field(default_factory=dict)
-    num_envs: int = 1
-    auto_reset: bool = False
+    config: dict[str, Any] = field(
+        default_factory=dict,
+        metadata=schema(
+            "an EnvConfig as nested maps (sections task, agent, camera, navgrid, maps; fields "
+            "sensors, split, dataset, episodes_per_scene), plus `episodes`: a list of Episode "
+            "maps to play. Missing fields keep their defaults (GET /v1/spec: `defaults`, and "
+            "`ranges` for the allowed values); unknown fields are refused"
+        ),
+    )
+    num_envs: int = field(default=1, metadata=schema("environments in the session", minimum=1))
+    auto_reset: bool = field(
+        default=False,
+        metadata=schema(
+            "reset an environment in the step that ends its episode (Gymnasium SAME_STEP)"
+        ),
+    )
 
     def to_wire(self) -> dict[str, Any]:
         return {"config": self.config, "num_envs": self.num_envs, "auto_reset": self.auto_reset}
@@ -246,10 +132,10 @@ class SessionInfo:
     """The answer to a create: the id and the spaces of each environment of the session."""
 
     session_id: str
-    num_envs: int
+    num_envs: int = field(metadata=schema(minimum=1))
     auto_reset: bool
-    observation_space: spaces.Space[Any]
-    action_space: spaces.Space[Any]
+    observation_space: spaces.Space[Any] = field(metadata=schema("of one environment"))
+    action_space: spaces.Space[Any] = field(metadata=schema("of one environment"))
 
     def to_wire(self) -> dict[str, Any]:
         return {
@@ -281,8 +167,37 @@ class Reset:
     ``episode_id`` or ``episode`` (an Episode dict).
     """
 
-    seeds: list[int | None] = field(default_factory=list)
-    options: list[dict[str, Any] | None] = field(default_factory=list)
+    seeds: list[int | None] = field(
+        default_factory=list,
+        metadata=schema(
+            "one per environment: nil, or an int seed",
+            items={
+                "anyOf": [{"type": "integer", "minimum": 0, "maximum": MAX_SEED}, {"type": "null"}]
+            },
+        ),
+    )
+    options: list[dict[str, Any] | None] = field(
+        default_factory=list,
+        metadata=schema(
+            "one per environment: nil, or a map with at most one of `episode_index` (int), "
+            "`episode_id` (string), `episode` (an Episode map); other keys are refused",
+            items={
+                "anyOf": [
+                    {
+                        "type": "object",
+                        "maxProperties": 1,
+                        "additionalProperties": False,
+                        "properties": {
+                            "episode_index": {"type": "integer"},
+                            "episode_id": {"type": "string"},
+                            "episode": {"type": "object"},
+                        },
+                    },
+                    {"type": "null"},
+                ]
+            },
+        ),
+    )
 
     def to_wire(self) -> dict[str, Any]:
         return {"seeds": self.seeds, "options": self.options}
@@ -310,7 +225,16 @@ class Reset:
 class Step:
     """``POST /v1/sessions/{id}/step``: exactly one action per environment of the session."""
 
-    actions: list[int]
+    actions: list[int] = field(
+        metadata=schema(
+            "one action per environment: 0 FOUND, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT "
+            "(integers; a 1-d integer array is accepted too)",
+            anyOf=[
+                {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": 3}},
+                NDARRAY,
+            ],
+        )
+    )
 
     def to_wire(self) -> dict[str, Any]:
         return {"actions": self.actions}
@@ -324,12 +248,20 @@ class Step:
         return cls(_list(actions, "Step", "actions"))
 
 
+INFOS_TEXT = (
+    "one per environment: `episode_id`, `scene_id` and `metrics` (the server's measures: "
+    "success, progress, spl, ppl, …)"
+)
+
+
 @dataclass(frozen=True)
 class Observations:
     """The answer to reset and observe: per env, the observation dict and the info dict."""
 
-    observations: list[dict[str, Any]]
-    infos: list[dict[str, Any]]
+    observations: list[dict[str, Any]] = field(
+        metadata=schema("one per environment", items=OBSERVATION)
+    )
+    infos: list[dict[str, Any]] = field(metadata=schema(INFOS_TEXT))
 
     def to_wire(self) -> dict[str, Any]:
         return {"observations": self.observations, "infos": self.infos}
@@ -345,11 +277,18 @@ class Observations:
 class StepResult:
     """The answer to a step, per env. With auto-reset, see ``RemoteVectorEnv`` for the infos."""
 
-    observations: list[dict[str, Any]]
+    observations: list[dict[str, Any]] = field(
+        metadata=schema("one per environment", items=OBSERVATION)
+    )
     rewards: list[float]
     terminated: list[bool]
     truncated: list[bool]
-    infos: list[dict[str, Any]]
+    infos: list[dict[str, Any]] = field(
+        metadata=schema(
+            INFOS_TEXT + "; with auto_reset, an ended episode's last outputs are in "
+            "`final_obs` and `final_info`"
+        )
+    )
 
     FIELDS = ("observations", "rewards", "terminated", "truncated", "infos")
 
@@ -380,3 +319,61 @@ class Error:
         inner = _fields(data, "Error", ("error",))["error"]
         d = _fields(inner, "Error", ("code", "message"))
         return cls(str(d["code"]), str(d["message"]))
+
+
+@dataclass(frozen=True)
+class SessionClosed:
+    """The answer to ``DELETE /v1/sessions/{id}``."""
+
+    closed: str = field(metadata=schema("the id of the closed session"))
+
+    def to_wire(self) -> dict[str, Any]:
+        return {"closed": self.closed}
+
+
+@dataclass(frozen=True)
+class Health:
+    """The answer to ``GET /v1/health``: liveness, the simulator workers, sessions in use."""
+
+    status: str = field(
+        metadata=schema("`degraded` while a worker is being replaced", enum=list(HEALTH_STATUSES))
+    )
+    api_version: str
+    workers: list[dict[str, Any]] = field(
+        metadata=schema(
+            "per worker: slot, pid, alive, ready, envs (held), reserved_mib (their memory "
+            "estimates), limit_mib (its address-space limit)"
+        )
+    )
+    workers_replaced: int
+    sessions: int
+    envs: int
+    sessions_reaped: int
+
+    def to_wire(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class ServerSpec:
+    """The answer to ``GET /v1/spec``: the task, the config a session may ask for, the limits."""
+
+    api_version: str
+    actions: dict[str, int] = field(metadata=schema("action name → id"))
+    goal_categories: list[str] = field(metadata=schema("category names; a category id is an index"))
+    sensors: list[str]
+    defaults: dict[str, Any] = field(metadata=schema("the default EnvConfig, as nested maps"))
+    ranges: dict[str, str] = field(
+        metadata=schema("config field (e.g. `camera.width`) → its allowed values")
+    )
+    observation_space: spaces.Space[Any] = field(metadata=schema("of the default config"))
+    action_space: spaces.Space[Any]
+    metadata: dict[str, Any] = field(metadata=schema("the environment's Gymnasium metadata"))
+    autoreset_mode: str = field(metadata=schema(enum=["same_step"]))
+    limits: dict[str, Any] = field(metadata=schema("this server's limits (sessions, envs, bytes)"))
+
+    def to_wire(self) -> dict[str, Any]:
+        wire = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        wire["observation_space"] = space_to_wire(self.observation_space)
+        wire["action_space"] = space_to_wire(self.action_space)
+        return wire

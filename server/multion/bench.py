@@ -26,7 +26,7 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "http", "train"],
+        choices=["sim", "http", "train", "memory"],
         action="append",
         help="run only these parts (repeatable; default: sim and http)",
     )
@@ -58,6 +58,10 @@ def run(args: argparse.Namespace) -> int:
     parts = args.only or ["sim", "http"]
     if "sim" in parts:
         bench_sim(args.steps, args.episodes)
+    if "memory" in parts:
+        from multion.api.bench_memory import bench_memory
+
+        bench_memory()
     if "http" in parts:
         from multion.api.bench_http import run_http_bench
 

@@ -13,7 +13,7 @@ from fastapi.testclient import TestClient
 from multion.api.app import create_app
 from multion.api.cli_serve import add_arguments, settings_from_args
 from multion.api.settings import ServerSettings
-from multion.task.dataset import packaged_dataset_path, save_dataset
+from multion.task.dataset import DATA_DIR, packaged_dataset_path, save_dataset
 from multion.task.episode import Episode
 from multion_client import errors
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
@@ -84,6 +84,9 @@ def test_paths_outside_the_allowed_dirs_are_refused(
     assert status == 403 and answer["error"]["code"] == "path_not_allowed"
     message = answer["error"]["message"]
     assert str(path) in message and "--dataset-dir" in message
+    # the client's value, never the server's directories
+    for server_dir in (dirs["allowed"], DATA_DIR.resolve()):
+        assert str(server_dir) not in message.replace(str(path), "")
     assert isinstance(errors.error_from_code("path_not_allowed", message, 403), errors.BadRequest)
 
 

@@ -12,6 +12,7 @@ from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException
 
 from multion.api.deps import MsgpackResponse
+from multion.api.openapi import install_openapi
 from multion.api.routers import meta, sessions
 from multion.api.sessions import SessionRegistry
 from multion.api.settings import ServerSettings
@@ -32,8 +33,7 @@ DESCRIPTION = """\
 Remote MultiON environments. Create a session (one or more environments), then reset and step
 it; observations come back as msgpack with numpy arrays as raw bytes. Metrics are computed here;
 clients only send actions. The `multion_client` package (`Client`, `RemoteEnv`,
-`RemoteVectorEnv`) speaks this protocol. Errors are `{"error": {"code", "message"}}`.
-"""
+`RemoteVectorEnv`) speaks this protocol."""
 
 
 def create_app(settings: ServerSettings | None = None) -> FastAPI:
@@ -67,6 +67,7 @@ def create_app(settings: ServerSettings | None = None) -> FastAPI:
         description=DESCRIPTION,
         lifespan=lifespan,
     )
+    install_openapi(app)
     app.include_router(meta.router)
     app.include_router(sessions.router)
     app.add_exception_handler(MultiONError, _api_error)

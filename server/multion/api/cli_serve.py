@@ -18,6 +18,12 @@ _OPTIONS: tuple[tuple[str, type, str], ...] = (
     ("idle_timeout_s", float, "close sessions unused for this many seconds (default 900)"),
     ("max_request_bytes", int, "largest request body accepted (default 32 MiB)"),
     ("worker_timeout_s", float, "kill and replace a worker silent this long (default 300)"),
+    (
+        "worker_memory_mb",
+        int,
+        "address-space limit of each simulator worker, and the room its sessions' memory "
+        "estimates share (default 8192)",
+    ),
 )
 
 

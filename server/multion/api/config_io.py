@@ -14,16 +14,32 @@ import typing
 from collections.abc import Mapping
 from typing import Any
 
-from multion.ranges import ConfigError
+from multion.ranges import ConfigError, field_ranges
 from multion.task.env import EnvConfig
 from multion.task.episode import Episode
 
-__all__ = ["ConfigError", "env_config_from_dict", "env_config_to_dict", "session_config_from_dict"]
+__all__ = [
+    "ConfigError",
+    "config_ranges",
+    "env_config_from_dict",
+    "env_config_to_dict",
+    "session_config_from_dict",
+]
 
 
 def env_config_to_dict(config: EnvConfig) -> dict[str, Any]:
     """The nested-dict form of ``config`` (tuples become lists)."""
     return _plain(dataclasses.asdict(config))
+
+
+def config_ranges(config_class: type = EnvConfig, prefix: str = "") -> dict[str, str]:
+    """``{"camera.width": "an integer in [1, 1024]", ...}``: the declared range of every field."""
+    ranges = {f"{prefix}{name}": spec.describe() for name, spec in field_ranges(config_class)}
+    hints = _hints(config_class)
+    for f in dataclasses.fields(config_class):
+        if dataclasses.is_dataclass(hints[f.name]):
+            ranges.update(config_ranges(hints[f.name], f"{prefix}{f.name}."))
+    return ranges
 
 
 def env_config_from_dict(data: Mapping[str, Any]) -> EnvConfig:

@@ -30,14 +30,15 @@ def check_path(path: str, roots: Sequence[Path], what: str) -> str:
     """
     try:
         resolved = Path(path).expanduser().resolve()
-    except (OSError, RuntimeError, ValueError) as error:  # symlink loops, NUL bytes
-        raise PathNotAllowed(f"{what} {path!r} is not a usable path ({error})") from None
+    except (OSError, RuntimeError, ValueError):  # symlink loops, NUL bytes
+        raise PathNotAllowed(f"{what} {path!r} is not a usable path") from None
     if any(resolved.is_relative_to(root) for root in roots):
         return str(resolved)
+    # The message names the client's value only: the server's directories are its own business.
     raise PathNotAllowed(
-        f"{what} {path!r} (resolved: {str(resolved)!r}) is outside the directories this server "
-        f"may read; it allows {', '.join(str(r) for r in roots)}. The server's operator can "
-        "allow more with `multion serve --dataset-dir DIR` (or MULTION_ALLOWED_DATASET_DIRS)"
+        f"{what} {path!r} is outside the directories this server may read (its packaged "
+        "datasets and those its operator allowed with `multion serve --dataset-dir DIR` or "
+        "MULTION_ALLOWED_DATASET_DIRS)"
     )
 
 

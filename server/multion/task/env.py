@@ -249,9 +249,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         if seed is not None:
-            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-                raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
-            if not 0 <= seed <= MAX_SEED:
+            integer = isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)
+            if not (integer and 0 <= seed <= MAX_SEED):
                 raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
             seed = int(seed)
         check_reset_options(options or {})
