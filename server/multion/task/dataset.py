@@ -83,8 +83,13 @@ DISTRACTOR_VARIANT = 3
 
 
 def variant_name(num_goals: int, num_distractors: int = 0) -> str:
-    """``3-on`` or, with distractors, ``3-on-distractors`` (the packaged datasets' folders)."""
-    return task_name(num_goals) + ("-distractors" if num_distractors else "")
+    """``3-on``; with the packaged number of distractors ``3-on-distractors``; with another
+    number ``3-on-2-distractors`` (the packaged datasets' folders; the last are not shipped)."""
+    if num_distractors == 0:
+        return task_name(num_goals)
+    if num_distractors == DISTRACTOR_VARIANT:
+        return f"{task_name(num_goals)}-distractors"
+    return f"{task_name(num_goals)}-{num_distractors}-distractors"
 
 
 def packaged_dataset_path(num_goals: int, split: str, num_distractors: int = 0) -> Path:
