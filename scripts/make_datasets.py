@@ -4,8 +4,7 @@
     .venv/bin/python scripts/make_datasets.py --split test
     .venv/bin/python scripts/make_datasets.py --split val --only 3-on-distractors
 
-1,000 episodes per task (as the paper's test set); 200 for the distractor variant (its 3-ON
-episodes cost as much, and a variant needs fewer).
+1,000 episodes per task and for the distractor variant (as the paper's test set).
 
 One process per split builds each house once (the grids stay cached) and writes every file of
 that split; the seeds are fixed, so the files are reproducible byte for byte.
@@ -25,7 +24,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--split", choices=sorted(SEEDS), required=True)
     parser.add_argument("--episodes", type=int, default=1000)
-    parser.add_argument("--distractor-episodes", type=int, default=200)
+    parser.add_argument("--distractor-episodes", type=int, default=1000)
     parser.add_argument("--only", nargs="*", help="variants to make, e.g. 1-on 3-on-distractors")
     args = parser.parse_args()
     variants = [(1, 0), (2, 0), (3, 0), (3, DISTRACTOR_VARIANT)]

@@ -31,7 +31,7 @@ def test_packaged_distractor_datasets(split):
     path = packaged_dataset_path(3, split, DISTRACTOR_VARIANT)
     assert path.parent.name == "3-on-distractors"
     episodes = load_dataset(path, num_goals=3, num_distractors=DISTRACTOR_VARIANT)
-    assert len(episodes) == 200 and {e.scene_id for e in episodes} == set(scene_ids(split))
+    assert len(episodes) == 1000 and {e.scene_id for e in episodes} == set(scene_ids(split))
     for episode in episodes:
         goals = {g.category for g in episode.goals}
         assert len(episode.distractors) == 3 and not goals & {d.category for d in episode.distractors}
