@@ -270,9 +270,10 @@ def test_whole_house_is_one_navigable_piece_about_half_of_the_footprint(radius):
         free, floor = free_space(layout, radius)
         labels, pieces = ndimage.label(free)
         sizes = np.bincount(labels.ravel())[1:]
-        # one piece; raster crumbs of a cell or two in corners aside (the navigable grid keeps
-        # only its largest region anyway)
-        assert sizes.max() >= free.sum() - 4 * (pieces - 1) and sizes.min() >= 1, (
+        # one piece; raster crumbs in corners between furniture and walls aside (at most
+        # 20 cells, 0.05 m², each: the navigable grid keeps only its largest region anyway, so
+        # no start or goal can be there)
+        assert sorted(sizes)[-2:-1] <= [20] and sizes.max() >= 0.995 * free.sum(), (
             f"house {seed} free space falls into pieces of {sorted(sizes)} cells"
         )
         fractions.append(free.sum() / floor.sum())
