@@ -3,8 +3,8 @@
 # then regenerate the doc's tables and figures from them:
 #   bash scripts/run_baselines.sh RUNS_DIR [AGENT ...]    # default: all four agents
 #   .venv/bin/multion report RUNS_DIR/* --out docs --doc baselines
-# Each run writes RUNS_DIR/AGENT-Mon/ (and RUNS_DIR/random-3on-budgetB/ for the found-budget
-# table). Episode counts per agent are set below; random-oracle-found never calls a wrong FOUND,
+# Each run writes RUNS_DIR/AGENT-Mon/, RUNS_DIR/AGENT-3on-distractors/ (the 3-ON variant with
+# distractor objects) and RUNS_DIR/random-3on-budgetB/ (the found-budget table). Episode counts per agent are set below; random-oracle-found never calls a wrong FOUND,
 # so the found-budget runs use `random`, which does.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -28,6 +28,8 @@ for agent in "${agents[@]}"; do
   for m in 1 2 3; do
     evaluate "$agent-${m}on" "${EPISODES[$agent]}" --agent "$agent" --task "$m-on"
   done
+  evaluate "$agent-3on-distractors" "${EPISODES[$agent]}" --agent "$agent" --task 3-on \
+    --dataset server/multion/data/datasets/3-on-distractors/val.json.gz
   if [ "$agent" = random ]; then
     for budget in "${BUDGETS[@]}"; do
       evaluate "random-3on-budget$budget" "${EPISODES[random]}" --agent random --task 3-on \

@@ -29,7 +29,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from multion.task.dataset import load_dataset, packaged_dataset_path, task_name
+from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
 from multion_agents.registry import agent_class
@@ -140,6 +140,9 @@ def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
         config["task"]["max_steps"] = settings.max_steps
     if settings.dataset is not None:
         config["dataset"] = str(settings.dataset)
+        distractors = int(read_header(settings.dataset).get("num_distractors", 0))
+        if distractors:  # the env checks that its task matches the dataset
+            config["task"]["num_distractors"] = distractors
     if settings.image_size is not None:
         config["camera"] = {"width": settings.image_size, "height": settings.image_size}
     config = merge_overrides(config, agent.config_overrides)
@@ -353,6 +356,16 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
             config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)
         server = {"url": None, "local": True, "api_version": health.get("api_version")}
         server["renderer"] = _served_renderer(config, spec)
+    # Which dataset was played, and for which houses (kept with the server's details, which
+    # metrics.json records as run.server).
+    played = dataset_file(settings)
+    header = read_header(played)
+    server["dataset"] = {
+        "path": str(played),
+        "version": header.get("version"),
+        "scene_generator_version": header.get("scene_generator_version"),
+        "num_distractors": header.get("num_distractors", 0),
+    }
     return EvalResult(
         settings,
         config,

@@ -11,3 +11,10 @@ for _m in (1, 2, 3):
         entry_point="multion.task.env:make_env",
         kwargs={"num_goals": _m},
     )
+
+# The MultiON 2022 challenge's setting: 3-ON with 3 distractor cylinders (packaged val / test).
+register(
+    id="MultiON/3-ON-distractors-v0",
+    entry_point="multion.task.env:make_env",
+    kwargs={"num_goals": 3, "num_distractors": 3},
+)

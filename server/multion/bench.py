@@ -11,6 +11,7 @@ server with the in-process env.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import tempfile
@@ -126,6 +127,13 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
                 f"{size:>8}² {used:>8} {env_rate:>13.1f} {raw_rate:>14.1f} {ratio:>8.2f}"
                 "   (target env/raw ≥ 0.90)"
             )
+            if size == 256 and renderer == "tiny":
+                plain, textured = _appearance_rates(walked, cfg_camera=config.camera)
+                results["plain_rps_256"], results["textured_rps_256"] = plain, textured
+                print(
+                    f"{'':>10} textures and lighting: {textured:.1f} vs {plain:.1f} renders/s "
+                    f"with plain colours (ratio {textured / plain:.2f}; target ≥ 0.80)"
+                )
         if "egl" in renderers:
             speedup = results[f"env_sps_egl_{size}"] / results[f"env_sps_tiny_{size}"]
             results[f"egl_speedup_{size}"] = speedup
@@ -158,6 +166,34 @@ def _env_rate(env: MultiONEnv, steps: int) -> tuple[float, list[tuple[float, flo
     return done_steps / elapsed, poses
 
 
+def _appearance_rates(
+    poses: list[tuple[float, float, float]], cfg_camera: CameraConfig
+) -> tuple[float, float]:
+    """Renders/s of the bench scene with plain colours (textures off, default light) and as it
+    is (textured floors and walls, its own light), at the same poses, back to back."""
+    from multion.scenes.registry import layout_for
+    from multion.sim.camera import Camera
+    from multion.sim.world import DEFAULT_LIGHTING, PyBulletWorld
+
+    layout = layout_for(SCENE)
+    plain_layout = dataclasses.replace(
+        layout,
+        boxes=tuple(dataclasses.replace(b, texture="") for b in layout.boxes),
+        metadata={k: v for k, v in layout.metadata.items() if k != "lighting"},
+    )
+    rates = []
+    for scene in (plain_layout, layout):
+        world = PyBulletWorld.from_layout(scene)
+        camera = Camera(cfg_camera, world.client, world.lighting)
+        assert scene is layout or world.lighting == DEFAULT_LIGHTING
+        begin = time.perf_counter()
+        for x, y, yaw in poses:
+            camera.render(x, y, yaw, 0.0)
+        rates.append(len(poses) / (time.perf_counter() - begin))
+        world.close()
+    return rates[0], rates[1]
+
+
 def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -> float:
     """Bare ``getCameraImage`` calls with the same camera, scene and lighting, at the same poses."""
     camera, grid, world = env.sim.camera, env.sim.grid, env.sim.world
@@ -175,8 +211,8 @@ def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -
             view,
             camera.projection,
             shadow=0,
-            lightAmbientCoeff=0.6,
-            lightDiffuseCoeff=0.4,
+            lightAmbientCoeff=camera.ambient,
+            lightDiffuseCoeff=camera.diffuse,
             lightSpecularCoeff=0.0,
             renderer=flag,
             flags=p.ER_NO_SEGMENTATION_MASK,

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from multion.task.dataset import DatasetError, parse_task
+from multion_client.constants import NUM_CATEGORIES
 
 
 def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,6 +17,8 @@ def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
     gen.add_argument("--split", default="val", choices=["train", "val", "test"])
     gen.add_argument("--episodes", type=int, default=1000, help="number of episodes (default 1000)")
     gen.add_argument("--seed", type=int, default=0)
+    gen.add_argument("--distractors", type=int, default=0,
+                     help="distractor cylinders per episode, 0..8-m (default 0, the paper's task)")
     gen.add_argument("--scenes", nargs="*", help="scene ids (default: the split's procedural houses)")
     gen.add_argument("--out", required=True, type=Path, help="output file (.json.gz)")
     check = sub.add_parser("check", help="validate a dataset file and print a summary")
@@ -29,7 +32,15 @@ def run_dataset(args: argparse.Namespace) -> int:
         if args.episodes <= 0:
             print("--episodes must be positive", file=sys.stderr)
             return 2
-        path = generate_dataset(args.out, parse_task(args.task), args.split, args.episodes, args.seed, args.scenes)
+        num_goals = parse_task(args.task)
+        if not 0 <= args.distractors <= NUM_CATEGORIES - num_goals:
+            print(f"--distractors must be in 0..{NUM_CATEGORIES - num_goals} for {num_goals} goals",
+                  file=sys.stderr)
+            return 2
+        path = generate_dataset(
+            args.out, num_goals, args.split, args.episodes, args.seed, args.scenes,
+            num_distractors=args.distractors,
+        )
         print(f"wrote {path}")
         return 0
     from multion.task.dataset import load_dataset
@@ -41,7 +52,8 @@ def run_dataset(args: argparse.Namespace) -> int:
         return 1
     scenes = sorted({e.scene_id for e in episodes})
     lengths = [sum(e.geodesic_distances) for e in episodes if e.geodesic_distances]
-    print(f"{args.path}: {len(episodes)} episodes, {episodes[0].num_goals} goals each, {len(scenes)} scenes")
+    print(f"{args.path}: {len(episodes)} episodes, {episodes[0].num_goals} goals and "
+          f"{len(episodes[0].distractors)} distractors each, {len(scenes)} scenes")
     if lengths:
         print(f"total geodesic length: mean {sum(lengths) / len(lengths):.2f} m, "
               f"min {min(lengths):.2f} m, max {max(lengths):.2f} m")

@@ -41,7 +41,7 @@ def test_unknown_split_names_the_valid_ones():
 def test_layout_for_houses_and_rooms():
     house = layout_for("house-00042")
     assert house.scene_id == "house-00042"
-    assert 3 <= len(house.rooms) <= 8
+    assert 8 <= len(house.rooms) <= 16
     assert layout_for("house-00042") is house  # cached
     assert layout_for("house-123456").metadata["seed"] == "123456"  # beyond the splits works too
     assert layout_for("room-6x4").rooms[0].rect == (0.0, 0.0, 6.0, 4.0)
@@ -72,3 +72,14 @@ def test_mesh_scenes_are_recognised_but_not_built_here():
         assert not is_mesh_scene(sid)
     with pytest.raises(ValueError, match="mesh"):
         layout_for("scan.glb")
+
+
+def test_a_house_is_a_pure_function_of_its_number_and_the_parameters():
+    from multion.scenes.house import generate_house
+    from multion.scenes.registry import GENERATOR_VERSION, HOUSE_CONFIG, house_parameters
+
+    assert house_parameters("house-00042") == (42, HOUSE_CONFIG)
+    assert generate_house(42, HOUSE_CONFIG, scene_id="house-00042") == layout_for("house-00042")
+    assert isinstance(GENERATOR_VERSION, int) and GENERATOR_VERSION >= 2
+    with pytest.raises(ValueError, match="house-NNNNN"):
+        house_parameters("room-6x4")

@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from multion.scenes.registry import GENERATOR_VERSION
 from multion.sim.geodesic import distance_field
 from multion.sim.simulator import Simulator
 from multion.task.dataset import DatasetError, load_dataset, parse_task, save_dataset
@@ -66,7 +67,8 @@ def write(path, payload, raw=False):
 def good_payload(episodes):
     return {
         "format": "multion-episodes",
-        "version": 1,
+        "version": 2,
+        "scene_generator_version": GENERATOR_VERSION,
         "num_goals": 3,
         "split": "val",
         "episodes": [e.to_dict() for e in episodes[:3]],
@@ -78,6 +80,12 @@ def good_payload(episodes):
     [
         (lambda p: p.update(format="other"), "not a MultiON dataset"),
         (lambda p: p.update(version=99), "version 99"),
+        (lambda p: p.update(version=1), "made for the old houses"),
+        (
+            lambda p: p.update(scene_generator_version=GENERATOR_VERSION - 1),
+            f"scene generator version {GENERATOR_VERSION - 1}",
+        ),
+        (lambda p: p.pop("scene_generator_version"), "scene generator version None"),
         (lambda p: p.update(episodes=[]), "non-empty list"),
         (lambda p: p["episodes"][1].pop("goals"), "episode 1: malformed (missing field 'goals')"),
         (lambda p: p["episodes"][0]["goals"][0].update(category=9), "category 9 is not in 0..7"),
@@ -120,3 +128,20 @@ def test_parse_task():
     assert parse_task("3-on") == parse_task("3-ON") == parse_task("3on") == parse_task(3) == 3
     with pytest.raises(ValueError, match="unknown task"):
         parse_task("9-on")
+
+
+def test_files_record_their_versions_and_rooms_need_no_generator_version(episodes, tmp_path):
+    from multion.task.dataset import VERSION, read_header
+    from multion.task.episode import Episode, Goal
+
+    header = read_header(save_dataset(tmp_path / "d.json.gz", episodes, 3, "val"))
+    assert header["version"] == VERSION == 2
+    assert header["scene_generator_version"] == GENERATOR_VERSION
+    assert header["num_distractors"] == 0
+    # empty rooms do not change with the house generator: such a file stays usable
+    room = Episode("r", "room-6x4", (1.0, 1.0, 0.0), 0.0, (Goal(0, (4.0, 2.0, 0.0)),))
+    path = write(tmp_path / "room.json.gz", {
+        "format": "multion-episodes", "version": 2, "scene_generator_version": 1,
+        "num_goals": 1, "split": "val", "episodes": [room.to_dict()],
+    })  # fmt: skip
+    assert load_dataset(path)[0].scene_id == "room-6x4"

@@ -2,8 +2,13 @@
 
 import pytest
 
-from multion.scenes.registry import scene_ids
-from multion.task.dataset import load_dataset, packaged_dataset_path
+from multion.scenes.registry import GENERATOR_VERSION, scene_ids
+from multion.task.dataset import (
+    DISTRACTOR_VARIANT,
+    load_dataset,
+    packaged_dataset_path,
+    read_header,
+)
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 
 
@@ -18,6 +23,18 @@ def test_packaged_dataset(split, m):
     for episode in episodes:
         assert len(episode.geodesic_distances) == m
         assert all(2.0 <= d <= 20.0 for d in episode.geodesic_distances)
+    assert read_header(packaged_dataset_path(m, split))["scene_generator_version"] == GENERATOR_VERSION
+
+
+@pytest.mark.parametrize("split", ["val", "test"])
+def test_packaged_distractor_datasets(split):
+    path = packaged_dataset_path(3, split, DISTRACTOR_VARIANT)
+    assert path.parent.name == "3-on-distractors"
+    episodes = load_dataset(path, num_goals=3, num_distractors=DISTRACTOR_VARIANT)
+    assert len(episodes) == 1000 and {e.scene_id for e in episodes} == set(scene_ids(split))
+    for episode in episodes:
+        goals = {g.category for g in episode.goals}
+        assert len(episode.distractors) == 3 and not goals & {d.category for d in episode.distractors}
 
 
 def test_env_uses_the_packaged_dataset_by_default():

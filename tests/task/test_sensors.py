@@ -149,3 +149,10 @@ def test_hidden_goals_are_not_rendered_but_still_count():
     assert not np.array_equal(shown["rgb"][210, 128], hidden["rgb"][210, 128])  # floor, not yellow
     *_, info = env.step(Action.FOUND)  # 1 m away: still found
     assert info["metrics"]["success"] == 1.0
+
+
+def test_oracle_map_crop_defaults_to_the_reference_13_cells_of_0_8_m():
+    assert MapConfig().ego_size == 13 and MapConfig().cell_size == 0.8
+    env, obs = env_at((1.0, 2.0), 0.0, [(2, (4.0, 2.0))], ("oracle_map", "oracle_ego_map"))
+    assert obs["oracle_map"].shape == (13, 13, 2) == obs["oracle_ego_map"].shape
+    assert env.observation_space["oracle_map"].shape == (13, 13, 2)

@@ -13,6 +13,11 @@ Policy, per step:
    map and in a straight, free line (or in view), which keeps inside the 1.5 m geodesic radius;
 3. otherwise go to the nearest frontier (known free cells next to unknown ones).
 
+Two escapes (the failures of docs/baselines.md): stuck for two full turns on the way to a
+remembered goal, it explores elsewhere for ``detour_steps`` steps (another way in shows up);
+arriving a second time where a frontier plan already ended, it gives that spot up (a frontier
+round a table that depth never closes).
+
 Plans are fast-marching fields (:mod:`.navigation`) over the explored part of the map, refreshed
 every ``replan_every`` steps, on arrival, when a step is refused, or when the target changes, so
 the agent's thinking stays a small fraction of the simulator's rendering time.
@@ -51,13 +56,14 @@ class ExplorerAgent(Agent):
     sensors: ClassVar[tuple[str, ...]] = ("rgb", "depth", "goal", "gps", "compass")
     config_overrides: ClassVar[ConfigOverrides] = {}
     cell_size: float = 0.1
-    map_size: int = 401  # ±20 m around the start: any house fits
+    map_size: int = 601  # ±30 m around the start: any house fits (up to about 25 m long)
     depth_rays: int = 64  # depth is sampled on a 64 × 64 grid of pixels, whatever the resolution
     found_distance: float = 1.0
     replan_every: int = 8
     wall_margin: float = 0.35
     min_frontier_cells: int = 4
     close_range: float = 0.6
+    detour_steps: int = 60
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
@@ -84,6 +90,8 @@ class ExplorerAgent(Agent):
         self._still = 0  # steps since the agent last moved
         self._last_position: np.ndarray | None = None
         self._last_action: int | None = None
+        self._detour = 0  # steps left exploring elsewhere after getting stuck on the way to a goal
+        self._arrivals: list[np.ndarray] = []  # where frontier plans ended
 
     # ------------------------------------------------------------------ the policy
     def act(self, observation: Observation) -> int:
@@ -122,9 +130,16 @@ class ExplorerAgent(Agent):
             self.map.changed = True
             if self._target == ("frontier", -1):
                 self._give_up_near(position)
+            else:
+                # stuck on the way to a remembered goal (pressing against a doorway the map
+                # thinks is open): explore elsewhere for a while, which finds another way in
+                self._detour = self.detour_steps
 
     def _decide(self, goal: int, goal_in_view: bool, position: np.ndarray, heading: float) -> int:
         goal_at = self.map.goal_position(goal)
+        if self._detour > 0 and not goal_in_view:
+            self._detour -= 1
+            goal_at = None
         if goal_at is not None:
             target = ("goal", goal)
             if self._target != target:
@@ -231,7 +246,14 @@ class ExplorerAgent(Agent):
     def _needs_frontier_replan(self, position: np.ndarray) -> bool:
         if self._field is None or self._since_plan >= self.replan_every:
             return True
-        return float(self.grid.lookup(self._field, position, outside=np.inf)) < 0.3
+        arrived = float(self.grid.lookup(self._field, position, outside=np.inf)) < 0.3
+        if arrived:
+            # arriving again where an earlier frontier plan ended means that frontier never
+            # closes (floor round a table that depth never shows): stop aiming there
+            if any(float(np.hypot(*(position - p))) < 1.0 for p in self._arrivals):
+                self._give_up_near(position)
+            self._arrivals.append(position.copy())
+        return arrived
 
     def _give_up_near(self, position: np.ndarray) -> None:
         """Stop aiming at frontier cells around a spot the agent keeps failing to reach."""

@@ -47,8 +47,13 @@ _CODE_TO_CATEGORY = np.full(8, -1, dtype=np.int64)  # r·4 + g·2 + b → catego
 for (_r, _g, _b), _category in _PATTERN_TO_CATEGORY.items():
     _CODE_TO_CATEGORY[_r * 4 + _g * 2 + _b] = _category
 
-ON_LEVEL = 140  # lit goal channels are 255 × (0.6 … 1.0) ≥ 153
-OFF_LEVEL = 12  # goal channels that are off render as 0; scene channels are ≥ 0.25 × 0.6 × 255
+# Houses vary their light (ambient 0.45–0.75, diffuse 0.25–0.5), so a lit goal channel renders
+# at 255 × (0.45 … 1.25) ≥ 114. Saturated furniture (a red sofa) has lit channels too, but its
+# "off" channels are ≥ 0.08 of full, which renders ≥ 9, while a goal's off channels are exactly 0:
+# the threshold on off channels is what tells a goal from a goal-coloured object.
+ON_LEVEL = 105
+OFF_LEVEL = 3
+WHITE_SPREAD = 0  # a white goal renders its three channels exactly equal; greys rarely do
 
 
 Detections = dict[int, tuple[np.ndarray, np.ndarray]]
@@ -62,7 +67,9 @@ def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     low = np.minimum(np.minimum(red, green), blue)
     high = np.maximum(np.maximum(red, green), blue)
     # cheap pre-filter: some channel is off (no scene colour has one), or bright balanced grey
-    rows, cols = np.nonzero((low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= 2)))
+    rows, cols = np.nonzero(
+        (low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= WHITE_SPREAD))
+    )
     if len(rows) == 0:
         return {}
     pixels = rgb[rows, cols]

@@ -2,7 +2,8 @@
 
 It is the non-learned counterpart of the paper's OracleMap (Occ+Obj) agent: it reads the same
 oracle map, at a finer resolution (0.1 m cells instead of 0.8 m, so doors and furniture gaps are
-resolved) and large enough (401 cells, ±20 m) to hold a whole house from the start pose.
+resolved) and large enough (601 cells, ±30 m) to hold a whole house (up to about 25 m long)
+from the start pose.
 
 Per episode:
 
@@ -38,7 +39,7 @@ from multion_agents.baselines.navigation import (
 from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
 
 CELL_SIZE = 0.1
-EGO_SIZE = 401
+EGO_SIZE = 601
 
 
 class OraclePlannerAgent(Agent):

@@ -20,7 +20,15 @@ import numpy as np
 from scipy import ndimage
 
 from multion.scenes.layout import Box, Rgba
-from multion.scenes.palette import FABRICS, MATERIALS, varied
+from multion.scenes.palette import (
+    BRIGHT,
+    BRIGHT_COLOURS,
+    FABRICS,
+    MATERIALS,
+    WOODS,
+    bright,
+    varied,
+)
 
 Rect = tuple[float, float, float, float]  # (x0, y0, x1, y1)
 AGENT_HEIGHT = 1.5  # parts starting higher than this do not block the agent
@@ -44,6 +52,7 @@ class Item:
     depth: float
     parts: tuple[Part, ...]
     centre: bool = False  # stands in the middle of the room instead of against a wall
+    anywhere: bool = False  # clutter: anywhere in the room, turned by a multiple of 90°
 
 
 @dataclass(frozen=True)
@@ -53,7 +62,7 @@ class PlacementConfig:
     wall_gap: float = 0.02  # gap between furniture and the wall behind it
     item_gap: float = 0.05  # minimum gap between two items
     clearance: float = 0.15  # agent radius (0.1) plus a margin, for the free-area check
-    check_radii: tuple[float, ...] = (0.05, 0.075, 0.1, 0.125, 0.15, 0.175, 0.2)
+    check_radii: tuple[float, ...] = (0.05, 0.075, 0.1, 0.125, 0.15, 0.175)
     cell: float = 0.05  # raster resolution of the connectivity check
     max_depth_fraction: float = 0.6  # an item reaches at most this far across the room
     min_free_fraction: float = 0.35  # this much of the room stays free (at ``clearance``)
@@ -85,7 +94,10 @@ def _chair(u0: float, v0: float, back_at_low_v: bool, wood: Rgba, seat: Rgba) ->
 
 
 def _mat(rng: np.random.Generator, *names: str) -> Rgba:
-    return varied(MATERIALS[names[int(rng.integers(len(names)))]], rng)
+    name = names[int(rng.integers(len(names)))]
+    if name in BRIGHT_COLOURS:
+        return bright(BRIGHT_COLOURS[name], rng)
+    return varied(MATERIALS[name], rng)
 
 
 def _snap(x: float) -> float:
@@ -99,7 +111,7 @@ def bed_set(rng: np.random.Generator) -> Item:
     bw, bl = float(rng.choice([0.9, 1.4, 1.6, 1.8])), 2.05
     stands = int(rng.choice([0, 1, 2], p=[0.2, 0.3, 0.5]))
     wood, linen = _mat(rng, "wood_light", "wood_mid"), _mat(rng, "linen")
-    blanket = _mat(rng, *FABRICS)
+    blanket = _mat(rng, *FABRICS, *BRIGHT)
     b0 = 0.5 if stands else 0.0
     b1 = b0 + bw
     parts = [
@@ -143,13 +155,13 @@ def bookshelf(rng: np.random.Generator) -> Item:
     for z in levels[:-1]:  # a row of books on every shelf
         bw, bh = _snap(rng.uniform(0.2, w - 0.2)), float(rng.uniform(0.18, 0.28))
         u0 = float(rng.uniform(0.04, w - 0.04 - bw))
-        parts.append(_p(u0, 0.04, z, u0 + bw, 0.26, z + bh, _mat(rng, *FABRICS)))
+        parts.append(_p(u0, 0.04, z, u0 + bw, 0.26, z + bh, _mat(rng, *FABRICS, *BRIGHT)))
     return Item("bookshelf", w, d, tuple(parts))
 
 
 def sofa_set(rng: np.random.Generator) -> Item:
     sw, sd = _snap(rng.uniform(1.8, 2.4)), 0.9
-    fabric, wood = _mat(rng, *FABRICS), _mat(rng, "wood_light", "wood_mid", "wood_dark")
+    fabric, wood = _mat(rng, *FABRICS, *BRIGHT), _mat(rng, "wood_light", "wood_mid", "wood_dark")
     parts = [
         _p(0.02, 0.02, 0, sw - 0.02, sd - 0.02, 0.11, wood),
         _p(0.14, 0.05, 0.1, sw - 0.14, sd, 0.45, fabric),
@@ -167,7 +179,7 @@ def sofa_set(rng: np.random.Generator) -> Item:
 
 
 def armchair(rng: np.random.Generator) -> Item:
-    fabric, wood = _mat(rng, *FABRICS), _mat(rng, "wood_mid", "wood_dark")
+    fabric, wood = _mat(rng, *FABRICS, *BRIGHT), _mat(rng, "wood_mid", "wood_dark")
     parts = (
         _p(0.02, 0.02, 0, 0.83, 0.83, 0.1, wood),
         _p(0.13, 0.05, 0.09, 0.72, 0.85, 0.44, fabric),
@@ -208,7 +220,7 @@ def kitchen_counter(rng: np.random.Generator) -> Item:
 
 
 def fridge(rng: np.random.Generator) -> Item:
-    metal, handle = _mat(rng, "metal", "ceramic"), _mat(rng, "stone")
+    metal, handle = _mat(rng, "metal", "ceramic", "paint_white", "paint_black"), _mat(rng, "stone")
     parts = (_p(0, 0, 0, 0.7, 0.68, 1.85, metal), _p(0.6, 0.67, 0.9, 0.63, 0.72, 1.5, handle))
     return Item("fridge", 0.7, 0.72, parts)
 
@@ -294,10 +306,86 @@ def cabinet(rng: np.random.Generator, name: str = "sideboard", lo: float = 1.2) 
 
 
 def plant(rng: np.random.Generator) -> Item:
-    pot, leaves = _mat(rng, "wood_dark", "stone", "fabric_rust"), _mat(rng, "foliage")
+    pot = _mat(rng, "wood_dark", "stone", "fabric_rust", "paint_red", "paint_white", "paint_blue")
+    leaves = _mat(rng, "foliage", "foliage", "paint_green")
     h = float(rng.uniform(0.8, 1.3))
     parts = (_p(0.05, 0.05, 0, 0.35, 0.35, 0.35, pot), _p(0, 0, 0.33, 0.4, 0.4, h, leaves))
     return Item("plant", 0.4, 0.4, parts)
+
+
+def kitchen_island(rng: np.random.Generator) -> Item:
+    w, d = _snap(rng.uniform(1.2, 2.0)), _snap(rng.uniform(0.8, 1.0))
+    body, top = _mat(rng, "wood_light", "linen", "wood_mid", "paint_red", "paint_blue"), _mat(
+        rng, "stone", "ceramic"
+    )
+    seat = _mat(rng, "metal", "wood_dark", "paint_white", "paint_yellow")
+    parts = [_p(0.05, 0.45, 0, w - 0.05, 0.45 + d - 0.05, 0.88, body),
+             _p(0, 0.4, 0.88, w, 0.45 + d, 0.92, top)]  # fmt: skip
+    stools = max(1, int(w // 0.6))
+    for k in range(stools):
+        u = (k + 0.5) * w / stools
+        parts += [_p(u - 0.17, 0.0, 0, u + 0.17, 0.34, 0.65, seat)]
+    return Item("island", w, 0.45 + d, tuple(parts), anywhere=True)
+
+
+def coffee_table(rng: np.random.Generator) -> Item:
+    w, d = _snap(rng.uniform(0.8, 1.2)), _snap(rng.uniform(0.5, 0.7))
+    return Item("coffee_table", w, d, tuple(_table(0, 0, w, d, 0.42, _mat(rng, *WOODS, "glass"))),
+                anywhere=True)  # fmt: skip
+
+
+def ottoman(rng: np.random.Generator) -> Item:
+    s = _snap(rng.uniform(0.45, 0.7))
+    return Item("ottoman", s, s, (_p(0, 0, 0, s, s, 0.42, _mat(rng, *FABRICS, *BRIGHT)),),
+                anywhere=True)  # fmt: skip
+
+
+def floor_lamp(rng: np.random.Generator) -> Item:
+    base, pole = _mat(rng, "metal", "screen"), _mat(rng, "metal")
+    shade = _mat(rng, "linen", "paint_white", "paint_yellow", "fabric_sand")
+    parts = (_p(0, 0, 0, 0.32, 0.32, 0.04, base), _p(0.14, 0.14, 0.04, 0.18, 0.18, 1.45, pole),
+             _p(0.03, 0.03, 1.4, 0.29, 0.29, 1.7, shade))  # fmt: skip
+    return Item("floor_lamp", 0.32, 0.32, parts, anywhere=True)
+
+
+def side_table(rng: np.random.Generator) -> Item:
+    s = _snap(rng.uniform(0.4, 0.55))
+    return Item("side_table", s, s, tuple(_table(0, 0, s, s, 0.55, _mat(rng, *WOODS, *BRIGHT))),
+                anywhere=True)  # fmt: skip
+
+
+def boxes_pile(rng: np.random.Generator) -> Item:
+    """Moving boxes, a laundry basket, toys …: one to three small boxes."""
+    parts, u = [], 0.0
+    for _ in range(int(rng.integers(1, 4))):
+        w, d, h = (float(rng.uniform(0.3, 0.6)) for _ in range(3))
+        colour = _mat(rng, "cardboard", "cardboard", *BRIGHT, *FABRICS)
+        parts.append(_p(u, 0, 0, u + w, d, h, colour))
+        u += w + 0.02
+    depth = max(p.hi[1] for p in parts)
+    return Item("boxes", u - 0.02, depth, tuple(parts), anywhere=True)
+
+
+def rug(rng: np.random.Generator) -> Item:
+    """A thin rug: it does not block the agent, it is there to be looked at (and mistaken)."""
+    w, d = _snap(rng.uniform(1.4, 2.8)), _snap(rng.uniform(1.0, 2.0))
+    return Item("rug", w, d, (_p(0, 0, 0, w, d, 0.012, _mat(rng, *BRIGHT, *FABRICS)),),
+                anywhere=True)  # fmt: skip
+
+
+def dining_anywhere(rng: np.random.Generator) -> Item:
+    item = dining_set(rng, small=bool(rng.random() < 0.5))
+    return Item(item.name, item.width, item.depth, item.parts, anywhere=True)
+
+
+def plant_anywhere(rng: np.random.Generator) -> Item:
+    item = plant(rng)
+    return Item(item.name, item.width, item.depth, item.parts, anywhere=True)
+
+
+def armchair_anywhere(rng: np.random.Generator) -> Item:
+    item = armchair(rng)
+    return Item(item.name, item.width, item.depth, item.parts, anywhere=True)
 
 
 Builder = Callable[[np.random.Generator], Item]
@@ -316,6 +404,24 @@ ROOM_FURNITURE: dict[str, list[tuple[Builder, float]]] = {
     "hallway": [(lambda rng: cabinet(rng, "console", 0.8), 0.6), (plant, 0.4)],
 }  # fmt: skip
 
+# Clutter in the middle of rooms, per room type: tried ``clutter`` rounds after the furniture
+# along the walls (each round tries every entry with its probability).
+ROOM_CLUTTER: dict[str, list[tuple[Builder, float]]] = {
+    "living_room": [(rug, 0.5), (coffee_table, 0.7), (armchair_anywhere, 0.4), (ottoman, 0.5),
+                    (floor_lamp, 0.4), (side_table, 0.4), (plant_anywhere, 0.4),
+                    (dining_anywhere, 0.25)],
+    "kitchen": [(kitchen_island, 0.5), (dining_anywhere, 0.3), (boxes_pile, 0.3),
+                (plant_anywhere, 0.2)],
+    "bedroom": [(rug, 0.4), (ottoman, 0.4), (boxes_pile, 0.5), (side_table, 0.3),
+                (floor_lamp, 0.3), (armchair_anywhere, 0.3)],
+    "bathroom": [(boxes_pile, 0.5), (plant_anywhere, 0.3)],
+    "dining_room": [(rug, 0.3), (side_table, 0.4), (plant_anywhere, 0.5), (boxes_pile, 0.3),
+                    (floor_lamp, 0.3)],
+    "office": [(boxes_pile, 0.6), (armchair_anywhere, 0.4), (plant_anywhere, 0.4),
+               (side_table, 0.4), (floor_lamp, 0.3)],
+    "hallway": [(plant_anywhere, 0.4), (boxes_pile, 0.4), (side_table, 0.3), (rug, 0.3)],
+}  # fmt: skip
+
 
 # ----------------------------------------------------------------------------- placement
 
@@ -324,6 +430,18 @@ def _frame(rng: np.random.Generator, item: Item, room: Rect, cfg: PlacementConfi
     """A random origin and unit axes (eu, ev) for ``item`` in ``room``, or None if it can't fit."""
     x0, y0, x1, y1 = room
     w, d, g = item.width, item.depth, cfg.wall_gap
+    if item.anywhere:
+        turn = int(rng.integers(4))  # 0°, 90°, 180°, 270°
+        fx, fy = (d, w) if turn % 2 else (w, d)
+        if fx > x1 - x0 or fy > y1 - y0:
+            return None
+        cx, cy = float(rng.uniform(x0, x1 - fx)), float(rng.uniform(y0, y1 - fy))
+        return [
+            ((cx, cy), (1, 0), (0, 1)),
+            ((cx + fx, cy), (0, 1), (-1, 0)),
+            ((cx + fx, cy + fy), (-1, 0), (0, -1)),
+            ((cx, cy + fy), (0, -1), (1, 0)),
+        ][turn]
     if item.centre:
         turned = bool(rng.integers(2))
         fx, fy = (d, w) if turned else (w, d)
@@ -380,13 +498,17 @@ def furnish_room(
     room_type: str,
     keep_clear: list[Rect],
     density: float = 1.0,
+    clutter: int = 0,
     cfg: PlacementConfig = PlacementConfig(),
 ) -> list[Box]:
-    """Furniture boxes for one room (interior rectangle ``room``), avoiding ``keep_clear`` areas."""
+    """Furniture boxes for one room (interior rectangle ``room``), avoiding ``keep_clear`` areas:
+    the room type's furniture along the walls, then ``clutter`` rounds of clutter."""
     boxes: list[Box] = []
     footprints: list[Rect] = []  # whole items: nothing else may be put there
     obstacles: list[Rect] = []  # the parts that block the agent: what navigation will see
-    for builder, probability in ROOM_FURNITURE.get(room_type, []):
+    wishes = list(ROOM_FURNITURE.get(room_type, []))
+    wishes += list(ROOM_CLUTTER.get(room_type, [])) * clutter
+    for builder, probability in wishes:
         if rng.random() >= min(1.0, probability * density):
             continue
         item = builder(rng)

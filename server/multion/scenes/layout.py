@@ -25,6 +25,8 @@ class Box:
     half_extents: tuple[float, float, float]
     rgba: Rgba
     kind: str = "furniture"
+    texture: str = ""
+    """A pattern of :mod:`multion.scenes.textures` ("planks", "tiles" …) or "" for a plain colour."""
 
     @property
     def min_corner(self) -> tuple[float, float, float]:

@@ -13,6 +13,7 @@ Accepted ids:
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import re
 
@@ -24,10 +25,11 @@ SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
 SPLITS: tuple[str, ...] = tuple(SPLIT_SIZES)
 MAX_ROOM_SIDE_M = 50.0
 """A ``room-WxD`` side is at most this (the grid, and so memory, grows with the room's area)."""
-GENERATOR_VERSION = 1
-"""Version of the procedural scenes (houses, rooms, furniture). Bump it whenever a change makes
-an id produce different geometry: navigable grids cached on disk under an older version are
-then rebuilt (``multion.sim.grid_cache``)."""
+GENERATOR_VERSION = 2
+"""Version of the procedural scenes: bump it whenever ``house-N`` (or ``room-WxD``) changes, so
+datasets made for other houses are refused and navigable grids cached on disk are rebuilt
+(``multion.sim.grid_cache``). 1: the small 3–8 room houses;
+2: Matterport3D-calibrated houses (issue 12)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 
 _HOUSE = re.compile(r"house-(\d+)")
@@ -43,6 +45,18 @@ def _first_seeds() -> dict[str, int]:
         first[split] = start
         start += size
     return first
+
+
+HOUSE_CONFIG = HouseConfig()
+"""The generator parameters of every ``house-N``: a house is a pure function of (N, these)."""
+
+
+def house_parameters(scene_id: str) -> tuple[int, HouseConfig]:
+    """The (seed, generator parameters) that build procedural house ``scene_id``."""
+    match = _HOUSE.fullmatch(scene_id)
+    if match is None:
+        raise ValueError(f"{scene_id!r} is not a procedural house id ('house-NNNNN')")
+    return int(match.group(1)), HOUSE_CONFIG
 
 
 def house_id(seed: int) -> str:
@@ -86,11 +100,12 @@ def is_mesh_scene(scene_id: str) -> bool:
 @functools.lru_cache(maxsize=64)
 def layout_for(scene_id: str) -> SceneLayout:
     """The layout of a procedural scene id (see the module docstring for the accepted forms)."""
-    if match := _HOUSE.fullmatch(scene_id):
-        return generate_house(int(match.group(1)), scene_id=scene_id)
+    if _HOUSE.fullmatch(scene_id):
+        seed, config = house_parameters(scene_id)
+        return generate_house(seed, config, scene_id=scene_id)
     if match := _SIZED_HOUSE.fullmatch(scene_id):
         rooms = int(match.group(2))
-        config = HouseConfig(min_rooms=rooms, max_rooms=rooms)
+        config = dataclasses.replace(HOUSE_CONFIG, min_rooms=rooms, max_rooms=rooms)
         return generate_house(int(match.group(1)), config, scene_id=scene_id)
     if match := _ROOM.fullmatch(scene_id):
         width, depth = float(match.group(1)), float(match.group(2))

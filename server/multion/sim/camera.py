@@ -88,13 +88,20 @@ class Camera:
     """Renders from a pose with the world's renderer (``tiny`` or ``egl``, see
     :func:`attach_renderer`); the projection is computed once."""
 
-    def __init__(self, config: CameraConfig, client: int, renderer: str = "tiny") -> None:
+    def __init__(
+        self,
+        config: CameraConfig,
+        client: int,
+        renderer: str = "tiny",
+        lighting: tuple[float, float] = (0.6, 0.4),
+    ) -> None:
         if renderer not in ("tiny", "egl"):
             raise ValueError(f"a camera renders with tiny or egl, not {renderer!r}")
         self.config = config
         self.client = client
         self.renderer = renderer
         self._flag = p.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else p.ER_TINY_RENDERER
+        self.ambient, self.diffuse = lighting
         self.projection = p.computeProjectionMatrixFOV(
             fov=config.vfov_deg,
             aspect=config.width / config.height,
@@ -122,8 +129,8 @@ class Camera:
             view,
             self.projection,
             shadow=0,
-            lightAmbientCoeff=0.6,
-            lightDiffuseCoeff=0.4,
+            lightAmbientCoeff=self.ambient,
+            lightDiffuseCoeff=self.diffuse,
             lightSpecularCoeff=0.0,
             renderer=self._flag,
             flags=flags,

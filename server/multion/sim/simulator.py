@@ -100,7 +100,9 @@ class Simulator:
             self.close()
             self.world = load_world(scene_id, self.camera_config.renderer)
             self.grid = navgrid_for(scene_id, self.world, self.navgrid_config)
-            self.camera = Camera(self.camera_config, self.world.client, self.world.renderer)
+            self.camera = Camera(
+                self.camera_config, self.world.client, self.world.renderer, self.world.lighting
+            )
             self.scene_id = scene_id
         assert self.grid is not None
         return self.grid

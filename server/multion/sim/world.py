@@ -12,13 +12,15 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 
-from multion.scenes.layout import SceneLayout
+from multion.scenes.layout import Box, SceneLayout
+from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.camera import attach_renderer
 
 # pybullet refuses ray batches above this size
 RAY_BATCH_LIMIT = 16_384
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 HIDDEN_POSITION = (0.0, 0.0, -100.0)
+DEFAULT_LIGHTING = (0.6, 0.4)  # (ambient, diffuse): rooms, meshes, houses that say nothing
 
 
 class PyBulletWorld:
@@ -39,11 +41,17 @@ class PyBulletWorld:
         self.scene_bodies: list[int] = []
         self._goal_bodies: dict[tuple[int, float, float], list[int]] = {}
         self._goal_in_use: list[int] = []
+        self.lighting: tuple[float, float] = DEFAULT_LIGHTING
+        """(ambient, diffuse) light coefficients of the camera in this scene."""
 
     # ------------------------------------------------------------------ building
     @classmethod
     def from_layout(cls, layout: SceneLayout, renderer: str = "tiny") -> PyBulletWorld:
         world = cls(renderer)
+        if "lighting" in layout.metadata:  # houses vary their light a little (issue 12)
+            ambient, diffuse = (float(v) for v in layout.metadata["lighting"].split(","))
+            world.lighting = (ambient, diffuse)
+        textures: dict[tuple[str, float, float], int] = {}
         for box in layout.boxes:
             col = p.createCollisionShape(
                 p.GEOM_BOX, halfExtents=box.half_extents, physicsClientId=world.client
@@ -61,8 +69,22 @@ class PyBulletWorld:
                 basePosition=box.center,
                 physicsClientId=world.client,
             )
+            if box.texture:
+                world._apply_texture(body, box, textures)
             world.scene_bodies.append(body)
         return world
+
+    def _apply_texture(
+        self, body: int, box: Box, loaded: dict[tuple[str, float, float], int]
+    ) -> None:
+        """Texture the box for the size of its largest face (floors: top; walls: long side)."""
+        hx, hy, hz = (2 * h for h in box.half_extents)
+        size = (hx, hy) if box.kind == "floor" else (max(hx, hy), hz)
+        key = (box.texture, round(size[0] / SIZE_STEP), round(size[1] / SIZE_STEP))
+        if key not in loaded:
+            path = texture_file(box.texture, *size)
+            loaded[key] = p.loadTexture(str(path), physicsClientId=self.client)
+        p.changeVisualShape(body, -1, textureUniqueId=loaded[key], physicsClientId=self.client)
 
     @classmethod
     def from_mesh(cls, path: str | Path, renderer: str = "tiny") -> PyBulletWorld:

@@ -2,8 +2,13 @@
 
 File format (``*.json.gz``)::
 
-    {"format": "multion-episodes", "version": 1, "num_goals": 3, "split": "val",
+    {"format": "multion-episodes", "version": 2, "scene_generator_version": 2,
+     "num_goals": 3, "num_distractors": 0, "split": "val",
      "generator": {...}, "episodes": [Episode.to_dict(), ...]}
+
+``version`` is the file format's; ``scene_generator_version`` the version of the procedural houses
+the episodes were sampled in (:data:`multion.scenes.registry.GENERATOR_VERSION`). A file whose
+house episodes were made for other houses is refused: its starts and goals would not fit.
 """
 
 from __future__ import annotations
@@ -19,13 +24,14 @@ from typing import Any
 
 import numpy as np
 
+from multion.scenes.registry import GENERATOR_VERSION
 from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGrid
 from multion.task.episode import Episode, Goal
 from multion_client.constants import NUM_CATEGORIES
 
 FORMAT = "multion-episodes"
-VERSION = 1
+VERSION = 2
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "datasets"
 
 
@@ -41,7 +47,21 @@ class EpisodeConstraints:
     max_geodesic: float = 20.0
     min_goal_separation: float = 1.0
     """Euclidean metres between any two goals, so cylinders never overlap."""
+    min_distractor_separation: float = 3.5
+    """Euclidean metres from a distractor to every goal: more than twice the 1.5 m success
+    distance, so a FOUND within reach of a distractor is never within reach of a goal (geodesic
+    distances are at least the Euclidean ones)."""
     max_tries: int = 200
+
+    def __post_init__(self) -> None:
+        if not 0 < self.min_geodesic <= self.max_geodesic:
+            raise ValueError(
+                f"need 0 < min_geodesic <= max_geodesic, got {self.min_geodesic}, {self.max_geodesic}"
+            )
+        if self.min_goal_separation < 0 or self.min_distractor_separation < 0:
+            raise ValueError("goal and distractor separations must be >= 0")
+        if self.max_tries < 1:
+            raise ValueError(f"max_tries must be >= 1, got {self.max_tries}")
 
 
 def task_name(num_goals: int) -> str:
@@ -57,13 +77,32 @@ def parse_task(name: str | int) -> int:
     return int(number)
 
 
-def packaged_dataset_path(num_goals: int, split: str) -> Path:
-    return DATA_DIR / task_name(num_goals) / f"{split}.json.gz"
+DISTRACTOR_VARIANT = 3
+"""Distractors per episode in the packaged ``m-on-distractors`` datasets and registered
+``MultiON/m-ON-distractors-v0`` ids."""
 
 
-def load_dataset(path: str | Path, num_goals: int | None = None) -> list[Episode]:
-    """Read and check a dataset file. Raises :class:`DatasetError` naming the file and problem."""
-    path = Path(path)
+def variant_name(num_goals: int, num_distractors: int = 0) -> str:
+    """``3-on``; with the packaged number of distractors ``3-on-distractors``; with another
+    number ``3-on-2-distractors`` (the packaged datasets' folders; the last are not shipped)."""
+    if num_distractors == 0:
+        return task_name(num_goals)
+    if num_distractors == DISTRACTOR_VARIANT:
+        return f"{task_name(num_goals)}-distractors"
+    return f"{task_name(num_goals)}-{num_distractors}-distractors"
+
+
+def packaged_dataset_path(num_goals: int, split: str, num_distractors: int = 0) -> Path:
+    return DATA_DIR / variant_name(num_goals, num_distractors) / f"{split}.json.gz"
+
+
+def read_header(path: str | Path) -> dict[str, Any]:
+    """A dataset file's header (everything but the episodes), checked for format and version."""
+    data = _read(Path(path))
+    return {k: v for k, v in data.items() if k != "episodes"}
+
+
+def _read(path: Path) -> dict[str, Any]:
     try:
         with gzip.open(path, "rt", encoding="utf-8") as handle:
             data = json.load(handle)
@@ -75,12 +114,35 @@ def load_dataset(path: str | Path, num_goals: int | None = None) -> list[Episode
         raise DatasetError(f'{path}: not a MultiON dataset (expected "format": "{FORMAT}")')
     if data.get("version") != VERSION:
         raise DatasetError(
-            f"{path}: dataset version {data.get('version')!r} is not supported (expected {VERSION})"
+            f"{path}: dataset version {data.get('version')!r} is not supported (expected "
+            f"{VERSION}); version 1 files were made for the old houses: regenerate it with "
+            "`multion dataset generate`"
         )
+    return data
+
+
+def load_dataset(
+    path: str | Path, num_goals: int | None = None, num_distractors: int | None = None
+) -> list[Episode]:
+    """Read and check a dataset file. Raises :class:`DatasetError` naming the file and problem.
+
+    ``num_goals`` / ``num_distractors``, when given, must match every episode.
+    """
+    path = Path(path)
+    data = _read(path)
     raw = data.get("episodes")
     if not isinstance(raw, list) or not raw:
         raise DatasetError(f'{path}: "episodes" must be a non-empty list')
+    made_by = data.get("scene_generator_version")
+    houses = any(str(item.get("scene_id", "")).startswith("house-") for item in raw if isinstance(item, dict))
+    if houses and made_by != GENERATOR_VERSION:
+        raise DatasetError(
+            f"{path}: its episodes were sampled in houses of scene generator version {made_by!r}, "
+            f"but this server builds version {GENERATOR_VERSION}: the houses differ, so its starts "
+            "and goals do not fit them; regenerate it with `multion dataset generate`"
+        )
     expected = num_goals if num_goals is not None else data.get("num_goals")
+    extra = num_distractors if num_distractors is not None else data.get("num_distractors", 0)
     episodes = []
     seen_ids: set[str] = set()
     for index, item in enumerate(raw):
@@ -89,6 +151,11 @@ def load_dataset(path: str | Path, num_goals: int | None = None) -> list[Episode
         except (KeyError, TypeError, ValueError) as error:
             raise DatasetError(f"{path}: episode {index}: malformed ({_describe(error)})") from None
         problem = check_episode(episode, expected)
+        if problem is None and len(episode.distractors) != extra:
+            problem = (
+                f"has {len(episode.distractors)} distractors, expected {extra} "
+                "(task.num_distractors must match the dataset)"
+            )
         if problem is None and episode.episode_id in seen_ids:
             problem = "duplicate episode_id"
         if problem:
@@ -110,10 +177,18 @@ def check_episode(episode: Episode, num_goals: int | None = None) -> str | None:
         return f"goal category {bad[0]} is not in 0..{NUM_CATEGORIES - 1}"
     if len(set(categories)) != len(categories):
         return f"goal categories {categories} repeat (they are sampled without replacement)"
+    others = [d.category for d in episode.distractors]
+    bad = [c for c in others if not 0 <= c < NUM_CATEGORIES]
+    if bad:
+        return f"distractor category {bad[0]} is not in 0..{NUM_CATEGORIES - 1}"
+    if len(set(others)) != len(others) or set(others) & set(categories):
+        return (
+            f"distractor categories {others} repeat or overlap the goal categories {categories}"
+        )
     values = [
         *episode.start_position,
         episode.start_yaw,
-        *(v for g in episode.goals for v in g.position),
+        *(v for g in (*episode.goals, *episode.distractors) for v in g.position),
     ]
     if not all(np.isfinite(values)):
         return "has a non-finite coordinate"
@@ -126,6 +201,7 @@ def save_dataset(
     num_goals: int,
     split: str,
     generator: dict[str, Any] | None = None,
+    num_distractors: int = 0,
 ) -> Path:
     """Write a dataset atomically (temp file + rename), so a crash leaves no half-written file."""
     path = Path(path)
@@ -133,7 +209,9 @@ def save_dataset(
     payload = {
         "format": FORMAT,
         "version": VERSION,
+        "scene_generator_version": GENERATOR_VERSION,
         "num_goals": num_goals,
+        "num_distractors": num_distractors,
         "split": split,
         "generator": generator or {},
         "episodes": [e.to_dict() for e in episodes],
@@ -158,47 +236,60 @@ def sample_episode(
     episode_id: str,
     constraints: EpisodeConstraints = EpisodeConstraints(),
     goal_radius: float = 0.05,
+    num_distractors: int = 0,
 ) -> Episode | None:
     """Sample one episode in a scene, or None when ``max_tries`` starts all fail.
 
     Start and goals are navigable cell centres of the (single-floor, connected) grid; each next
     point is drawn among cells at geodesic 2–20 m from the previous one, at least
     ``min_goal_separation`` from earlier goals; categories are drawn without replacement.
+    ``num_distractors`` more cylinders then take categories that are not the goals' and navigable
+    cells at least ``min_distractor_separation`` from every goal (and ``min_goal_separation`` from
+    each other). With no distractors the random stream is the same as before they existed.
     """
+    if not 0 <= num_distractors <= NUM_CATEGORIES - num_goals:
+        raise ValueError(
+            f"num_distractors must be in 0..{NUM_CATEGORIES - num_goals} for {num_goals} goals, "
+            f"got {num_distractors}"
+        )
     rows, cols = np.nonzero(grid.navigable)
     cells = grid.cell_to_world(rows, cols)
+    z = grid.floor_z
     for _ in range(constraints.max_tries):
         start = cells[rng.integers(len(cells))]
         points = [start]
-        distances: list[float] = []
+        measured: list[float] = []
+        # Each leg's candidates come from the previous point's field: the start's (a point), then
+        # each goal's, made with its footprint as the env makes it, which also gives the leg's
+        # distance exactly as the env measures it. m + 1 fast marchings per episode.
+        field = distance_field(grid, start, 0.0)
         for _goal in range(num_goals):
-            field = distance_field(grid, points[-1], 0.0)[rows, cols]
-            ok = (field >= constraints.min_geodesic) & (field <= constraints.max_geodesic)
+            near = field[rows, cols]
+            ok = (near >= constraints.min_geodesic) & (near <= constraints.max_geodesic)
             for earlier in points[1:]:
                 ok &= np.hypot(*(cells - earlier).T) >= constraints.min_goal_separation
             candidates = np.flatnonzero(ok)
             if len(candidates) == 0:
                 break
             pick = candidates[rng.integers(len(candidates))]
-            points.append(cells[pick])
-            distances.append(float(field[pick]))
+            goal_xy = np.round(cells[pick], 4)
+            field = distance_field(grid, goal_xy, goal_radius)
+            measured.append(float(grid.lookup(field, points[-1], outside=np.inf)))
+            points.append(goal_xy)
         if len(points) != num_goals + 1:
             continue
         categories = rng.choice(NUM_CATEGORIES, size=num_goals, replace=False)
-        z = grid.floor_z
         goals = tuple(
-            Goal(category=int(c), position=(round(float(p[0]), 4), round(float(p[1]), 4), z))
+            Goal(category=int(c), position=(float(p[0]), float(p[1]), z))
             for c, p in zip(categories, points[1:], strict=True)
         )
-        # distances as the env measures them: to the goal's footprint, from the previous point
-        measured = []
-        previous = start
-        for goal in goals:
-            field = distance_field(grid, np.asarray(goal.position[:2]), goal_radius)
-            measured.append(float(grid.lookup(field, previous, outside=np.inf)))
-            previous = np.asarray(goal.position[:2])
         if not all(constraints.min_geodesic <= d <= constraints.max_geodesic for d in measured):
             continue  # the footprint distance can differ from the cell distance by a few cm
+        distractors = _sample_distractors(
+            rng, cells, goals, num_distractors, constraints, z
+        ) if num_distractors else ()
+        if distractors is None:
+            continue
         return Episode(
             episode_id=episode_id,
             scene_id=scene_id,
@@ -206,8 +297,36 @@ def sample_episode(
             start_yaw=round(float(rng.uniform(-np.pi, np.pi)), 6),
             goals=goals,
             geodesic_distances=tuple(measured),
+            distractors=distractors,
         )
     return None
+
+
+def _sample_distractors(
+    rng: np.random.Generator,
+    cells: np.ndarray,
+    goals: Sequence[Goal],
+    count: int,
+    constraints: EpisodeConstraints,
+    z: float,
+) -> tuple[Goal, ...] | None:
+    """``count`` distractors on navigable ``cells`` away from the goals, or None if none fit."""
+    ok = np.ones(len(cells), dtype=bool)
+    for goal in goals:
+        ok &= np.hypot(*(cells - np.asarray(goal.position[:2])).T) >= constraints.min_distractor_separation
+    free = [c for c in range(NUM_CATEGORIES) if c not in {g.category for g in goals}]
+    categories = rng.choice(free, size=count, replace=False)
+    placed: list[Goal] = []
+    for category in categories:
+        candidates = np.flatnonzero(ok)
+        if len(candidates) == 0:
+            return None
+        point = cells[candidates[rng.integers(len(candidates))]]
+        ok &= np.hypot(*(cells - point).T) >= constraints.min_goal_separation
+        placed.append(
+            Goal(int(category), (round(float(point[0]), 4), round(float(point[1]), 4), z))
+        )
+    return tuple(placed)
 
 
 def _describe(error: Exception) -> str:

@@ -22,7 +22,7 @@ from multion.task.dataset import (
     load_dataset,
     packaged_dataset_path,
     sample_episode,
-    task_name,
+    variant_name,
 )
 from multion.task.episode import Episode
 from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
@@ -85,6 +85,12 @@ class TaskConfig:
     goals_visible: bool = True
     """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
     ablation); they still count for FOUND, rewards and the oracle maps."""
+    num_distractors: int = bounded(0, 0, NUM_CATEGORIES - 1)
+    """Distractor cylinders per episode, of categories that are not among its goals (the MultiON
+    2022 challenge's setting); valid range 0..8 - num_goals. 0 is the paper's task. They are drawn,
+    in ``goal_mask`` and the oracle maps with their category + 1 like goals; a FOUND near one is a
+    wrong FOUND (counted in ``distractor_founds``). Episodes come from the dataset, which must have
+    this many distractors per episode (the packaged ``m-on-distractors`` sets have 3)."""
 
     def __post_init__(self) -> None:
         check_fields(self, "task")
@@ -114,6 +120,12 @@ class EnvConfig:
         require(not unknown, f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
         repeated = sorted({s for s in self.sensors if self.sensors.count(s) > 1})
         require(not repeated, f"sensor(s) {repeated} named more than once in sensors")
+        require(
+            self.task.num_goals + self.task.num_distractors <= NUM_CATEGORIES,
+            f"task.num_distractors must be in 0..{NUM_CATEGORIES - self.task.num_goals} with "
+            f"{self.task.num_goals} goals (categories are not shared), "
+            f"got {self.task.num_distractors}",
+        )
 
 
 class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
@@ -129,7 +141,9 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     position relative to the start, in the start frame (x ahead, y left); ``compass`` (1,)
     heading relative to the start, radians; ``oracle_map`` / ``oracle_ego_map`` (S, S, 2) uint8
     egocentric crops (occupancy, goal category + 1); ``goal_mask`` (H, W) uint8, goal category + 1
-    per pixel (for supervising recognisers); ``goal_distance`` (1,) oracle geodesic distance to the
+    per pixel (for supervising recognisers). Distractors (``task.num_distractors``) appear in
+    ``goal_mask`` and the oracle maps with their category + 1 too: their categories are never the
+    episode's goals', so a recogniser learns categories and the current goal says which one counts; ``goal_distance`` (1,) oracle geodesic distance to the
     current goal (for oracle baselines such as Rand+OracleFound).
 
     ## Actions
@@ -163,6 +177,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self.state: EpisodeState | None = None
         self.measures = Measures()
         self._fields: list[np.ndarray] = []
+        self._distractor_fields: dict[int, np.ndarray] = {}
         self._oracle: OracleMap | None = None
         self._reveal: EgoMapReveal | None = None
         self._last_rgb: np.ndarray | None = None
@@ -173,15 +188,17 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     # ------------------------------------------------------------------ episodes
     def _default_episodes(self) -> list[Episode] | None:
         cfg = self.config
+        task = cfg.task
         if cfg.dataset is not None:
-            return load_dataset(cfg.dataset, cfg.task.num_goals)
-        path = packaged_dataset_path(cfg.task.num_goals, cfg.split)
+            return load_dataset(cfg.dataset, task.num_goals, task.num_distractors)
+        path = packaged_dataset_path(task.num_goals, cfg.split, task.num_distractors)
         if path.is_file():
-            return load_dataset(path, cfg.task.num_goals)
+            return load_dataset(path, task.num_goals, task.num_distractors)
         if cfg.split == "train":
             return None  # sampled online from the train scenes
         raise DatasetError(
-            f"no packaged {task_name(cfg.task.num_goals)} {cfg.split} dataset; "
+            f"no packaged {variant_name(task.num_goals, task.num_distractors)} {cfg.split} "
+            "dataset; "
             f"generate one with `multion dataset generate` and pass it as `dataset`"
         )
 
@@ -205,6 +222,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
                 self.config.task.num_goals,
                 self.np_random,
                 f"train-online-{self._online_count:07d}",
+                num_distractors=self.config.task.num_distractors,
             )
             if episode is None:  # no valid episode found here: try another scene
                 self._online_scene = None
@@ -263,9 +281,10 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             optimal.append(d)
             previous = np.asarray(episode.goals[index].position[:2])
         assert self.sim.world is not None
-        visible_goals = episode.goals if task.goals_visible else ()
+        self._distractor_fields = {}
+        cylinders = (*episode.goals, *episode.distractors) if task.goals_visible else ()
         self.sim.world.place_goals(
-            [(g.position, GOAL_RGBA[g.category]) for g in visible_goals],
+            [(g.position, GOAL_RGBA[g.category]) for g in cylinders],
             task.goal_radius,
             task.goal_height,
         )
@@ -286,7 +305,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             if self._oracle is None or self._oracle.grid is not grid:
                 self._oracle = OracleMap(grid, self.config.maps)
                 self._reveal = EgoMapReveal(self._oracle, self.config.camera.hfov_deg)
-            self._oracle.set_goals(episode.goals)
+            self._oracle.set_goals((*episode.goals, *episode.distractors))
             assert self._reveal is not None
             self._reveal.reset()
         self._done = False
@@ -315,6 +334,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             else:
                 state.found_wrong = True
                 state.wrong_founds += 1
+                state.distractor_founds += int(self._at_distractor())
                 reward -= task.wrong_found_penalty
                 if state.wrong_founds > task.found_budget:
                     state.end_reason, terminated = "wrong_found", True
@@ -356,6 +376,21 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         return float(
             self.sim.grid.lookup(self._fields[goal_index], self.sim.position, outside=np.inf)
         )
+
+    def _at_distractor(self) -> bool:
+        """Is the agent within the success distance of a distractor? (fields made on demand)"""
+        assert self.episode is not None and self.sim.grid is not None
+        for index, distractor in enumerate(self.episode.distractors):
+            if index not in self._distractor_fields:
+                self._distractor_fields[index] = distance_field(
+                    self.sim.grid, np.asarray(distractor.position[:2]), self.config.task.goal_radius
+                )
+            distance = self.sim.grid.lookup(
+                self._distractor_fields[index], self.sim.position, outside=np.inf
+            )
+            if float(distance) <= self.config.task.success_distance:
+                return True
+        return False
 
     def _update_seen(self) -> None:
         state, grid = self.state, self.sim.grid
@@ -432,7 +467,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         mask = np.zeros(segmentation.shape, dtype=np.uint8)
         if not self.config.task.goals_visible:
             return mask
-        for body, goal in zip(self.sim.world.goal_bodies_in_use, self.episode.goals, strict=True):
+        cylinders = (*self.episode.goals, *self.episode.distractors)
+        for body, goal in zip(self.sim.world.goal_bodies_in_use, cylinders, strict=True):
             mask[segmentation == body] = goal.category + 1
         return mask
 
@@ -485,8 +521,10 @@ def make_env(
     config: EnvConfig | None = None,
     episodes: Sequence[Episode] | None = None,
     render_mode: str | None = None,
+    num_distractors: int = 0,
 ) -> MultiONEnv:
-    """Entry point of the registered ids: the default config for ``num_goals`` unless one is given."""
+    """Entry point of the registered ids: the default config for ``num_goals`` (and
+    ``num_distractors``) unless one is given."""
     if config is None:
-        config = EnvConfig(task=TaskConfig(num_goals=num_goals))
+        config = EnvConfig(task=TaskConfig(num_goals=num_goals, num_distractors=num_distractors))
     return MultiONEnv(config, episodes=episodes, render_mode=render_mode)

@@ -25,6 +25,10 @@ class Episode:
     goals: tuple[Goal, ...]
     geodesic_distances: tuple[float, ...] = field(default=(), compare=False)
     """start→g1, g1→g2, … as measured when the episode was generated (informative)."""
+    distractors: tuple[Goal, ...] = ()
+    """Cylinders of categories that are not among ``goals`` (the MultiON 2022 challenge's
+    distractors): drawn and mapped like goals, never to be FOUND. Each stands more than twice the
+    success distance from every goal, so no spot is within reach of a goal and a distractor."""
 
     @property
     def num_goals(self) -> int:
@@ -41,6 +45,10 @@ class Episode:
                 for g in self.goals
             ],
             "geodesic_distances": [round(d, 4) for d in self.geodesic_distances],
+            "distractors": [
+                {"category": d.category, "position": [round(v, 4) for v in d.position]}
+                for d in self.distractors
+            ],
         }
 
     @classmethod
@@ -51,15 +59,17 @@ class Episode:
             scene_id=str(data["scene_id"]),
             start_position=_point(data["start_position"], "start_position"),
             start_yaw=float(data["start_yaw"]),
-            goals=tuple(
-                Goal(
-                    category=_int(g["category"], "category"),
-                    position=_point(g["position"], "goal position"),
-                )
-                for g in data["goals"]
-            ),
+            goals=tuple(_goal(g, "goal") for g in data["goals"]),
             geodesic_distances=tuple(float(d) for d in data.get("geodesic_distances", ())),
+            distractors=tuple(_goal(d, "distractor") for d in data.get("distractors", ())),
         )
+
+
+def _goal(data: Any, name: str) -> Goal:
+    return Goal(
+        category=_int(data["category"], f"{name} category"),
+        position=_point(data["position"], f"{name} position"),
+    )
 
 
 def _point(value: Any, name: str) -> tuple[float, float, float]:

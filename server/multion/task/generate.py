@@ -15,7 +15,7 @@ from multion.task.dataset import (
     iter_chunks,
     sample_episode,
     save_dataset,
-    task_name,
+    variant_name,
 )
 from multion.task.episode import Episode
 
@@ -28,6 +28,7 @@ def generate_episodes(
     scenes: Sequence[str] | None = None,
     constraints: EpisodeConstraints = EpisodeConstraints(),
     progress: bool = True,
+    num_distractors: int = 0,
 ) -> list[Episode]:
     """``count`` episodes of m-ON over the split's scenes (or ``scenes``), grouped by scene.
 
@@ -37,7 +38,8 @@ def generate_episodes(
     scenes = list(scenes) if scenes is not None else scene_ids(split)
     sim = Simulator()
     episodes: list[Episode] = []
-    bar = tqdm(total=count, desc=f"{task_name(num_goals)} {split}", unit="ep", disable=not progress)
+    name = variant_name(num_goals, num_distractors)
+    bar = tqdm(total=count, desc=f"{name} {split}", unit="ep", disable=not progress)
     try:
         for index, quota in iter_chunks(scenes, count):
             if quota == 0:
@@ -48,8 +50,11 @@ def generate_episodes(
             made = 0
             failures = 0
             while made < quota:
-                episode_id = f"{split}-{task_name(num_goals)}-{len(episodes):05d}"
-                episode = sample_episode(grid, scene, num_goals, rng, episode_id, constraints)
+                episode_id = f"{split}-{name}-{len(episodes):05d}"
+                episode = sample_episode(
+                    grid, scene, num_goals, rng, episode_id, constraints,
+                    num_distractors=num_distractors,
+                )
                 if episode is None:
                     failures += 1
                     if failures > 3:
@@ -66,9 +71,11 @@ def generate_episodes(
 
 def generate_dataset(
     out: str | Path, num_goals: int, split: str, count: int, seed: int = 0,
-    scenes: Sequence[str] | None = None, progress: bool = True,
+    scenes: Sequence[str] | None = None, progress: bool = True, num_distractors: int = 0,
 ) -> Path:
     """Generate and write a dataset file; returns its path."""
-    episodes = generate_episodes(num_goals, split, count, seed, scenes, progress=progress)
+    episodes = generate_episodes(
+        num_goals, split, count, seed, scenes, progress=progress, num_distractors=num_distractors
+    )
     info = {"seed": seed, "count": count, "scenes": sorted({e.scene_id for e in episodes})}
-    return save_dataset(out, episodes, num_goals, split, generator=info)
+    return save_dataset(out, episodes, num_goals, split, info, num_distractors)

@@ -28,8 +28,10 @@ class MapConfig:
 
     cell_size: float = bounded(0.8, 0.05, 5.0)
     """Side of an oracle-map cell, metres (paper: 0.8)."""
-    ego_size: int = bounded(51, 1, 1001)
-    """Side of the egocentric crop, cells (odd, so the agent has a centre cell)."""
+    ego_size: int = bounded(13, 1, 1001)
+    """Side of the egocentric crop, cells (odd, so the agent has a centre cell). 13 cells of
+    0.8 m (about 10 m) is the reference configuration's crop: large enough to plan the next few
+    rooms, too small to show a whole house, so an agent must remember what it has seen."""
     free_fraction: float = bounded(0.5, 0.0, 1.0)
     """A coarse cell is free when at least this fraction of its fine cells is navigable."""
     view_distance: float = bounded(5.0, 0.1, 50.0)

@@ -32,6 +32,8 @@ class EpisodeState:
     found_wrong: bool = False
     goals_found: int = 0
     wrong_founds: int = 0
+    distractor_founds: int = 0
+    """Wrong FOUNDs called within the success distance of a distractor."""
     distance_to_goal: float = 0.0
     first_seen_step: list[int | None] = field(default_factory=list)
     current_since_step: list[int | None] = field(default_factory=list)
@@ -139,6 +141,22 @@ class WrongFounds(Measure):
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
         self._value = state.wrong_founds
+
+    @property
+    def value(self) -> int:
+        return self._value
+
+
+class DistractorFounds(Measure):
+    """Wrong FOUNDs called at a distractor (within the success distance of one)."""
+
+    name = "distractor_founds"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = 0
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._value = state.distractor_founds
 
     @property
     def value(self) -> int:
@@ -311,6 +329,7 @@ DEFAULT_MEASURES: tuple[type[Measure], ...] = (
     DistanceToGoal,
     GoalsFound,
     WrongFounds,
+    DistractorFounds,
     Progress,
     Success,
     SPL,

@@ -36,7 +36,7 @@ def estimate_env_bytes(config: EnvConfig) -> int:
     """An upper bound on the memory one environment of ``config`` holds at its peak."""
     pixels = config.camera.width * config.camera.height
     side_cells = MAX_SCENE_SIDE_M / config.navgrid.cell_size + 1
-    fields = config.task.num_goals + SCRATCH_FIELDS
+    fields = config.task.num_goals + config.task.num_distractors + SCRATCH_FIELDS
     grid = int(side_cells**2) * fields * BYTES_PER_GRID_CELL_AND_FIELD
     maps = 0
     if {"oracle_map", "oracle_ego_map"} & set(config.sensors):
