@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from wire_schema import problems, raw_decode
+from wire_schema import operation, problems, raw_decode
 
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings
@@ -29,16 +29,6 @@ def document(api: TestClient) -> dict[str, Any]:
     response = api.get("/openapi.json")
     assert response.status_code == 200
     return response.json()
-
-
-def operation(document: dict[str, Any], method: str, path: str) -> dict[str, Any]:
-    for template, operations in document["paths"].items():
-        parts, wanted = template.split("/"), path.split("/")
-        if len(parts) == len(wanted) and all(
-            p == w or p.startswith("{") for p, w in zip(parts, wanted, strict=True)
-        ):
-            return operations[method.lower()]
-    raise AssertionError(f"{method} {path} is not documented")
 
 
 class Tour:

@@ -36,3 +36,14 @@ def problems(schema: dict[str, Any], instance: Any) -> list[str]:
         f"{'/'.join(map(str, e.absolute_path))}: {e.message}"
         for e in WireValidator(schema).iter_errors(instance)
     ]
+
+
+def operation(document: dict[str, Any], method: str, path: str) -> dict[str, Any]:
+    """The OpenAPI operation that serves ``method path`` (path parameters match any segment)."""
+    for template, operations in document["paths"].items():
+        parts, wanted = template.split("/"), path.split("/")
+        if len(parts) == len(wanted) and all(
+            p == w or p.startswith("{") for p, w in zip(parts, wanted, strict=True)
+        ):
+            return operations[method.lower()]
+    raise AssertionError(f"{method} {path} is not documented")

@@ -31,7 +31,7 @@ from multion_client.protocol import CONTENT_TYPE, CreateRun, decode, encode, run
 from multion_client.run import RunEnv
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "api"))
-from wire_schema import problems, raw_decode  # noqa: E402  (the API tests' schema checker)
+from wire_schema import operation, problems, raw_decode  # noqa: E402  (the API tests' schema checker)
 
 
 def stored_run(database: str, run_id: str) -> tuple[Run, list[EpisodeRecord]]:
@@ -329,16 +329,6 @@ def test_a_server_restart_loses_nothing(
 
 
 # ---------------------------------------------------------------------- OpenAPI
-def operation(document: dict[str, Any], method: str, path: str) -> dict[str, Any]:
-    for template, operations in document["paths"].items():
-        parts, wanted = template.split("/"), path.split("/")
-        if len(parts) == len(wanted) and all(
-            p == w or p.startswith("{") for p, w in zip(parts, wanted, strict=True)
-        ):
-            return operations[method.lower()]
-    raise AssertionError(f"{method} {path} is not documented")
-
-
 def test_every_run_answer_conforms(server: Any, new_team: Callable[[str], str]) -> None:
     document = httpx.get(server.url + "/openapi.json").json()
     token = new_team("documented")
