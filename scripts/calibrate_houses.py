@@ -112,7 +112,8 @@ def calibrate(
     """Play random-oracle-found on val in this process (houses are built once for all tasks)."""
     from multion.task.generate import generate_dataset
     from multion_agents.evaluate import EvalSettings, evaluate
-    from multion_agents.report import bootstrap, write_report
+    from multion_agents.report.run_summary import write_report
+    from multion_agents.report.stats import bootstrap
 
     rows, ok = [], True
     with tempfile.TemporaryDirectory() as tmp:

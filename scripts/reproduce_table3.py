@@ -224,7 +224,7 @@ def run_evaluation(
 ) -> dict[str, Any]:
     from multion.task.dataset import parse_task
     from multion_agents.evaluate import EvalSettings, evaluate
-    from multion_agents.report import write_report
+    from multion_agents.report.run_summary import write_report
 
     metrics_path = out / "metrics.json"
     current = metrics_path.is_file() and metrics_path.stat().st_mtime >= checkpoint.stat().st_mtime
