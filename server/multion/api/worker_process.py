@@ -9,8 +9,6 @@ server splices into its HTTP response without decoding them. This module never i
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import os
 import resource
 import signal
@@ -19,7 +17,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.api.config_io import ConfigError, session_config_from_dict
-from multion.processes import die_with_parent
+from multion.processes import die_with_parent, give_back_memory
 from multion.task.dataset import DatasetError
 from multion.task.env import EpisodeOverError, MultiONEnv
 from multion_client import errors
@@ -85,7 +83,7 @@ def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) 
             return _observations(shard)
         if command == "close":
             _close(shards.pop(shard_id))
-            _give_back_memory()
+            give_back_memory()
             return {"ok": True}, []
         raise errors.BadRequest(f"unknown worker command {command!r}")
     except errors.MultiONError as error:
@@ -179,18 +177,3 @@ def _out_of_memory(command: str, limit_bytes: int) -> dict[str, Any]:
         f"{limit_bytes // 2**20} MiB); it is being replaced and the sessions it held are lost"
     )
     return {"ok": False, "code": errors.WorkerFailed.code, "message": message}
-
-
-_LIBC = ctypes.util.find_library("c")
-
-
-def _give_back_memory() -> None:
-    """Return freed heap pages to the system: glibc keeps them in its arenas otherwise, and a
-    worker that served many sessions would hold their peak for good (measured: 888 MiB kept
-    after 64 sessions closed, 94 MiB with this)."""
-    if _LIBC is None:
-        return
-    try:
-        ctypes.CDLL(_LIBC).malloc_trim(0)
-    except (OSError, AttributeError):  # not glibc (musl, macOS): nothing to trim
-        pass
