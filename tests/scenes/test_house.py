@@ -93,6 +93,17 @@ def test_config_controls_room_count_and_furniture():
         HouseConfig(clutter=-1)
 
 
+def test_one_room_houses_too_small_for_corner_cuts_are_still_built():
+    # House 1000063352 with one room draws corner cuts its small footprint cannot take; it
+    # raised "could not lay out a floor plan" before cuts became optional (a leaderboard with
+    # hidden.rooms = [1, 1] drew such houses from its secret).
+    one_room = HouseConfig(min_rooms=1, max_rooms=1)
+    for seed in (1_000_063_352, 1_000_166_299, 1_000_197_975):
+        layout = generate_house(seed, one_room)
+        assert len(layout.rooms) == 1
+        assert layout.doors == ()
+
+
 def test_rooms_have_minimum_size_corridors_their_width_and_no_overlap():
     for s in SEEDS:
         rooms = house(s).rooms

@@ -252,16 +252,20 @@ def make_plan(
 
     The footprint grows by 5 % every ``max_attempts`` failed attempts.
     """
-    cuts = int(rng.integers(cfg.corner_cuts[0], cfg.corner_cuts[1] + 1))
-    for attempt in range(10 * max_attempts):
-        grow = 1.05 ** (attempt // max_attempts)
-        w, d = units(long_side * grow, cfg.grid), units(short_side * grow, cfg.grid)
-        width, depth = (d, w) if swap else (w, d)
-        split = split_cells(rng, width, depth, n + cuts, cfg)
-        if split is None:
-            continue
-        cells, corridors = cut_corners(rng, *split, width, depth, cuts, cfg)
-        doors = choose_doors(rng, cells, corridors, cfg)
-        if doors is not None:
-            return Plan(tuple(cells), frozenset(corridors), tuple(doors), width, depth)
+    drawn = int(rng.integers(cfg.corner_cuts[0], cfg.corner_cuts[1] + 1))
+    # Without cuts as the last resort: a house of one or two small rooms may be too small to be
+    # split into extra corner cells. Trying the drawn cuts first keeps every house that could
+    # take them as it was (the packaged datasets and cached grids depend on that).
+    for cuts in dict.fromkeys((drawn, 0)):
+        for attempt in range(10 * max_attempts):
+            grow = 1.05 ** (attempt // max_attempts)
+            w, d = units(long_side * grow, cfg.grid), units(short_side * grow, cfg.grid)
+            width, depth = (d, w) if swap else (w, d)
+            split = split_cells(rng, width, depth, n + cuts, cfg)
+            if split is None:
+                continue
+            cells, corridors = cut_corners(rng, *split, width, depth, cuts, cfg)
+            doors = choose_doors(rng, cells, corridors, cfg)
+            if doors is not None:
+                return Plan(tuple(cells), frozenset(corridors), tuple(doors), width, depth)
     raise RuntimeError(f"could not lay out a floor plan with {n} rooms")
