@@ -10,7 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=${1:?usage: bash scripts/run_baselines.sh RUNS_DIR [AGENT ...]}
 shift
-declare -A EPISODES=([random]=200 [random-oracle-found]=200 [oracle-planner]=100 [explorer]=50)
+declare -A EPISODES=([random]=100 [random-oracle-found]=200 [oracle-planner]=100 [explorer]=50)
 BUDGETS=(1 3 10)
 agents=("$@")
 [ ${#agents[@]} -gt 0 ] || agents=(random random-oracle-found oracle-planner explorer)
