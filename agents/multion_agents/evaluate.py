@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import math
 import queue
 import threading
 import time
@@ -29,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
+from multion.pictures import gps_to_world
 from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
@@ -228,13 +228,6 @@ def run_episode(
         agent_seconds=thinking,
         total_seconds=time.perf_counter() - started,
     )
-
-
-def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
-    """World (x, y) of GPS readings (start frame: x ahead, y left of the start pose)."""
-    c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
-    x0, y0 = episode.start_position[:2]
-    return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
 
 
 def scene_order(episodes: Sequence[Episode]) -> list[int]:

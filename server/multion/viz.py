@@ -116,8 +116,10 @@ def scene_picture(
     origin: tuple[float, float],
     cell_size: float,
     pixels_per_metre: float = 40,
+    caption: bool = True,
 ) -> Image.Image:
-    """A top-down RGB picture: navigable cells light, the rest darker, the layout drawn on top.
+    """A top-down RGB picture: navigable cells light, the rest darker, the layout drawn on top
+    (with the scene id in a corner if ``caption``).
 
     The picture is ``round(cols * cell_size * pixels_per_metre)`` pixels wide and
     ``round(rows * cell_size * pixels_per_metre)`` high.
@@ -134,6 +136,7 @@ def scene_picture(
     font = ImageFont.load_default()
     if layout is not None:
         draw_layout(draw, layout, frame)
-        _caption(draw, frame, layout.scene_id, font)
+        if caption:
+            _caption(draw, frame, layout.scene_id, font)
     _scale_bar(draw, frame, font)
     return image

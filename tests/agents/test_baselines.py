@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from multion.pictures import gps_to_world
 from multion.sim.camera import CameraConfig
 from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
@@ -15,7 +16,7 @@ from multion.task.maps import MapConfig
 from multion_agents.agent import Agent
 from multion_agents.baselines.mapping import detect_goals
 from multion_agents.baselines.navigation import StartFrameGrid
-from multion_agents.evaluate import gps_to_world, run_episode
+from multion_agents.evaluate import run_episode
 from multion_agents.registry import make_agent
 from multion_client.constants import GOAL_RGBA, Action
 

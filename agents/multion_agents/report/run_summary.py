@@ -9,7 +9,7 @@ Files written to the output directory:
   seed, server, the ``--set`` overrides, the environment config as sent and with every default
   filled in, the dataset file's SHA-256, package versions);
 * ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings);
-* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion_agents.pictures`).
+* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion.pictures`).
 """
 
 from __future__ import annotations
@@ -132,8 +132,8 @@ def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]
     write_atomically(metrics_path, json.dumps(payload, indent=2) + "\n")
     written = [metrics_path, episodes_path]
     if pictures > 0:
+        from multion.pictures import episode_picture
         from multion.sim.simulator import Simulator
-        from multion_agents.pictures import episode_picture
 
         by_id = {e.episode_id: e for e in result.episodes}
         simulator = Simulator()  # one for all pictures: scenes and grids are reused

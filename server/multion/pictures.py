@@ -3,12 +3,14 @@
 The scene (floor plan, walls, furniture) comes from :func:`multion.viz.scene_picture`; on top:
 the shortest path through the goals in green, the agent's path in orange, the start as an orange
 square, and the goals as circles in their own colours, numbered in the order they must be found.
-The scene layout and the shortest path are recomputed locally from the episode (the client never
-sees the server's simulator); the agent's path is rebuilt from its GPS readings.
+The scene layout and the shortest path are recomputed from the episode (an evaluation client never
+sees the server's simulator); the agent's path is rebuilt from its GPS readings
+(:func:`gps_to_world`). Used by ``multion eval`` and by the leaderboard's run pages.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -26,6 +28,13 @@ AGENT_PATH = (245, 130, 20)
 SHORTEST_PATH = (30, 160, 60)
 OUTLINE = (20, 20, 20)
 GOAL_RADIUS = 0.05
+
+
+def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
+    """World (x, y) of GPS readings (start frame: x ahead, y left of the start pose)."""
+    c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
+    x0, y0 = episode.start_position[:2]
+    return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
 
 
 def shortest_route(simulator: Simulator, episode: Episode) -> list[np.ndarray]:
@@ -48,8 +57,12 @@ def episode_picture(
     metrics: dict[str, Any],
     simulator: Simulator | None = None,
     pixels_per_metre: float = 40,
+    label: str | None = None,
 ) -> Image.Image:
-    """The picture of one episode; ``path`` is the agent's world (x, y) positions, in order."""
+    """The picture of one episode; ``path`` is the agent's world (x, y) positions, in order.
+
+    ``label`` replaces the episode and scene ids in the captions (hidden episodes keep theirs
+    secret)."""
     own = simulator is None
     sim = simulator or Simulator()
     try:
@@ -59,7 +72,10 @@ def episode_picture(
         if own:
             sim.close()
     layout = None if is_mesh_scene(episode.scene_id) else layout_for(episode.scene_id)
-    image = scene_picture(layout, grid.navigable, grid.origin, grid.cell_size, pixels_per_metre)
+    image = scene_picture(
+        layout, grid.navigable, grid.origin, grid.cell_size, pixels_per_metre,
+        caption=label is None,
+    )  # fmt: skip
     frame = picture_frame(grid.navigable, grid.origin, grid.cell_size, pixels_per_metre)
     draw = ImageDraw.Draw(image)
     width = max(2, round(pixels_per_metre * 0.06))
@@ -68,7 +84,7 @@ def episode_picture(
     _polyline(draw, path, frame, AGENT_PATH, width)
     _start(draw, episode, frame)
     _goals(draw, episode, frame)
-    _legend(draw, episode, metrics)
+    _legend(draw, label or episode.episode_id, metrics)
     return image
 
 
@@ -103,10 +119,10 @@ def _goals(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> 
         draw.text((x - (right - left) / 2 - left, y - (bottom - top) / 2 - top), text, fill=ink)
 
 
-def _legend(draw: ImageDraw.ImageDraw, episode: Episode, metrics: dict[str, Any]) -> None:
-    """Episode id and its headline metrics in the top-left corner."""
+def _legend(draw: ImageDraw.ImageDraw, label: str, metrics: dict[str, Any]) -> None:
+    """The episode's label and its headline metrics in the top-left corner."""
     lines = [
-        episode.episode_id,
+        label,
         "success {:.0f}  progress {:.2f}".format(
             float(metrics.get("success", 0)), float(metrics.get("progress", 0))
         ),
