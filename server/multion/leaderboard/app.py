@@ -20,14 +20,17 @@ from multion.leaderboard.routes import TokenCache, router
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database
+from multion.leaderboard.web.pages import install_pages
+from multion.leaderboard.web.pictures import EpisodePictures
 
 log = logging.getLogger("multion.leaderboard")
 
 
 def check_leaderboard(app: FastAPI, settings: LeaderboardSettings) -> Challenge:
-    """Read the challenge (ChallengeError on a bad file) and add the routes."""
+    """Read the challenge (ChallengeError on a bad file) and add the routes and web pages."""
     challenge = load_challenge(settings.challenge)
     app.include_router(router)
+    install_pages(app)
     return challenge
 
 
@@ -39,6 +42,7 @@ async def leaderboard_lifespan(
     db = await asyncio.to_thread(Database.open, settings.database)
     service = RunService(challenge, db, registry)
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
+    app.state.episode_pictures = pictures = EpisodePictures()
     tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
     if settings.warm_up:
         tasks.append(asyncio.create_task(_warm_up(service)))
@@ -50,6 +54,7 @@ async def leaderboard_lifespan(
             with contextlib.suppress(asyncio.CancelledError):
                 await task
         await service.close()
+        pictures.close()
         db.close()
 
 

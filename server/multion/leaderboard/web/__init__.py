@@ -1,0 +1,1 @@
+"""The leaderboard's web pages: queries, charts, episode pictures, routes and templates."""

@@ -1,0 +1,162 @@
+"""The leaderboard's web pages (server-rendered with Jinja2; no build step, no external request).
+
+``/`` and ``/leaderboard``: a table per track and phase; ``/leaderboard/runs/{id}``: a run;
+``/leaderboard/teams/{name}``: a team's runs and its best score over time;
+``/leaderboard/rules``: what each track allows. Styles and the small sorting script are served
+from ``/leaderboard/static``; a Content-Security-Policy keeps every request on this server.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as dt
+from pathlib import Path
+from typing import Any
+
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.responses import HTMLResponse, Response
+from fastapi.staticfiles import StaticFiles
+from fastapi.templating import Jinja2Templates
+
+from multion.leaderboard.hidden import hidden_houses
+from multion.leaderboard.models import EpisodeRecord, utcnow
+from multion.leaderboard.runs import RunService
+from multion.leaderboard.web import queries
+from multion.leaderboard.web.charts import best_over_time
+from multion.leaderboard.web.pictures import PICTURES_PER_RUN, EpisodePictures
+
+HERE = Path(__file__).resolve().parent
+STATIC_PATH = "/leaderboard/static"
+SECURITY_HEADERS = {
+    "Content-Security-Policy": "default-src 'none'; style-src 'self'; script-src 'self'; "
+    "img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+}
+
+templates = Jinja2Templates(directory=HERE / "templates")
+router = APIRouter(include_in_schema=False)
+
+
+def install_pages(app: FastAPI) -> None:
+    """Add the pages and their static files to ``app``."""
+    app.include_router(router)
+    app.mount(STATIC_PATH, StaticFiles(directory=HERE / "static"), name="leaderboard-static")
+
+
+def _percent(value: float | None) -> str:
+    return "–" if value is None else f"{100 * value:.1f}"
+
+
+def _date(value: dt.datetime | None) -> str:
+    return "–" if value is None else f"{value:%Y-%m-%d %H:%M}"
+
+
+templates.env.filters["percent"] = _percent
+templates.env.filters["date"] = _date
+templates.env.globals["metric_names"] = queries.METRIC_NAMES
+templates.env.globals["static"] = STATIC_PATH
+
+
+def _service(request: Request) -> RunService:
+    return request.app.state.runs
+
+
+def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTMLResponse:
+    context["challenge"] = _service(request).challenge
+    response = templates.TemplateResponse(request, name, context, status_code=status)
+    response.headers.update(SECURITY_HEADERS)
+    return response
+
+
+def _not_found(request: Request, what: str) -> HTMLResponse:
+    return _page(request, "not_found.html", status=404, what=what)
+
+
+async def _read(request: Request, work: Any) -> Any:
+    """Run ``work(session)`` in a thread (database reads block)."""
+    service = _service(request)
+
+    def read() -> Any:
+        with service.db.sessions() as session:
+            return work(session)
+
+    return await asyncio.to_thread(read)
+
+
+@router.get("/", response_class=HTMLResponse)
+@router.get("/leaderboard", response_class=HTMLResponse)
+async def leaderboard(request: Request) -> HTMLResponse:
+    challenge = _service(request).challenge
+    boards = await _read(request, lambda s: queries.leaderboards(s, challenge, utcnow()))
+    return _page(request, "leaderboard.html", boards=boards)
+
+
+@router.get("/leaderboard/rules", response_class=HTMLResponse)
+async def rules(request: Request) -> HTMLResponse:
+    return _page(request, "rules.html")
+
+
+@router.get("/leaderboard/runs/{run_id}", response_class=HTMLResponse)
+async def run_page(run_id: str, request: Request) -> HTMLResponse:
+    service = _service(request)
+    page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
+    if page is None:
+        return _not_found(request, f"run {run_id}")
+    houses: list[queries.Breakdown] = []
+    pictures: list[EpisodeRecord] = []
+    if page.per_episode and page.track is not None and page.phase is not None:
+        hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
+        houses = queries.breakdown(page.records, _house_labels(service, page, hidden))
+        pictures = [r for r in page.records if r.actions][:PICTURES_PER_RUN]
+    return _page(request, "run.html", page=page, houses=houses, pictures=pictures)
+
+
+@router.get("/leaderboard/runs/{run_id}/episodes/{position}.png")
+async def episode_picture(run_id: str, position: int, request: Request) -> Response:
+    """The picture of one of the first episodes of a run on a phase with per-episode feedback."""
+    service = _service(request)
+    page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
+    played = [r for r in page.records if r.actions][:PICTURES_PER_RUN] if page else []
+    record = next((r for r in played if r.position == position), None)
+    if page is None or record is None or page.track is None or page.phase is None:
+        return _not_found(request, f"a picture of episode {position} of run {run_id}")
+    hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
+    pictures: EpisodePictures = request.app.state.episode_pictures
+    png = await pictures.get(
+        (run_id, position), page.track, page.phase, dict(page.run.maps or {}),
+        hidden[record.episode_index], record.actions, record.metrics,
+        f"episode {position + 1}",
+    )  # fmt: skip
+    headers = {**SECURITY_HEADERS, "Cache-Control": "public, max-age=86400"}
+    return Response(png, media_type="image/png", headers=headers)
+
+
+@router.get("/leaderboard/teams/{team}", response_class=HTMLResponse)
+async def team_page(team: str, request: Request) -> HTMLResponse:
+    challenge = _service(request).challenge
+    runs = await _read(request, lambda s: queries.team_runs(s, challenge, team, utcnow()))
+    if runs is None:
+        return _not_found(request, f"team {team}")
+    charts = []
+    for track in challenge.tracks:
+        svg = best_over_time(
+            [r for r in runs if r.track == track.name], queries.METRIC_NAMES[track.metric]
+        )
+        if svg:
+            charts.append((track, svg))
+    return _page(request, "team.html", team=team, runs=runs, charts=charts)
+
+
+def _house_labels(
+    service: RunService, page: queries.RunPage, hidden: list[Any]
+) -> dict[int, str]:
+    """Hidden episode index → "house N (K rooms)", numbered in the phase's house order (the
+    house ids themselves stay secret)."""
+    assert page.phase is not None
+    numbers = {house: i + 1 for i, house in enumerate(hidden_houses(service.challenge, page.phase))}
+    labels = {}
+    for index, episode in enumerate(hidden):
+        rooms = episode.scene_id.rsplit("-r", 1)[-1]
+        labels[index] = f"house {numbers.get(episode.scene_id, 0)} ({rooms} rooms)"
+    return labels

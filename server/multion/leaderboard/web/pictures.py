@@ -1,0 +1,97 @@
+"""Figure 3 style pictures of a run's first episodes, drawn by replaying the stored actions.
+
+Only phases with per-episode feedback (minival) show them, and only the first
+:data:`PICTURES_PER_RUN` episodes of a run: each costs a house build and a replay. They are drawn
+one at a time in a separate process (house building holds the GIL for seconds and would stall
+the server's event loop), and the PNGs are kept in a small cache.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import multiprocessing
+from collections import OrderedDict
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from multion.api.config_io import session_config_from_dict
+from multion.leaderboard.challenge import Phase, Track
+from multion.pictures import episode_picture, gps_to_world
+from multion.processes import die_with_parent
+from multion.task.env import MultiONEnv
+from multion.task.episode import Episode
+
+PICTURES_PER_RUN = 3
+CACHED_PICTURES = 64
+PIXELS_PER_METRE = 24
+
+
+def draw_episode(
+    track: Track,
+    phase: Phase,
+    maps: dict[str, Any],
+    episode: Episode,
+    actions: str,
+    metrics: dict[str, Any],
+    label: str,
+) -> bytes:
+    """Replay ``actions`` in ``episode`` (GPS only: nothing rendered) and draw it as a PNG."""
+    config, _ = session_config_from_dict(track.env_config(phase, ("gps",), maps))
+    env = MultiONEnv(config, episodes=[episode])
+    try:
+        observation, _ = env.reset(options={"episode_index": 0})
+        gps = [np.asarray(observation["gps"], dtype=np.float64)]
+        for action in actions:
+            observation, *_ = env.step(int(action))
+            gps.append(np.asarray(observation["gps"], dtype=np.float64))
+        path = gps_to_world(np.asarray(gps), episode)
+        image = episode_picture(episode, path, metrics, env.sim, PIXELS_PER_METRE, label=label)
+    finally:
+        env.close()
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG", optimize=True)
+    return buffer.getvalue()
+
+
+class EpisodePictures:
+    """Draws pictures in one helper process, one at a time, and caches the last ones."""
+
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._lock = asyncio.Lock()
+        self._cache: OrderedDict[tuple[str, int], bytes] = OrderedDict()
+
+    async def get(
+        self,
+        key: tuple[str, int],
+        track: Track,
+        phase: Phase,
+        maps: dict[str, Any],
+        episode: Episode,
+        actions: str,
+        metrics: dict[str, Any],
+        label: str,
+    ) -> bytes:
+        async with self._lock:
+            if key in self._cache:
+                self._cache.move_to_end(key)
+                return self._cache[key]
+            if self._pool is None:
+                spawn = multiprocessing.get_context("spawn")
+                self._pool = ProcessPoolExecutor(1, spawn, initializer=die_with_parent)
+            future = self._pool.submit(
+                draw_episode, track, phase, maps, episode, actions, metrics, label
+            )
+            png = await asyncio.wrap_future(future)
+            self._cache[key] = png
+            while len(self._cache) > CACHED_PICTURES:
+                self._cache.popitem(last=False)
+            return png
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None

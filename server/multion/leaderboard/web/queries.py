@@ -1,0 +1,301 @@
+"""What the web pages show, read from the results database (blocking: call in a thread).
+
+The leaderboard reads one row per finished run (its stored aggregates, never its episodes), so
+its cost grows with the number of runs, not of episodes. Sealed phases give no rows before
+their date, and the pages of their runs show no results.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from multion.leaderboard.challenge import Challenge, Phase, Track
+from multion.leaderboard.models import EpisodeRecord, Run, Team
+from multion.leaderboard.results import SUMMARY_METRICS, bootstrap
+
+RANKED_STATES = ("finished", "ended")
+"""Runs that end up on the leaderboard: every episode played, or stopped early (the missing
+episodes count as failures). Failed runs were the server's fault and are refunded."""
+METRIC_NAMES = {"ppl": "PPL", "progress": "Progress", "success": "Success", "spl": "SPL"}
+
+
+@dataclass(frozen=True)
+class Score:
+    """A metric's mean over a run's episodes and its 95% bootstrap interval (fractions)."""
+
+    mean: float
+    low: float
+    high: float
+
+    @classmethod
+    def of(cls, summary: dict[str, Any], metric: str) -> Score:
+        value = summary.get(metric) or {}
+        return cls(
+            float(value.get("mean", 0.0)), float(value.get("low", 0.0)), float(value.get("high", 0.0))
+        )
+
+    def overlaps(self, other: Score) -> bool:
+        return self.low <= other.high and other.low <= self.high
+
+
+@dataclass(frozen=True)
+class BoardRow:
+    rank: int
+    tied_with_leader: bool
+    """Its interval of the ranking metric overlaps the leader's (the leader itself too)."""
+    team: str
+    method: str
+    run_id: str
+    baseline: bool
+    paper_url: str | None
+    code_url: str | None
+    scores: dict[str, Score]
+    completed: int
+    """Episodes played (not counting those missed because the run ended early)."""
+    total: int
+    date: dt.datetime
+
+
+@dataclass(frozen=True)
+class Board:
+    """The leaderboard of one track's phase."""
+
+    track: Track
+    phase: Phase
+    sealed: bool
+    rows: list[BoardRow]
+
+
+def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> list[Board]:
+    """One board per track and phase: each team's best run (each baseline method's best for the
+    baselines team), ranked by the track's metric; equal means share a rank."""
+    query = (
+        select(
+            Run.id, Run.track, Run.phase, Run.method, Run.paper_url, Run.code_url, Run.baseline,
+            Run.finished_at, Run.summary, Team.name,
+        )  # fmt: skip
+        .join(Team)
+        .where(Run.state.in_(RANKED_STATES), Run.summary.is_not(None))
+    )
+    best: dict[tuple[str, str], dict[tuple[str, str], Any]] = defaultdict(dict)
+    tracks = {t.name: t for t in challenge.tracks}
+    for row in session.execute(query):
+        track = tracks.get(row.track)
+        if track is None:
+            continue
+        key = (row.name, row.method if row.baseline else "")
+        board = best[(row.track, row.phase)]
+        score = Score.of(row.summary, track.metric).mean
+        kept = board.get(key)
+        if kept is None or score > Score.of(kept.summary, track.metric).mean:
+            board[key] = row
+    boards = []
+    for track in challenge.tracks:
+        for phase in track.phases:
+            sealed = not phase.results_visible(now)
+            runs = [] if sealed else list(best[(track.name, phase.name)].values())
+            boards.append(Board(track, phase, sealed, _ranked(runs, track.metric)))
+    return boards
+
+
+def _ranked(runs: Sequence[Any], metric: str) -> list[BoardRow]:
+    runs = sorted(runs, key=lambda r: (-Score.of(r.summary, metric).mean, r.finished_at, r.id))
+    rows: list[BoardRow] = []
+    leader = Score.of(runs[0].summary, metric) if runs else None
+    for position, run in enumerate(runs):
+        scores = {m: Score.of(run.summary, m) for m in SUMMARY_METRICS}
+        rank = position + 1
+        if rows and scores[metric].mean == rows[-1].scores[metric].mean:
+            rank = rows[-1].rank
+        total = int(run.summary.get("episodes", 0))
+        missed = int((run.summary.get("end_reasons") or {}).get("not_played", 0))
+        rows.append(
+            BoardRow(
+                rank=rank,
+                tied_with_leader=leader is not None and scores[metric].overlaps(leader),
+                team=run.name,
+                method=run.method,
+                run_id=run.id,
+                baseline=bool(run.baseline),
+                paper_url=run.paper_url,
+                code_url=run.code_url,
+                scores=scores,
+                completed=total - missed,
+                total=total,
+                date=run.finished_at,
+            )
+        )
+    return rows
+
+
+# ---------------------------------------------------------------------- a run
+@dataclass(frozen=True)
+class SeenSplit:
+    """Goal k found after goal k-1, split by whether goal k was seen before (the supplement's
+    backtracking analysis): share found and number of episodes in each group."""
+
+    goal: int
+    seen: Score | None
+    seen_n: int
+    not_seen: Score | None
+    not_seen_n: int
+
+
+@dataclass(frozen=True)
+class Breakdown:
+    """Aggregates over a group of a run's episodes (e.g. those of one hidden house)."""
+
+    label: str
+    episodes: int
+    scores: dict[str, Score]
+
+
+@dataclass
+class RunPage:
+    run: Run
+    team: str
+    track: Track | None
+    phase: Phase | None
+    visible: bool
+    """Results may be shown (not a sealed phase before its date)."""
+    scores: dict[str, Score] = field(default_factory=dict)
+    end_reasons: dict[str, int] = field(default_factory=dict)
+    seen_splits: list[SeenSplit] = field(default_factory=list)
+    records: list[EpisodeRecord] = field(default_factory=list)
+    """Per-episode records, on phases with per-episode feedback only."""
+
+    @property
+    def per_episode(self) -> bool:
+        return self.visible and self.phase is not None and self.phase.feedback == "episodes"
+
+
+def run_page(
+    session: Session, challenge: Challenge, run_id: str, now: dt.datetime
+) -> RunPage | None:
+    found = session.execute(select(Run, Team.name).join(Team).where(Run.id == run_id)).first()
+    if found is None:
+        return None
+    run, team = found
+    track = challenge.track(run.track)
+    phase = track.phase(run.phase) if track is not None else None
+    visible = phase is not None and phase.results_visible(now) and run.summary is not None
+    page = RunPage(run, team, track, phase, visible)
+    if not visible:
+        return page
+    page.scores = {m: Score.of(run.summary, m) for m in SUMMARY_METRICS}
+    page.end_reasons = dict(run.summary.get("end_reasons") or {})
+    records = list(
+        session.scalars(
+            select(EpisodeRecord)
+            .where(EpisodeRecord.run_id == run.id)
+            .order_by(EpisodeRecord.position)
+        )
+    )
+    if track is not None:
+        page.seen_splits = seen_splits([r.metrics for r in records], track.num_goals)
+    if page.per_episode:
+        page.records = records
+    return page
+
+
+def seen_splits(metrics: Sequence[dict[str, Any]], num_goals: int) -> list[SeenSplit]:
+    """For k = 2..m, among episodes that found goal k-1: found goal k, seen before or not."""
+    splits = []
+    for goal in range(2, num_goals + 1):
+        seen: list[float] = []
+        unseen: list[float] = []
+        for m in metrics:
+            flags = m.get("seen_before_current") or []
+            if int(m.get("goals_found", 0)) < goal - 1 or len(flags) < goal - 1:
+                continue
+            (seen if flags[goal - 2] else unseen).append(float(m["goals_found"] >= goal))
+        splits.append(
+            SeenSplit(
+                goal,
+                _score(seen) if seen else None,
+                len(seen),
+                _score(unseen) if unseen else None,
+                len(unseen),
+            )
+        )
+    return splits
+
+
+def breakdown(
+    records: Sequence[EpisodeRecord], label_of: dict[int, str]
+) -> list[Breakdown]:
+    """Aggregates per label (``label_of``: hidden episode index → label, e.g. its house)."""
+    groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for record in records:
+        groups[label_of.get(record.episode_index, "?")].append(record.metrics)
+    return [
+        Breakdown(
+            label,
+            len(group),
+            {m: _score([float(x.get(m) or 0.0) for x in group]) for m in SUMMARY_METRICS},
+        )
+        for label, group in sorted(groups.items(), key=lambda item: _natural(item[0]))
+    ]
+
+
+def _score(values: Sequence[float]) -> Score:
+    estimate = bootstrap(values)
+    return Score(estimate["mean"], estimate["low"], estimate["high"])
+
+
+# ---------------------------------------------------------------------- a team
+@dataclass(frozen=True)
+class TeamRun:
+    run_id: str
+    track: str
+    phase: str
+    method: str
+    state: str
+    baseline: bool
+    created_at: dt.datetime
+    finished_at: dt.datetime | None
+    primary: Score | None
+    """The track's ranking metric, if its phase shows results now."""
+
+
+def team_runs(
+    session: Session, challenge: Challenge, team: str, now: dt.datetime
+) -> list[TeamRun] | None:
+    """The team's runs, newest first (None: no such team)."""
+    team_id = session.scalar(select(Team.id).where(Team.name == team))
+    if team_id is None:
+        return None
+    query = (
+        select(
+            Run.id, Run.track, Run.phase, Run.method, Run.state, Run.baseline, Run.created_at,
+            Run.finished_at, Run.summary,
+        )  # fmt: skip
+        .where(Run.team_id == team_id)
+        .order_by(Run.created_at.desc())
+    )
+    runs = []
+    for row in session.execute(query):
+        track = challenge.track(row.track)
+        phase = track.phase(row.phase) if track is not None else None
+        shown = phase is not None and phase.results_visible(now) and row.summary is not None
+        runs.append(
+            TeamRun(
+                row.id, row.track, row.phase, row.method, row.state, bool(row.baseline),
+                row.created_at, row.finished_at,
+                Score.of(row.summary, track.metric) if shown and track is not None else None,
+            )  # fmt: skip
+        )
+    return runs
+
+
+def _natural(label: str) -> list[Any]:
+    """Sort key that puts "house 2" before "house 10"."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", label)]

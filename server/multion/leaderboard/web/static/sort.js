@@ -1,0 +1,33 @@
+// Sort a table by a column when its heading (th[data-sort]) is clicked; click again to reverse.
+// Cells may carry data-value (the raw number or ISO date) so formatted text sorts correctly.
+"use strict";
+document.addEventListener("DOMContentLoaded", () => {
+  for (const table of document.querySelectorAll("table.sortable")) {
+    const headings = Array.from(table.tHead.rows[0].cells);
+    headings.forEach((th, column) => {
+      if (!th.dataset.sort) return;
+      th.tabIndex = 0;
+      th.classList.add("sort-key");
+      const sort = () => {
+        const ascending = th.getAttribute("aria-sort") !== "ascending";
+        headings.forEach((h) => h.removeAttribute("aria-sort"));
+        th.setAttribute("aria-sort", ascending ? "ascending" : "descending");
+        const key = (row) => {
+          const cell = row.cells[column];
+          const raw = cell.dataset.value ?? cell.textContent.trim();
+          return th.dataset.sort === "number" ? parseFloat(raw) : raw.toLowerCase();
+        };
+        const body = table.tBodies[0];
+        const rows = Array.from(body.rows);
+        rows.sort((a, b) => {
+          const x = key(a), y = key(b);
+          const order = x < y ? -1 : x > y ? 1 : 0;
+          return ascending ? order : -order;
+        });
+        rows.forEach((row) => body.appendChild(row));
+      };
+      th.addEventListener("click", sort);
+      th.addEventListener("keydown", (event) => { if (event.key === "Enter") sort(); });
+    });
+  }
+});

@@ -1,0 +1,132 @@
+"""The leaderboard's web pages over HTTP, on a database filled by real runs."""
+
+from __future__ import annotations
+
+import html
+import io
+import re
+from collections.abc import Callable
+from typing import Any
+
+import httpx
+import pytest
+from PIL import Image
+from played_runs import PlayedRun, fill, percent
+
+
+@pytest.fixture(scope="module")
+def played(server: Any, database: str, new_team: Callable[[str], str]) -> dict[str, PlayedRun]:
+    return fill(server.url, database, new_team)
+
+
+def get(server: Any, path: str) -> httpx.Response:
+    return httpx.get(server.url + path, timeout=120)
+
+
+def board(page: str, track: str, phase: str) -> str:
+    """The HTML of one board section."""
+    match = re.search(
+        rf'<section class="board" id="{track}-{phase}".*?</section>', page, flags=re.S
+    )
+    assert match, f"no board {track}/{phase}"
+    return match.group(0)
+
+
+def rows(section: str) -> list[str]:
+    return re.findall(r"<tr data-run=.*?</tr>", section, flags=re.S)
+
+
+def test_the_leaderboard_ranks_each_teams_best_run(
+    server: Any, played: dict[str, PlayedRun]
+) -> None:
+    answer = get(server, "/leaderboard")
+    assert answer.status_code == 200
+    assert answer.headers["content-type"].startswith("text/html")
+    assert "default-src 'none'" in answer.headers["content-security-policy"]
+    assert get(server, "/").text == answer.text
+    minival = board(answer.text, "1-on", "minival")
+    shown = rows(minival)
+    # alpha's two runs give one row (its best), beta one, the baseline one
+    best_alpha = max(
+        (played["alpha-1"], played["alpha-2"]), key=lambda r: r.summary["ppl"]["mean"]
+    )
+    expected = [best_alpha, played["beta"], played["baseline"]]
+    assert sorted(re.search(r'data-run="(\w+)"', r).group(1) for r in shown) == sorted(
+        r.run_id for r in expected
+    )
+    ppl = [float(re.search(r'data-metric="ppl">.*?"mean">([\d.]+)', r, re.S).group(1)) for r in shown]
+    assert ppl == sorted(ppl, reverse=True)
+    for row in shown:
+        run = next(r for r in expected if r.run_id in row)
+        for metric in ("ppl", "progress", "success", "spl"):
+            assert f'data-metric="{metric}">' in row
+            cell = re.search(rf'data-metric="{metric}">(.*?)</td>', row, re.S).group(1)
+            assert percent(run.summary[metric]["mean"]) in cell
+        assert f"{run.summary['episodes']} / {run.summary['episodes']}" in row
+        assert html.escape(run.method) in row
+        assert ('class="badge">baseline' in row) == (run.team == "baselines")
+    first = shown[0]
+    ranks = [int(re.search(r'data-value="(\d+)"', r).group(1)) for r in shown]
+    assert ranks[0] == 1 and ranks == sorted(ranks)
+    assert "tied" not in first  # the leader is not marked tied with itself
+
+
+def test_a_sealed_phase_shows_nothing(server: Any, played: dict[str, PlayedRun]) -> None:
+    page = get(server, "/leaderboard").text
+    sealed = board(page, "1-on-oracle", "test-challenge")
+    assert "sealed until 2999-01-01" in sealed
+    assert rows(sealed) == []
+    assert played["sealed"].run_id not in page
+    run_page = get(server, f"/leaderboard/runs/{played['sealed'].run_id}").text
+    assert "sealed until" in run_page
+    assert percent(played["sealed"].summary["ppl"]["mean"]) + " [" not in run_page
+    team = get(server, "/leaderboard/teams/alpha").text
+    sealed_row = re.search(rf'<tr data-run="{played["sealed"].run_id}">.*?</tr>', team, re.S)
+    assert sealed_row and sealed_row.group(0).endswith("–</td></tr>")  # no score shown
+
+
+def test_a_run_page_shows_its_results_breakdowns_and_pictures(
+    server: Any, played: dict[str, PlayedRun]
+) -> None:
+    run = played["beta"]
+    page = get(server, f"/leaderboard/runs/{run.run_id}").text
+    for metric in ("ppl", "progress", "success", "spl"):
+        row = re.search(rf'<tr[^>]*data-metric="{metric}">(.*?)</tr>', page, re.S).group(1)
+        value = run.summary[metric]
+        assert f"{percent(value['mean'])}</td>" in row
+        assert f"[{percent(value['low'])}, {percent(value['high'])}]" in row
+    assert "Per house" in page and "house 1 (1 rooms)" in page
+    assert len(re.findall(r"<tr data-position=", page)) == run.summary["episodes"]
+    pictures = re.findall(rf'src="(/leaderboard/runs/{run.run_id}/episodes/\d+\.png)"', page)
+    assert 1 <= len(pictures) <= 3
+    answer = get(server, pictures[0])
+    assert answer.status_code == 200 and answer.headers["content-type"] == "image/png"
+    with Image.open(io.BytesIO(answer.content)) as image:
+        colours = image.convert("RGB").getcolors(1 << 20)
+    assert any(c == (245, 130, 20) for _, c in colours)  # the agent's path, in orange
+    assert get(server, f"/leaderboard/runs/{run.run_id}/episodes/99.png").status_code == 404
+    # test-standard: aggregates only, no episodes, no pictures
+    standard = get(server, f"/leaderboard/runs/{played['standard'].run_id}").text
+    assert "Results over" in standard and "data-position=" not in standard
+    assert ".png" not in standard
+    picture = f"/leaderboard/runs/{played['standard'].run_id}/episodes/0.png"
+    assert get(server, picture).status_code == 404
+
+
+def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None:
+    team = get(server, "/leaderboard/teams/alpha").text
+    for label in ("alpha-1", "alpha-2", "sealed"):
+        assert played[label].run_id in team
+    assert played["beta"].run_id not in team
+    assert "<svg" in team and "best PPL over time" in team
+    rules = get(server, "/leaderboard/rules").text
+    for text in ("Track 1-on", "Track 1-on-oracle", "oracle_map", "60.0 s", "1 in all"):
+        assert text in rules
+    assert get(server, "/leaderboard/teams/nobody").status_code == 404
+    assert get(server, "/leaderboard/runs/0123").status_code == 404
+    assert get(server, "/leaderboard/static/sort.js").status_code == 200
+
+
+def test_pages_are_not_in_the_api_schema(server: Any) -> None:
+    schema = httpx.get(server.url + "/openapi.json").json()
+    assert not [p for p in schema["paths"] if not p.startswith("/v1/")]
