@@ -18,6 +18,10 @@ agents=("$@")
 evaluate() {  # evaluate OUT_NAME EPISODES ARGS...
   local name=$1 episodes=$2 start
   shift 2
+  if [ -f "$runs/$name/metrics.json" ]; then
+    echo "$name: already in $runs (delete it to run again)"
+    return
+  fi
   start=$(date +%s)
   nice -n 15 .venv/bin/multion eval --split val --episodes "$episodes" --in-process --seed 0 \
     --out "$runs/$name" --quiet "$@"
