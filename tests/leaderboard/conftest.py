@@ -9,6 +9,7 @@ import subprocess
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -151,6 +152,14 @@ def start_server(
 def launch() -> Callable[..., LocalServer]:
     """``launch(challenge_file, database)``: start a server (the caller stops it)."""
     return start_server
+
+
+@pytest.fixture(scope="module")
+def played(server: LocalServer, database: str, new_team: Callable[[str], str]) -> dict[str, Any]:
+    """The module's server and database filled by real runs (see played_runs.fill)."""
+    from played_runs import fill
+
+    return fill(server.url, database, new_team)
 
 
 @pytest.fixture(scope="module")

@@ -5,18 +5,11 @@ from __future__ import annotations
 import html
 import io
 import re
-from collections.abc import Callable
 from typing import Any
 
 import httpx
-import pytest
 from PIL import Image
-from played_runs import PlayedRun, fill, percent
-
-
-@pytest.fixture(scope="module")
-def played(server: Any, database: str, new_team: Callable[[str], str]) -> dict[str, PlayedRun]:
-    return fill(server.url, database, new_team)
+from played_runs import PlayedRun, percent
 
 
 def get(server: Any, path: str) -> httpx.Response:
