@@ -32,7 +32,7 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train", "memory", "leaderboard"],
+        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "pages"],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -84,6 +84,10 @@ def run(args: argparse.Namespace) -> int:
         from multion.leaderboard.bench import run_leaderboard_bench
 
         run_leaderboard_bench(server_options=["--http", args.http, "--loop", args.loop])
+    if "pages" in parts:
+        from multion.leaderboard.web.bench import run_pages_bench
+
+        run_pages_bench()
     if "train" in parts:
         from multion_agents.bench_train import run_train_bench
 

@@ -76,26 +76,35 @@ class Board:
 
 def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> list[Board]:
     """One board per track and phase: each team's best run (each baseline method's best for the
-    baselines team), ranked by the track's metric; equal means share a rank."""
+    baselines team), ranked by the track's metric; equal means share a rank.
+
+    The database extracts the few numbers needed from each run's aggregates (JSON), so the cost
+    is one short row per run."""
+    numbers = [
+        Run.summary[metric][part].as_float().label(f"{metric}_{part}")
+        for metric in SUMMARY_METRICS
+        for part in ("mean", "low", "high")
+    ]
     query = (
         select(
             Run.id, Run.track, Run.phase, Run.method, Run.paper_url, Run.code_url, Run.baseline,
-            Run.finished_at, Run.summary, Team.name,
+            Run.finished_at, Team.name, *numbers,
+            Run.summary["episodes"].as_integer().label("episodes"),
+            Run.summary["end_reasons"]["not_played"].as_integer().label("not_played"),
         )  # fmt: skip
         .join(Team)
         .where(Run.state.in_(RANKED_STATES), Run.summary.is_not(None))
     )
     best: dict[tuple[str, str], dict[tuple[str, str], Any]] = defaultdict(dict)
-    tracks = {t.name: t for t in challenge.tracks}
+    metric_of = {t.name: f"{t.metric}_mean" for t in challenge.tracks}
     for row in session.execute(query):
-        track = tracks.get(row.track)
-        if track is None:
+        column = metric_of.get(row.track)
+        if column is None:
             continue
         key = (row.name, row.method if row.baseline else "")
         board = best[(row.track, row.phase)]
-        score = Score.of(row.summary, track.metric).mean
         kept = board.get(key)
-        if kept is None or score > Score.of(kept.summary, track.metric).mean:
+        if kept is None or (getattr(row, column) or 0.0) > (getattr(kept, column) or 0.0):
             board[key] = row
     boards = []
     for track in challenge.tracks:
@@ -106,17 +115,25 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
     return boards
 
 
+def _scores(row: Any) -> dict[str, Score]:
+    return {
+        m: Score(*(float(getattr(row, f"{m}_{part}") or 0.0) for part in ("mean", "low", "high")))
+        for m in SUMMARY_METRICS
+    }
+
+
 def _ranked(runs: Sequence[Any], metric: str) -> list[BoardRow]:
-    runs = sorted(runs, key=lambda r: (-Score.of(r.summary, metric).mean, r.finished_at, r.id))
+    scored = sorted(
+        ((_scores(r), r) for r in runs),
+        key=lambda item: (-item[0][metric].mean, item[1].finished_at, item[1].id),
+    )
     rows: list[BoardRow] = []
-    leader = Score.of(runs[0].summary, metric) if runs else None
-    for position, run in enumerate(runs):
-        scores = {m: Score.of(run.summary, m) for m in SUMMARY_METRICS}
+    leader = scored[0][0][metric] if scored else None
+    for position, (scores, run) in enumerate(scored):
         rank = position + 1
         if rows and scores[metric].mean == rows[-1].scores[metric].mean:
             rank = rows[-1].rank
-        total = int(run.summary.get("episodes", 0))
-        missed = int((run.summary.get("end_reasons") or {}).get("not_played", 0))
+        total = int(run.episodes or 0)
         rows.append(
             BoardRow(
                 rank=rank,
@@ -128,7 +145,7 @@ def _ranked(runs: Sequence[Any], metric: str) -> list[BoardRow]:
                 paper_url=run.paper_url,
                 code_url=run.code_url,
                 scores=scores,
-                completed=total - missed,
+                completed=total - int(run.not_played or 0),
                 total=total,
                 date=run.finished_at,
             )

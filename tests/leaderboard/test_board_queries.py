@@ -1,0 +1,79 @@
+"""The leaderboard's ranking, read from a database of many stored runs, against the stored
+aggregates themselves; and the pages bench, run small."""
+
+from __future__ import annotations
+
+import datetime as dt
+import secrets
+from pathlib import Path
+from typing import Any
+
+import pytest
+from sqlalchemy import select
+
+from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.models import Run, Team
+from multion.leaderboard.storage import Database
+from multion.leaderboard.web import queries
+from multion.leaderboard.web.bench import CHALLENGE, TRACK, TRACKS, fill_database, run_pages_bench
+
+
+def fresh_database(request: pytest.FixtureRequest, backend: str, tmp_path: Path) -> str:
+    if backend == "sqlite":
+        return f"sqlite:///{tmp_path / 'results.db'}"
+    server = request.getfixturevalue("postgres_url")  # skips without PostgreSQL
+    import psycopg
+
+    name = f"boards_{secrets.token_hex(4)}"
+    plain = server.replace("postgresql+psycopg", "postgresql").rsplit("/", 1)[0] + "/postgres"
+    with psycopg.connect(plain, autocommit=True) as connection:
+        connection.execute(f"CREATE DATABASE {name}")
+    return server.rsplit("/", 1)[0] + f"/{name}"
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_boards_rank_each_teams_best_run_with_ties(
+    request: Any, backend: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "challenge.toml"
+    text = CHALLENGE.format(secret=secrets.token_urlsafe(24))
+    path.write_text(text + "".join(TRACK.format(name=n, m=m, episodes=5) for n, m in TRACKS))
+    challenge = load_challenge(path)
+    url = fresh_database(request, backend, tmp_path)
+    fill_database(url, runs=240, episodes=5)
+    db = Database.open(url)
+    try:
+        with db.sessions() as session:
+            boards = queries.leaderboards(session, challenge, dt.datetime.now(dt.timezone.utc))
+            stored = session.execute(select(Run, Team.name).join(Team)).all()
+    finally:
+        db.close()
+    assert len(boards) == 6
+    for board in boards:
+        runs = [(r, team) for r, team in stored if (r.track, r.phase) == (board.track.name, board.phase.name)]
+        best: dict[str, float] = {}
+        for run, team in runs:
+            best[team] = max(best.get(team, -1.0), run.summary["ppl"]["mean"])
+        assert sorted(row.team for row in board.rows) == sorted(best)
+        by_id = {r.id: r for r, _ in runs}
+        for row in board.rows:
+            summary = by_id[row.run_id].summary
+            assert row.scores["ppl"].mean == best[row.team] == summary["ppl"]["mean"]
+            assert row.scores["progress"].low == summary["progress"]["low"]
+            assert (row.completed, row.total) == (5, 5)
+        means = [row.scores["ppl"].mean for row in board.rows]
+        assert means == sorted(means, reverse=True)
+        for k, row in enumerate(board.rows):  # competition ranking: 1, 2, 2, 4 …
+            assert row.rank == 1 + sum(m > means[k] for m in means)
+        leader = board.rows[0].scores["ppl"]
+        for row in board.rows:
+            mine = row.scores["ppl"]
+            assert row.tied_with_leader == (mine.high >= leader.low and leader.high >= mine.low)
+        assert any(row.tied_with_leader for row in board.rows[1:])
+        assert not all(row.tied_with_leader for row in board.rows)
+
+
+def test_the_pages_bench_runs() -> None:
+    result = run_pages_bench(runs=12, episodes=3, repeats=2, verbose=False)
+    assert set(result) >= {"leaderboard median ms", "run (test-standard) p95 ms"}
+    assert all(value > 0 for value in result.values())
