@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import io
 import re
+from collections.abc import Callable
 from typing import Any
 
 import httpx
@@ -123,3 +124,20 @@ def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None
 def test_pages_are_not_in_the_api_schema(server: Any) -> None:
     schema = httpx.get(server.url + "/openapi.json").json()
     assert not [p for p in schema["paths"] if not p.startswith("/v1/")]
+
+
+def test_names_are_escaped_and_an_abandoned_run_counts_its_missed_episodes(
+    server: Any, played: dict[str, PlayedRun], new_team: Callable[[str], str]
+) -> None:
+    from multion_client.run import RunEnv
+
+    method = '<script>alert("x")</script> & co'
+    env = RunEnv(server.url, "1-on", "minival", method, token=new_team("gamma"), sensors=["goal"])
+    env.abandon()
+    page = get(server, "/leaderboard").text
+    assert "<script>alert" not in page and "&lt;script&gt;alert(" in page
+    row = next(r for r in rows(board(page, "1-on", "minival")) if env.run_id in r)
+    assert "0 / 3" in row  # abandoned before any episode: all three missed, counted as failures
+    run_page = get(server, f"/leaderboard/runs/{env.run_id}").text
+    assert "<script>alert" not in run_page and "&lt;script&gt;alert(" in run_page
+    assert "not_played 3" in run_page
