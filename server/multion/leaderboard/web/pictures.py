@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import io
 import multiprocessing
+import resource
 from collections import OrderedDict
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -27,6 +28,14 @@ from multion.task.episode import Episode
 PICTURES_PER_RUN = 3
 CACHED_PICTURES = 64
 PIXELS_PER_METRE = 24
+DRAWER_MEMORY_BYTES = 3 * 2**30
+"""Address-space limit of the drawing process (a house of 8 rooms needs well under a GiB)."""
+
+
+def _start_drawer() -> None:
+    """In the drawing process: end with the server, and never take more than its limit."""
+    die_with_parent()
+    resource.setrlimit(resource.RLIMIT_AS, (DRAWER_MEMORY_BYTES, DRAWER_MEMORY_BYTES))
 
 
 def draw_episode(
@@ -81,7 +90,7 @@ class EpisodePictures:
                 return self._cache[key]
             if self._pool is None:
                 spawn = multiprocessing.get_context("spawn")
-                self._pool = ProcessPoolExecutor(1, spawn, initializer=die_with_parent)
+                self._pool = ProcessPoolExecutor(1, spawn, initializer=_start_drawer)
             future = self._pool.submit(
                 draw_episode, track, phase, maps, episode, actions, metrics, label
             )
