@@ -375,9 +375,6 @@ def _splice(names: tuple[str, ...], replies: list[Reply], n: int) -> bytes:
     )
 
 
-
-
-
 _tasks: set[asyncio.Task[Any]] = set()
 
 

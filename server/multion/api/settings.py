@@ -55,9 +55,7 @@ class ServerSettings(BaseSettings):
     def _check_replica(cls, value: object) -> object:
         if value == "":  # MULTION_REPLICA= (empty) means no replica name
             return None
-        if value is not None and not (
-            isinstance(value, str) and REPLICA_PATTERN.fullmatch(value)
-        ):
+        if value is not None and not (isinstance(value, str) and REPLICA_PATTERN.fullmatch(value)):
             raise ValueError(
                 f"replica must be 1-8 characters from a-z and 0-9 "
                 f"(pattern {REPLICA_PATTERN.pattern}), got {value!r}"
