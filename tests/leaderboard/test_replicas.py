@@ -139,18 +139,24 @@ def nginx_config(directory: Path, ports: dict[str, int], listen: int) -> Path:
 
 
 @pytest.fixture(scope="module")
-def nginx(
-    replicas: dict[str, LocalServer], tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[str]:
-    """nginx with docker/nginx.conf on a loopback port in front of the two replicas."""
+def nginx_binary() -> Path:
+    """/usr/sbin/nginx, else skip (fail with MULTION_REQUIRE_NGINX=1), before any server starts."""
     if not NGINX.exists():
         if os.environ.get(REQUIRE_NGINX) == "1":
             pytest.fail(NGINX_HINT)
         pytest.skip(NGINX_HINT)
+    return NGINX
+
+
+@pytest.fixture(scope="module")
+def nginx(
+    nginx_binary: Path, replicas: dict[str, LocalServer], tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[str]:
+    """nginx with docker/nginx.conf on a loopback port in front of the two replicas."""
     directory = tmp_path_factory.mktemp("nginx")
     port = free_port()
     main = nginx_config(directory, {k: s.port for k, s in replicas.items()}, port)
-    command = [str(NGINX), "-p", str(directory), "-c", str(main)]
+    command = [str(nginx_binary), "-p", str(directory), "-c", str(main)]
     checked = subprocess.run([*command, "-t"], capture_output=True, text=True, timeout=30)
     assert checked.returncode == 0, checked.stderr
     process = subprocess.Popen([*command, "-g", "daemon off;"])
