@@ -117,6 +117,29 @@ def test_two_replicas_share_one_postgresql(
 
 
 # ---------------------------------------------------------------------- nginx on loopback
+def test_compose_and_nginx_name_the_same_replicas() -> None:
+    """Adding a replica takes a compose service and three nginx lines: none may be forgotten."""
+    compose = (ROOT / "docker" / "docker-compose.replicas.yml").read_text()
+    conf = (ROOT / "docker" / "nginx.conf").read_text()
+    names = re.findall(r"^\s+MULTION_REPLICA: ([a-z0-9]+)", compose, re.MULTILINE)
+    assert len(names) >= 2 and len(set(names)) == len(names), names
+    for name in names:
+        assert re.search(rf"^  replica-{name}:$", compose, re.MULTILINE), name
+        assert re.search(
+            rf"^      replica-{name}:\n        condition: service_healthy", compose, re.MULTILINE
+        ), name
+    any_block = re.search(r"upstream multion_any \{(.*?)\}", conf, re.DOTALL)
+    assert any_block is not None
+    assert sorted(re.findall(r"server replica-([a-z0-9]+):8000", any_block.group(1))) == sorted(
+        names
+    )
+    assert sorted(
+        re.findall(r"upstream multion_([a-z0-9]+) \{ server replica-\1:8000;", conf)
+    ) == sorted(names)
+    pinned = re.findall(r"~\^/v1/\(sessions\|runs\)/([a-z0-9]+)-\s+multion_\1;", conf)
+    assert sorted(pinned) == sorted(names)
+
+
 def nginx_config(directory: Path, ports: dict[str, int], listen: int) -> Path:
     """docker/nginx.conf with the replicas' host names and port 80 replaced by loopback ports,
     inside a minimal main config (the official image's nginx.conf includes it the same way)."""
