@@ -15,15 +15,16 @@ COPY pyproject.toml README.md ./
 COPY client ./client
 COPY server ./server
 COPY agents ./agents
-RUN pip wheel --no-cache-dir --wheel-dir /wheels ./client .
+# [postgres]: psycopg, for replicas sharing one PostgreSQL (docker-compose.replicas.yml).
+RUN pip wheel --no-cache-dir --wheel-dir /wheels ./client ".[postgres]"
 
 FROM python:3.11-slim
 RUN apt-get update \
     && apt-get install -y --no-install-recommends libstdc++6 \
     && rm -rf /var/lib/apt/lists/*
 COPY --from=build /wheels /wheels
-# The same packages as `pip install ./client .`, from the wheels built above.
-RUN pip install --no-cache-dir --no-index --find-links /wheels multion multion-client \
+# The same packages as `pip install ./client ".[postgres]"`, from the wheels built above.
+RUN pip install --no-cache-dir --no-index --find-links /wheels "multion[postgres]" multion-client \
     && rm -rf /wheels \
     && useradd --create-home multion
 USER multion

@@ -24,6 +24,12 @@ _OPTIONS: tuple[tuple[str, type, str], ...] = (
         "address-space limit of each simulator worker, and the room its sessions' memory "
         "estimates share (default 8192)",
     ),
+    (
+        "replica",
+        str,
+        "this replica's name (1-8 of a-z 0-9) behind a reverse proxy: session and run ids "
+        "start with NAME- so the proxy can send them to this replica (default: none)",
+    ),
 )
 
 

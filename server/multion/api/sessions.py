@@ -11,14 +11,13 @@ import asyncio
 import dataclasses
 import logging
 import time
-import uuid
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.paths import allowed_roots, checked_config, checked_options
-from multion.api.settings import ServerSettings
+from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
 from multion.task.env import check_reset_options
 from multion.task.memory import estimate_env_bytes, mib
@@ -186,7 +185,7 @@ class SessionRegistry:
         """Forget the session and free its environments (also for a failed session)."""
         session = self.sessions.get(session_id)
         if session is None:
-            raise errors.SessionNotFound(_unknown(session_id))
+            raise errors.SessionNotFound(self._unknown(session_id))
         async with session.lock:
             if self.sessions.pop(session_id, None) is not None:
                 await _shielded(self._release(session.shards))
@@ -202,7 +201,7 @@ class SessionRegistry:
     def get(self, session_id: str) -> Session:
         session = self.sessions.get(session_id)
         if session is None:
-            raise errors.SessionNotFound(_unknown(session_id))
+            raise errors.SessionNotFound(self._unknown(session_id))
         if session.failed is not None:
             raise errors.WorkerFailed(f"session {session_id} is lost: {session.failed}")
         return session
@@ -239,8 +238,18 @@ class SessionRegistry:
         return idle
 
     # ------------------------------------------------------------------ internals
+    def _unknown(self, session_id: str) -> str:
+        made_by, here = replica_of(session_id), self.settings.replica
+        if here is not None and made_by is not None and made_by != here:
+            return (
+                f"no session {session_id!r} on replica {here!r}: replica {made_by!r} made it, "
+                "and a session cannot move between replicas (is that replica down, or does the "
+                "proxy not send /v1/sessions/NAME-... to replica NAME?)"
+            )
+        return f"no session {session_id!r} (never created, closed, or closed after being idle)"
+
     async def _create(self, message: CreateSession, env_bytes: int) -> bytes:
-        session_id = uuid.uuid4().hex
+        session_id = self.settings.new_id()  # NAME-<hex> on a named replica
         shards, start = [], 0
         for k, (worker, count) in enumerate(self.pool.choose(message.num_envs, env_bytes)):
             shards.append(Shard(worker, f"{session_id}/{k}", start, count, count * env_bytes))
@@ -278,7 +287,7 @@ class SessionRegistry:
         async def locked() -> bytes:
             async with session.lock:
                 if session.session_id not in self.sessions:
-                    raise errors.SessionNotFound(_unknown(session.session_id))
+                    raise errors.SessionNotFound(self._unknown(session.session_id))
                 if session.failed is not None:
                     raise errors.WorkerFailed(
                         f"session {session.session_id} is lost: {session.failed}"
@@ -364,11 +373,6 @@ def _splice(names: tuple[str, ...], replies: list[Reply], n: int) -> bytes:
     return join_encoded(
         [(name, n, [parts[i] for _, parts in replies]) for i, name in enumerate(names)]
     )
-
-
-
-def _unknown(session_id: str) -> str:
-    return f"no session {session_id!r} (never created, closed, or closed after being idle)"
 
 
 _tasks: set[asyncio.Task[Any]] = set()

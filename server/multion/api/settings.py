@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import re
+import uuid
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+ID_LENGTH = 32
+"""Session and run ids are at most this long (the leaderboard's ``runs.id`` is String(32))."""
+REPLICA_PATTERN = re.compile(r"[a-z0-9]{1,8}")
 
 
 class ServerSettings(BaseSettings):
@@ -37,3 +43,35 @@ class ServerSettings(BaseSettings):
         description="directories whose dataset files (and mesh scenes) clients may name, besides "
         "the packaged datasets; empty: packaged datasets only. Env: a JSON list",
     )
+    replica: str | None = Field(
+        None,
+        description="this replica's name, 1-8 characters from a-z and 0-9, or none; it prefixes "
+        "every session and run id (NAME-<hex>) so that a reverse proxy can send a session's "
+        "requests to the replica that holds it (see docker/README.md)",
+    )
+
+    @field_validator("replica", mode="before")
+    @classmethod
+    def _check_replica(cls, value: object) -> object:
+        if value == "":  # MULTION_REPLICA= (empty) means no replica name
+            return None
+        if value is not None and not (isinstance(value, str) and REPLICA_PATTERN.fullmatch(value)):
+            raise ValueError(
+                f"replica must be 1-8 characters from a-z and 0-9 "
+                f"(pattern {REPLICA_PATTERN.pattern}), got {value!r}"
+            )
+        return value
+
+    def new_id(self) -> str:
+        """A new session or run id: 32 hex digits, or with a replica name ``NAME-`` and as many
+        hex digits as fit in :data:`ID_LENGTH` characters (23 to 30, of which ≥ 86 random bits)."""
+        digits = uuid.uuid4().hex
+        if self.replica is None:
+            return digits
+        return f"{self.replica}-{digits[: ID_LENGTH - len(self.replica) - 1]}"
+
+
+def replica_of(some_id: str) -> str | None:
+    """The replica name a session or run id starts with (``NAME-``), or None."""
+    name, dash, _ = some_id.partition("-")
+    return name if dash and REPLICA_PATTERN.fullmatch(name) else None

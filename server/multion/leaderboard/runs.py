@@ -23,7 +23,6 @@ import contextlib
 import datetime as dt
 import logging
 import time
-import uuid
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any
@@ -118,7 +117,7 @@ class RunService:
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
         hidden = await asyncio.to_thread(self.hidden.get, track, phase)
-        run_id = uuid.uuid4().hex
+        run_id = self.registry.settings.new_id()  # NAME-<hex> on a named replica, ≤ 32
         order = run_order(self.challenge, run_id, len(hidden))
         row = Run(
             id=run_id,
