@@ -91,6 +91,12 @@ def test_two_replicas_share_one_postgresql(
     on_a, on_b = Client(a.url, token=token), Client(b.url, token=token)
     assert on_b.run_status(done.run_id) == on_a.run_status(done.run_id)
     assert [r.run_id for r in on_b.list_runs()] == [r.run_id for r in on_a.list_runs()]
+    # the run finished on A is on B's leaderboard page, and its run page shows the same numbers
+    board = httpx.get(b.url + "/leaderboard", timeout=60)
+    assert board.status_code == 200 and f'data-run="{done.run_id}"' in board.text
+    page = httpx.get(f"{b.url}/leaderboard/runs/{done.run_id}", timeout=60).text
+    assert page == httpx.get(f"{a.url}/leaderboard/runs/{done.run_id}", timeout=60).text
+    assert "on-a" in page and "Results over 3 episodes" in page
     # a run started on A, continued on B at the same step
     going = RunEnv(a.url, "1-on", "minival", "moving", token=token, sensors=["goal", "gps"])
     going.reset()
