@@ -46,6 +46,12 @@ def commands(tmp: Path) -> dict[str, tuple[list[str], int]]:
     }  # fmt: skip
 
 
+def as_from_a_terminal() -> None:
+    """Default SIGINT handling in the command, as a shell's foreground job has it. A test run
+    started in the background (``.ci/run &``) ignores SIGINT, and its children inherit that."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 @pytest.mark.parametrize("name", ["serve", "eval", "bench", "train"])
@@ -56,8 +62,9 @@ def test_a_signal_stops_every_process_the_command_started(
         pytest.importorskip("torch")
     arguments, running = commands(tmp_path)[name]
     process = subprocess.Popen(
-        [*MULTION, *arguments], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-    )
+        [*MULTION, *arguments], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        preexec_fn=as_from_a_terminal,
+    )  # fmt: skip
     started: set[int] = set()
     try:
         deadline = time.monotonic() + 120

@@ -84,8 +84,7 @@ def episode_picture(
     _polyline(draw, path, frame, AGENT_PATH, width)
     _start(draw, episode, frame)
     _goals(draw, episode, frame)
-    _legend(draw, label or episode.episode_id, metrics)
-    return image
+    return _with_legend(image, label or episode.episode_id, metrics)
 
 
 def _polyline(
@@ -119,8 +118,9 @@ def _goals(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> 
         draw.text((x - (right - left) / 2 - left, y - (bottom - top) / 2 - top), text, fill=ink)
 
 
-def _legend(draw: ImageDraw.ImageDraw, label: str, metrics: dict[str, Any]) -> None:
-    """The episode's label and its headline metrics in the top-left corner."""
+def _with_legend(image: Image.Image, label: str, metrics: dict[str, Any]) -> Image.Image:
+    """The picture under a white strip with the episode's label and headline metrics (above
+    the map, not on it: small houses would be hidden under the text)."""
     lines = [
         label,
         "success {:.0f}  progress {:.2f}".format(
@@ -131,9 +131,15 @@ def _legend(draw: ImageDraw.ImageDraw, label: str, metrics: dict[str, Any]) -> N
         ),
     ]
     text = "\n".join(lines)
-    left, top, right, bottom = draw.multiline_textbbox((6, 6), text)
-    draw.rectangle([left - 3, top - 3, right + 3, bottom + 3], fill=(255, 255, 255))
-    draw.multiline_text((6, 6), text, fill=OUTLINE)
+    probe = ImageDraw.Draw(image)
+    left, top, right, bottom = probe.multiline_textbbox((0, 0), text)
+    strip = bottom - top + 12
+    canvas = Image.new(
+        "RGB", (max(image.width, right - left + 12), image.height + strip), (255, 255, 255)
+    )
+    ImageDraw.Draw(canvas).multiline_text((6 - left, 6 - top), text, fill=OUTLINE)
+    canvas.paste(image, (0, strip))
+    return canvas
 
 
 def _rgb(rgba: Sequence[float]) -> tuple[int, int, int]:
