@@ -2,6 +2,7 @@
 # Re-run the evaluation runs behind docs/baselines.md (one eval at a time, at low priority),
 # then regenerate the doc's tables and figures from them:
 #   bash scripts/run_baselines.sh RUNS_DIR [AGENT ...]    # default: all four agents
+#   EPISODES_OVERRIDE=20 bash scripts/run_baselines.sh RUNS_DIR explorer   # other episode counts
 #   .venv/bin/multion report RUNS_DIR/* --out docs --doc baselines
 # Each run writes RUNS_DIR/AGENT-Mon/, RUNS_DIR/AGENT-3on-distractors/ (the 3-ON variant with
 # distractor objects) and RUNS_DIR/random-3on-budgetB/ (the found-budget table). Episode counts per agent are set below; random-oracle-found never calls a wrong FOUND,
@@ -29,14 +30,15 @@ evaluate() {  # evaluate OUT_NAME EPISODES ARGS...
 }
 
 for agent in "${agents[@]}"; do
+  n=${EPISODES_OVERRIDE:-${EPISODES[$agent]}}
   for m in 1 2 3; do
-    evaluate "$agent-${m}on" "${EPISODES[$agent]}" --agent "$agent" --task "$m-on"
+    evaluate "$agent-${m}on" "$n" --agent "$agent" --task "$m-on"
   done
-  evaluate "$agent-3on-distractors" "${EPISODES[$agent]}" --agent "$agent" --task 3-on \
+  evaluate "$agent-3on-distractors" "$n" --agent "$agent" --task 3-on \
     --dataset server/multion/data/datasets/3-on-distractors/val.json.gz
   if [ "$agent" = random ]; then
     for budget in "${BUDGETS[@]}"; do
-      evaluate "random-3on-budget$budget" "${EPISODES[random]}" --agent random --task 3-on \
+      evaluate "random-3on-budget$budget" "$n" --agent random --task 3-on \
         --set "task.found_budget=$budget"
     done
   fi
