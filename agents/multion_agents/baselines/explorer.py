@@ -64,6 +64,7 @@ class ExplorerAgent(Agent):
     min_frontier_cells: int = 4
     close_range: float = 0.6
     detour_steps: int = 60
+    tight_steps: int = 100
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
@@ -92,6 +93,7 @@ class ExplorerAgent(Agent):
         self._last_action: int | None = None
         self._detour = 0  # steps left exploring elsewhere after getting stuck on the way to a goal
         self._arrivals: list[np.ndarray] = []  # where frontier plans ended
+        self._tight = 0  # steps left planning without the margin round obstacles
 
     # ------------------------------------------------------------------ the policy
     def act(self, observation: Observation) -> int:
@@ -100,6 +102,9 @@ class ExplorerAgent(Agent):
         goal = int(observation["goal"])
         seen_now = self._perceive(observation, position, heading)
         self._track_motion(position, heading)
+        if self._tight > 0:
+            self._tight -= 1
+            self.map.changed |= self._tight == 0  # the margin comes back
         if self.map.changed:
             self._refresh_passable()
         action = self._decide(goal, goal in seen_now, position, heading)
@@ -199,9 +204,12 @@ class ExplorerAgent(Agent):
         Optimistic: unknown cells count as passable, since the camera looks where the agent goes.
         The dilation runs only over the box around the obstacles, to stay cheap every step.
         """
-        r0, r1, c0, c1 = bounding_box(self.map.obstacle, margin=2)
-        inflated = np.zeros_like(self._blocked)
-        inflated[r0:r1, c0:c1] = ndimage.binary_dilation(self.map.obstacle[r0:r1, c0:c1])
+        if self._tight > 0:  # walled in by the margin: only the obstacles themselves block
+            inflated = self.map.obstacle
+        else:
+            r0, r1, c0, c1 = bounding_box(self.map.obstacle, margin=2)
+            inflated = np.zeros_like(self._blocked)
+            inflated[r0:r1, c0:c1] = ndimage.binary_dilation(self.map.obstacle[r0:r1, c0:c1])
         # where the agent has been is passable, whatever the dilation says
         self._passable = ~(inflated | self._blocked) | (self._visited & ~self._blocked)
 
@@ -212,8 +220,14 @@ class ExplorerAgent(Agent):
         box = bounding_box(known, margin=8)
         self._since_plan = 0
         if self._target is None or self._target[0] != "goal":
-            sources = self._frontier(self._passable)
-            self._field = self._field_to(sources, box)
+            self._field = self._field_to(self._frontier(self._passable), box)
+            if self._tight == 0 and not np.isfinite(interpolate(self.grid, self._field, position)):
+                # no frontier reachable through the margin kept round seen obstacles (a
+                # cluttered spot walls the agent in): plan over the obstacles alone for a while;
+                # the simulator refuses what is really too tight
+                self._tight = self.tight_steps
+                self._refresh_passable()
+                self._field = self._field_to(self._frontier(self._passable), box)
             return
         assert self._target_point is not None
         while True:
