@@ -218,27 +218,7 @@ class RunService:
             st.actions.append(action)
             st.last_metrics = info["metrics"]
             st.deadline = self._deadline()
-            results = []
-            if done:
-                st.episode_active = False
-                results.append(self._result(live, str(st.last_metrics.get("end_reason"))))
-            run_done = done and st.position == len(live.order) - 1
-            if run_done:
-                await self._finish(live, results, "finished", None)
-            else:
-                await self._save(live, results)
-            metrics = st.last_metrics if done and live.phase.feedback == "episodes" else None
-            answer = RunObservation(
-                st.position,
-                st.seq,
-                observation,
-                done=done,
-                end_reason=st.last_metrics.get("end_reason") if done else None,
-                metrics=metrics,
-                run_done=run_done,
-            )
-            live.last_answer = encode(answer.to_wire())
-            return live.last_answer
+            return await self._conclude(live, observation, done)
 
     async def observe(self, team_id: int, run_id: str) -> bytes:
         """Where the run stands: the last answer (for a client resuming after a crash)."""
@@ -455,22 +435,32 @@ class RunService:
             reply = decode(await self.registry.step(live.session_id, Step([action])))
             done = bool(reply["terminated"][0] or reply["truncated"][0])
         st.last_metrics = reply["infos"][0]["metrics"]
-        end_reason = st.last_metrics.get("end_reason") if done else None
-        run_done = False
-        if done:  # defensive: a saved state whose last action ended the episode unrecorded
+        # the state is as saved, unless (defensively) its last action ended the episode unrecorded
+        await self._conclude(live, reply["observations"][0], done, save_unfinished=False)
+
+    async def _conclude(
+        self, live: LiveRun, observation: Any, done: bool, save_unfinished: bool = True
+    ) -> bytes:
+        """After a step (or a replay up to it): record the episode if it ended, finish the run
+        if that was its last episode, else save the state; keep the answer for retries."""
+        st = live.state
+        end_reason = st.last_metrics.get("end_reason") if done and st.last_metrics else None
+        results = []
+        if done:
             st.episode_active = False
-            results = [self._result(live, str(end_reason))]
-            run_done = st.position == len(live.order) - 1
-            if run_done:
-                await self._finish(live, results, "finished", None)
-            else:
-                await self._save(live, results)
+            results.append(self._result(live, str(end_reason)))
+        run_done = done and st.position == len(live.order) - 1
+        if run_done:
+            await self._finish(live, results, "finished", None)
+        elif done or save_unfinished:
+            await self._save(live, results)
         metrics = st.last_metrics if done and live.phase.feedback == "episodes" else None
         answer = RunObservation(
-            st.position, st.seq, reply["observations"][0], done=done, end_reason=end_reason,
+            st.position, st.seq, observation, done=done, end_reason=end_reason,
             metrics=metrics, run_done=run_done,
         )  # fmt: skip
         live.last_answer = encode(answer.to_wire())
+        return live.last_answer
 
     def _result(self, live: LiveRun, end_reason: str) -> EpisodeResult:
         from multion.leaderboard.results import missed_metrics
