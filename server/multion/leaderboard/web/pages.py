@@ -23,7 +23,7 @@ from multion.leaderboard.models import EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
 from multion.leaderboard.web.charts import best_over_time
-from multion.leaderboard.web.pictures import PICTURES_PER_RUN, EpisodePictures
+from multion.leaderboard.web.pictures import EpisodePictures, EpisodeReplay, pictured
 
 HERE = Path(__file__).resolve().parent
 STATIC_PATH = "/leaderboard/static"
@@ -108,7 +108,7 @@ async def run_page(run_id: str, request: Request) -> HTMLResponse:
     if page.per_episode and page.track is not None and page.phase is not None:
         hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
         houses = queries.breakdown(page.records, _house_labels(service, page, hidden))
-        pictures = [r for r in page.records if r.actions][:PICTURES_PER_RUN]
+        pictures = pictured(page.records)
     return _page(request, "run.html", page=page, houses=houses, pictures=pictures)
 
 
@@ -117,17 +117,17 @@ async def episode_picture(run_id: str, position: int, request: Request) -> Respo
     """The picture of one of the first episodes of a run on a phase with per-episode feedback."""
     service = _service(request)
     page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
-    played = [r for r in page.records if r.actions][:PICTURES_PER_RUN] if page else []
-    record = next((r for r in played if r.position == position), None)
+    shown = pictured(page.records) if page is not None else []
+    record = next((r for r in shown if r.position == position), None)
     if page is None or record is None or page.track is None or page.phase is None:
         return _not_found(request, f"a picture of episode {position} of run {run_id}")
     hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
     pictures: EpisodePictures = request.app.state.episode_pictures
-    png = await pictures.get(
-        (run_id, position), page.track, page.phase, dict(page.run.maps or {}),
-        hidden[record.episode_index], record.actions, record.metrics,
-        f"episode {position + 1}",
+    replay = EpisodeReplay(
+        page.track, page.phase, dict(page.run.maps or {}), hidden[record.episode_index],
+        record.actions, record.metrics, f"episode {position + 1}",
     )  # fmt: skip
+    png = await pictures.get((run_id, position), replay)
     headers = {**SECURITY_HEADERS, "Cache-Control": "public, max-age=86400"}
     return Response(png, media_type="image/png", headers=headers)
 

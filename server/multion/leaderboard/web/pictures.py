@@ -13,13 +13,16 @@ import io
 import multiprocessing
 import resource
 from collections import OrderedDict
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from multion.api.config_io import session_config_from_dict
 from multion.leaderboard.challenge import Phase, Track
+from multion.leaderboard.models import EpisodeRecord
 from multion.pictures import episode_picture, gps_to_world
 from multion.processes import die_with_parent
 from multion.task.env import MultiONEnv
@@ -38,31 +41,43 @@ def _start_drawer() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (DRAWER_MEMORY_BYTES, DRAWER_MEMORY_BYTES))
 
 
-def draw_episode(
-    track: Track,
-    phase: Phase,
-    maps: dict[str, Any],
-    episode: Episode,
-    actions: str,
-    metrics: dict[str, Any],
-    label: str,
-) -> bytes:
-    """Replay ``actions`` in ``episode`` (GPS only: nothing rendered) and draw it as a PNG."""
-    config, _ = session_config_from_dict(track.env_config(phase, ("gps",), maps))
-    env = MultiONEnv(config, episodes=[episode])
-    try:
-        observation, _ = env.reset(options={"episode_index": 0})
-        gps = [np.asarray(observation["gps"], dtype=np.float64)]
-        for action in actions:
-            observation, *_ = env.step(int(action))
-            gps.append(np.asarray(observation["gps"], dtype=np.float64))
-        path = gps_to_world(np.asarray(gps), episode)
-        image = episode_picture(episode, path, metrics, env.sim, PIXELS_PER_METRE, label=label)
-    finally:
-        env.close()
-    buffer = io.BytesIO()
-    image.save(buffer, format="PNG", optimize=True)
-    return buffer.getvalue()
+@dataclass(frozen=True)
+class EpisodeReplay:
+    """What a picture is drawn from: a stored episode of a run, in its track's environment."""
+
+    track: Track
+    phase: Phase
+    maps: dict[str, Any]
+    episode: Episode
+    actions: str
+    metrics: dict[str, Any]
+    label: str
+
+    def draw(self) -> bytes:
+        """Replay the actions (GPS only: nothing rendered) and draw the episode as a PNG."""
+        config_dict = self.track.env_config(self.phase, ("gps",), self.maps)
+        config, _ = session_config_from_dict(config_dict)
+        env = MultiONEnv(config, episodes=[self.episode])
+        try:
+            observation, _ = env.reset(options={"episode_index": 0})
+            gps = [np.asarray(observation["gps"], dtype=np.float64)]
+            for action in self.actions:
+                observation, *_ = env.step(int(action))
+                gps.append(np.asarray(observation["gps"], dtype=np.float64))
+            path = gps_to_world(np.asarray(gps), self.episode)
+            image = episode_picture(
+                self.episode, path, self.metrics, env.sim, PIXELS_PER_METRE, label=self.label
+            )
+        finally:
+            env.close()
+        buffer = io.BytesIO()
+        image.save(buffer, format="PNG", optimize=True)
+        return buffer.getvalue()
+
+
+def pictured(records: Sequence[EpisodeRecord]) -> list[EpisodeRecord]:
+    """The episodes of a run that get a picture: its first played ones."""
+    return [r for r in records if r.actions][:PICTURES_PER_RUN]
 
 
 class EpisodePictures:
@@ -73,17 +88,7 @@ class EpisodePictures:
         self._lock = asyncio.Lock()
         self._cache: OrderedDict[tuple[str, int], bytes] = OrderedDict()
 
-    async def get(
-        self,
-        key: tuple[str, int],
-        track: Track,
-        phase: Phase,
-        maps: dict[str, Any],
-        episode: Episode,
-        actions: str,
-        metrics: dict[str, Any],
-        label: str,
-    ) -> bytes:
+    async def get(self, key: tuple[str, int], replay: EpisodeReplay) -> bytes:
         async with self._lock:
             if key in self._cache:
                 self._cache.move_to_end(key)
@@ -91,10 +96,7 @@ class EpisodePictures:
             if self._pool is None:
                 spawn = multiprocessing.get_context("spawn")
                 self._pool = ProcessPoolExecutor(1, spawn, initializer=_start_drawer)
-            future = self._pool.submit(
-                draw_episode, track, phase, maps, episode, actions, metrics, label
-            )
-            png = await asyncio.wrap_future(future)
+            png = await asyncio.wrap_future(self._pool.submit(replay.draw))
             self._cache[key] = png
             while len(self._cache) > CACHED_PICTURES:
                 self._cache.popitem(last=False)
