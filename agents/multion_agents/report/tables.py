@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from multion.task import measures
 from multion.task.dataset import task_name
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
@@ -243,17 +244,8 @@ def seen_not_seen(runs: Sequence[Run], labels: Sequence[str], paper: PaperResult
 
 
 def seen_split(run: Run, goal: int) -> tuple[list[float], list[float]]:
-    """1.0 / 0.0 (goal ``goal`` found or not) for the episodes in which goal ``goal - 1`` was
-    found, split into those where ``goal`` was seen before that and those where it was not."""
-    seen: list[float] = []
-    unseen: list[float] = []
-    for episode in run.episodes:
-        found = int(episode.metrics.get("goals_found", 0))
-        if found < goal - 1:
-            continue  # the agent never got to look for this goal
-        flags = episode.metrics["seen_before_current"]
-        (seen if flags[goal - 2] else unseen).append(float(found >= goal))
-    return seen, unseen
+    """:func:`multion.task.measures.seen_split` over the run's episodes."""
+    return measures.seen_split((episode.metrics for episode in run.episodes), goal)
 
 
 def _seen_row(

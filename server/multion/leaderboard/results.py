@@ -6,11 +6,10 @@ from collections import Counter
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
+from multion import stats
+from multion.stats import CI_METHOD
 
 SUMMARY_METRICS = ("ppl", "progress", "success", "spl")
-RESAMPLES = 2000
-CI_METHOD = f"percentile bootstrap over episodes, {RESAMPLES} resamples, 95%"
 
 
 def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
@@ -34,14 +33,11 @@ def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
 
 
 def bootstrap(values: Sequence[float], seed: int = 0) -> dict[str, float]:
-    """Mean of ``values`` with a 95% percentile-bootstrap interval (seeded: reproducible)."""
-    data = np.asarray(values, dtype=np.float64)
-    if data.size == 0:
+    """:func:`multion.stats.bootstrap` as stored in a run's summary (zeros for no values)."""
+    if len(values) == 0:
         return {"mean": 0.0, "low": 0.0, "high": 0.0}
-    rng = np.random.default_rng(seed)
-    means = data[rng.integers(0, data.size, size=(RESAMPLES, data.size))].mean(axis=1)
-    low, high = np.percentile(means, [2.5, 97.5])
-    return {"mean": float(data.mean()), "low": float(low), "high": float(high)}
+    estimate = stats.bootstrap(values, seed=seed)
+    return {"mean": estimate.mean, "low": estimate.low, "high": estimate.high}
 
 
 def summarize(records: Sequence[dict[str, Any]], primary: str) -> dict[str, Any]:

@@ -8,8 +8,9 @@ in dependency order.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -304,6 +305,24 @@ class SeenBeforeCurrent(Measure):
             # a goal never made current was "seen before" if it was seen at all
             out.append(seen is not None and (since is None or seen < since))
         return out
+
+
+def seen_split(
+    metrics: Iterable[Mapping[str, Any]], goal: int
+) -> tuple[list[float], list[float]]:
+    """1.0 / 0.0 (goal ``goal`` found or not) for the episodes in which goal ``goal - 1`` was
+    found, split into those where ``goal`` was seen before that (by :class:`SeenBeforeCurrent`)
+    and those where it was not: the supplement's seen / not-seen analysis, from each episode's
+    ``info["metrics"]``."""
+    seen: list[float] = []
+    unseen: list[float] = []
+    for m in metrics:
+        found = int(m.get("goals_found", 0))
+        flags = m.get("seen_before_current") or []
+        if found < goal - 1 or len(flags) < goal - 1:
+            continue  # the agent never got to look for this goal
+        (seen if flags[goal - 2] else unseen).append(float(found >= goal))
+    return seen, unseen
 
 
 class EndReason(Measure):

@@ -19,7 +19,9 @@ from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team
-from multion.leaderboard.results import SUMMARY_METRICS, bootstrap
+from multion.leaderboard.results import SUMMARY_METRICS
+from multion.stats import Estimate, bootstrap
+from multion.task.measures import seen_split
 
 RANKED_STATES = ("finished", "ended")
 """Runs that end up on the leaderboard: every episode played, or stopped early (the missing
@@ -27,23 +29,12 @@ episodes count as failures). Failed runs were the server's fault and are refunde
 METRIC_NAMES = {"ppl": "PPL", "progress": "Progress", "success": "Success", "spl": "SPL"}
 
 
-@dataclass(frozen=True)
-class Score:
-    """A metric's mean over a run's episodes and its 95% bootstrap interval (fractions)."""
-
-    mean: float
-    low: float
-    high: float
-
-    @classmethod
-    def of(cls, summary: dict[str, Any], metric: str) -> Score:
-        value = summary.get(metric) or {}
-        return cls(
-            float(value.get("mean", 0.0)), float(value.get("low", 0.0)), float(value.get("high", 0.0))
-        )
-
-    def overlaps(self, other: Score) -> bool:
-        return self.low <= other.high and other.low <= self.high
+def stored(summary: dict[str, Any], metric: str) -> Estimate:
+    """A metric's estimate as a run's stored summary holds it (fractions)."""
+    value = summary.get(metric) or {}
+    return Estimate(
+        float(value.get("mean", 0.0)), float(value.get("low", 0.0)), float(value.get("high", 0.0))
+    )
 
 
 @dataclass(frozen=True)
@@ -57,7 +48,7 @@ class BoardRow:
     baseline: bool
     paper_url: str | None
     code_url: str | None
-    scores: dict[str, Score]
+    scores: dict[str, Estimate]
     completed: int
     """Episodes played (not counting those missed because the run ended early)."""
     total: int
@@ -115,9 +106,9 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
     return boards
 
 
-def _scores(row: Any) -> dict[str, Score]:
+def _scores(row: Any) -> dict[str, Estimate]:
     return {
-        m: Score(*(float(getattr(row, f"{m}_{part}") or 0.0) for part in ("mean", "low", "high")))
+        m: Estimate(*(float(getattr(row, f"{m}_{part}") or 0.0) for part in ("mean", "low", "high")))
         for m in SUMMARY_METRICS
     }
 
@@ -160,9 +151,9 @@ class SeenSplit:
     backtracking analysis): share found and number of episodes in each group."""
 
     goal: int
-    seen: Score | None
+    seen: Estimate | None
     seen_n: int
-    not_seen: Score | None
+    not_seen: Estimate | None
     not_seen_n: int
 
 
@@ -172,7 +163,7 @@ class Breakdown:
 
     label: str
     episodes: int
-    scores: dict[str, Score]
+    scores: dict[str, Estimate]
 
 
 @dataclass
@@ -183,7 +174,7 @@ class RunPage:
     phase: Phase | None
     visible: bool
     """Results may be shown (not a sealed phase before its date)."""
-    scores: dict[str, Score] = field(default_factory=dict)
+    scores: dict[str, Estimate] = field(default_factory=dict)
     end_reasons: dict[str, int] = field(default_factory=dict)
     seen_splits: list[SeenSplit] = field(default_factory=list)
     records: list[EpisodeRecord] = field(default_factory=list)
@@ -207,7 +198,7 @@ def run_page(
     page = RunPage(run, team, track, phase, visible)
     if not visible:
         return page
-    page.scores = {m: Score.of(run.summary, m) for m in SUMMARY_METRICS}
+    page.scores = {m: stored(run.summary, m) for m in SUMMARY_METRICS}
     page.end_reasons = dict(run.summary.get("end_reasons") or {})
     records = list(
         session.scalars(
@@ -227,19 +218,13 @@ def seen_splits(metrics: Sequence[dict[str, Any]], num_goals: int) -> list[SeenS
     """For k = 2..m, among episodes that found goal k-1: found goal k, seen before or not."""
     splits = []
     for goal in range(2, num_goals + 1):
-        seen: list[float] = []
-        unseen: list[float] = []
-        for m in metrics:
-            flags = m.get("seen_before_current") or []
-            if int(m.get("goals_found", 0)) < goal - 1 or len(flags) < goal - 1:
-                continue
-            (seen if flags[goal - 2] else unseen).append(float(m["goals_found"] >= goal))
+        seen, unseen = seen_split(metrics, goal)
         splits.append(
             SeenSplit(
                 goal,
-                _score(seen) if seen else None,
+                bootstrap(seen) if seen else None,
                 len(seen),
-                _score(unseen) if unseen else None,
+                bootstrap(unseen) if unseen else None,
                 len(unseen),
             )
         )
@@ -257,15 +242,10 @@ def breakdown(
         Breakdown(
             label,
             len(group),
-            {m: _score([float(x.get(m) or 0.0) for x in group]) for m in SUMMARY_METRICS},
+            {m: bootstrap([float(x.get(m) or 0.0) for x in group]) for m in SUMMARY_METRICS},
         )
         for label, group in sorted(groups.items(), key=lambda item: _natural(item[0]))
     ]
-
-
-def _score(values: Sequence[float]) -> Score:
-    estimate = bootstrap(values)
-    return Score(estimate["mean"], estimate["low"], estimate["high"])
 
 
 # ---------------------------------------------------------------------- a team
@@ -279,7 +259,7 @@ class TeamRun:
     baseline: bool
     created_at: dt.datetime
     finished_at: dt.datetime | None
-    primary: Score | None
+    primary: Estimate | None
     """The track's ranking metric, if its phase shows results now."""
 
 
@@ -307,7 +287,7 @@ def team_runs(
             TeamRun(
                 row.id, row.track, row.phase, row.method, row.state, bool(row.baseline),
                 row.created_at, row.finished_at,
-                Score.of(row.summary, track.metric) if shown and track is not None else None,
+                stored(row.summary, track.metric) if shown and track is not None else None,
             )  # fmt: skip
         )
     return runs
