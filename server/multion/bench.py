@@ -188,7 +188,7 @@ def _appearance_rates(
     rates = []
     for scene in (plain_layout, layout):
         world = PyBulletWorld.from_layout(scene)
-        camera = Camera(cfg_camera, world.client, world.lighting)
+        camera = Camera(cfg_camera, world.client, world.renderer, world.lighting)
         assert scene is layout or world.lighting == DEFAULT_LIGHTING
         begin = time.perf_counter()
         for x, y, yaw in poses:
