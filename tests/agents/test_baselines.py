@@ -14,17 +14,23 @@ from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode, Goal
 from multion.task.maps import MapConfig
 from multion_agents.agent import Agent
-from multion_agents.baselines.mapping import detect_goals
+from multion_agents.baselines.mapping import CameraModel, detect_goals, goal_shaped
 from multion_agents.baselines.navigation import StartFrameGrid
 from multion_agents.evaluate import run_episode
 from multion_agents.registry import make_agent
 from multion_client.constants import GOAL_RGBA, Action
 
 
-def _env(agent: Agent, num_goals: int, episodes: list[Episode], image: int = 64) -> MultiONEnv:
+def _env(
+    agent: Agent,
+    num_goals: int,
+    episodes: list[Episode],
+    image: int = 64,
+    max_steps: int = 2500,
+) -> MultiONEnv:
     maps = MapConfig(**agent.config_overrides.get("maps", {}))
     config = EnvConfig(
-        task=TaskConfig(num_goals=num_goals),
+        task=TaskConfig(num_goals=num_goals, max_steps=max_steps),
         maps=maps,
         camera=CameraConfig(width=image, height=image),
         sensors=tuple(dict.fromkeys([*agent.sensors, "gps"])),
@@ -67,6 +73,30 @@ def test_explorer_finds_goals_in_a_room() -> None:
     env.close()
 
 
+@pytest.mark.parametrize(
+    ("episode_id", "image"),
+    [
+        # the goal colour seen during the first look around: a white plant pot, which colour
+        # alone takes for the white goal; the agent used to press against it for 2,500 steps
+        ("val-3-on-00250", 128),
+        # a cluttered corner where the margin kept round obstacles leaves the plan's only way
+        # one cell wide: the agent used to turn on the spot for 2,400 steps
+        ("val-1-on-00650", 256),
+    ],
+)
+def test_explorer_gets_out_of_its_old_traps(episode_id: str, image: int) -> None:
+    num_goals = int(episode_id.split("-")[1])
+    path = packaged_dataset_path(num_goals, "val")
+    if not path.is_file():
+        pytest.skip("no packaged val dataset")
+    episode = next(e for e in load_dataset(path, num_goals) if e.episode_id == episode_id)
+    agent = make_agent("explorer")
+    env = _env(agent, num_goals, [episode], image=image, max_steps=700)
+    record = run_episode(env, agent, episode)
+    env.close()
+    assert record.metrics["success"] == 1.0, record.metrics
+
+
 def test_random_oracle_found_calls_found_only_when_close() -> None:
     agent = make_agent("random-oracle-found", seed=0)
     agent.reset()
@@ -96,6 +126,21 @@ def test_colour_detection_is_exact() -> None:
     assert sorted(found) == [0, 4, 6, 7]
     assert set(found[4][1].tolist()) == {2, 3}
     assert set(found[0][1].tolist()) == {34, 35} and set(found[7][0].tolist()) <= set(range(5, 15))
+
+
+def test_goal_shape_tells_a_white_goal_from_white_paint() -> None:
+    # under bright light white paint renders (255, 255, 255), exactly as a white goal does
+    image = np.full((64, 64, 3), (150, 140, 120), dtype=np.uint8)
+    image[20:50, 10:13] = 255  # a 0.1 m cylinder 1.4 m away: 3 pixels wide
+    image[30:50, 30:50] = 255  # a plant pot at the same depth: 20 pixels, 0.7 m
+    depth = np.full((64, 64, 1), (1.4 - 0.5) / 4.5, dtype=np.float32)
+    found = detect_goals(image)
+    assert set(found[7][1].tolist()) == set(range(10, 13)) | set(range(30, 50))
+    shaped = goal_shaped(found, depth, CameraModel())
+    assert set(shaped[7][1].tolist()) == {10, 11, 12}
+    # the pot alone is no goal at all
+    image[20:50, 10:13] = (150, 140, 120)
+    assert goal_shaped(detect_goals(image), depth, CameraModel()) == {}
 
 
 def test_start_frame_grid_round_trip() -> None:

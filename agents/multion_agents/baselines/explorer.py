@@ -32,7 +32,13 @@ import numpy as np
 from scipy import ndimage
 
 from multion_agents.agent import Agent, ConfigOverrides, Observation
-from multion_agents.baselines.mapping import CameraModel, DepthProjector, SemanticMap, detect_goals
+from multion_agents.baselines.mapping import (
+    CameraModel,
+    DepthProjector,
+    SemanticMap,
+    detect_goals,
+    goal_shaped,
+)
 from multion_agents.baselines.navigation import (
     Motion,
     StartFrameGrid,
@@ -146,6 +152,7 @@ class ExplorerAgent(Agent):
             self._detour -= 1
             goal_at = None
         if goal_at is not None:
+            self._spin = 0  # somewhere to go: the look around is over
             target = ("goal", goal)
             if self._target != target:
                 self._aim, self._field = 0, None
@@ -177,11 +184,16 @@ class ExplorerAgent(Agent):
             # a local minimum of the field (map changed under the plan): re-plan, look around
             self._stuck += 1
             self._field = None
-            if self._stuck > 3 and self._target == ("frontier", -1):
-                self._give_up_near(position)
-            elif self._stuck > 3:  # cannot get nearer to the goal: aim at a wider ring
-                self._aim = min(self._aim + 1, len(GOAL_RADII) - 1)
+            if self._stuck > 3:
                 self._stuck = 0
+                if self._tight == 0:
+                    # the plan runs through a gap the margin left one cell wide, which 0.25 m
+                    # steps at 30° headings cannot enter: drop the margin for a while
+                    self._squeeze()
+                elif self._target == ("frontier", -1):
+                    self._give_up_near(position)
+                else:  # cannot get nearer to the goal: aim at a wider ring
+                    self._aim = min(self._aim + 1, len(GOAL_RADII) - 1)
             return int(Action.TURN_LEFT if self.rng.random() < 0.5 else Action.TURN_RIGHT)
         self._stuck = 0
         return action
@@ -192,7 +204,7 @@ class ExplorerAgent(Agent):
         if self._projector is None:
             stride = max(1, depth.shape[1] // self.depth_rays)
             self._projector = DepthProjector(depth.shape[:2], self.camera, stride)
-        detections = detect_goals(rgb)
+        detections = goal_shaped(detect_goals(rgb), depth, self.camera)
         self.map.integrate(self._projector, depth, detections, position, heading)
         self.map.mark_free_disc(position, 0.15)
         return set(detections)
@@ -223,10 +235,8 @@ class ExplorerAgent(Agent):
             self._field = self._field_to(self._frontier(self._passable), box)
             if self._tight == 0 and not np.isfinite(interpolate(self.grid, self._field, position)):
                 # no frontier reachable through the margin kept round seen obstacles (a
-                # cluttered spot walls the agent in): plan over the obstacles alone for a while;
-                # the simulator refuses what is really too tight
-                self._tight = self.tight_steps
-                self._refresh_passable()
+                # cluttered spot walls the agent in)
+                self._squeeze()
                 self._field = self._field_to(self._frontier(self._passable), box)
             return
         assert self._target_point is not None
@@ -237,6 +247,12 @@ class ExplorerAgent(Agent):
             if reachable or self._aim == len(GOAL_RADII) - 1:
                 return
             self._aim += 1
+
+    def _squeeze(self) -> None:
+        """Plan over the obstacles alone, without the margin round them, for ``tight_steps``
+        steps; the simulator refuses what is really too tight."""
+        self._tight = self.tight_steps
+        self._refresh_passable()
 
     def _field_to(self, sources: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         return cropped_distance_field(
@@ -306,15 +322,23 @@ class ExplorerAgent(Agent):
         along_map = interpolate(self.grid, self._field, position) + GOAL_RADII[self._aim]
         if along_map > self.found_distance + 0.5:
             return False
-        return in_view or self._straight_and_free(position, goal_at)
+        if in_view:
+            # seen over something low (a bed, a table) is not near: the way round can be long
+            return not self.grid.lookup(
+                self.map.obstacle, self._segment(position, goal_at), True
+            ).any()
+        return self._straight_and_free(position, goal_at)
 
     def _straight_and_free(self, start: np.ndarray, end: np.ndarray) -> bool:
         """Every cell on the segment is seen free floor, up to the goal's own cell."""
+        free = (self.map.free | self._visited) & ~self.map.obstacle
+        return bool(self.grid.lookup(free, self._segment(start, end), outside=False).all())
+
+    def _segment(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Points from ``start`` towards ``end``, stopping a cell short of ``end``."""
         gap = float(np.hypot(*(end - start)))
         t = np.linspace(0.0, max(0.0, 1.0 - self.cell_size / max(gap, 1e-9)), 12)[:, None]
-        points = (1 - t) * start[None, :] + t * end[None, :]
-        free = (self.map.free | self._visited) & ~self.map.obstacle
-        return bool(self.grid.lookup(free, points, outside=False).all())
+        return (1 - t) * start[None, :] + t * end[None, :]
 
     def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
         mask = np.zeros((self.map_size, self.map_size), dtype=bool)

@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from multion_agents.baselines.navigation import StartFrameGrid
 from multion_client.constants import NUM_CATEGORIES
@@ -67,9 +68,7 @@ def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     low = np.minimum(np.minimum(red, green), blue)
     high = np.maximum(np.maximum(red, green), blue)
     # cheap pre-filter: some channel is off (no scene colour has one), or bright balanced grey
-    rows, cols = np.nonzero(
-        (low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= WHITE_SPREAD))
-    )
+    rows, cols = np.nonzero((low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= WHITE_SPREAD)))
     if len(rows) == 0:
         return {}
     pixels = rgb[rows, cols]
@@ -81,6 +80,36 @@ def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     return {
         int(c): (rows[labels == c], cols[labels == c]) for c in np.flatnonzero(counts >= min_pixels)
     }
+
+
+def goal_shaped(
+    detections: Detections, depth: np.ndarray, camera: CameraModel, max_width: float = 0.2
+) -> Detections:
+    """The detections whose connected blobs are no wider than ``max_width`` metres.
+
+    Colour alone cannot tell a white goal from white paint under bright light: both render at
+    (255, 255, 255). A goal is a 0.1 m cylinder, so a white plant pot or fridge, tens of
+    centimetres wide at its depth, is not one.
+    """
+    width = depth.shape[1]
+    focal = (width / 2) / math.tan(math.radians(camera.hfov_deg) / 2)
+    kept: Detections = {}
+    for category, (rows, cols) in detections.items():
+        mask = np.zeros(depth.shape[:2], dtype=bool)
+        mask[rows, cols] = True
+        labels, count = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
+        blob = labels[rows, cols]
+        keep = np.zeros(len(rows), dtype=bool)
+        for label in range(1, count + 1):
+            inside = blob == label
+            z = camera.min_depth + (camera.max_depth - camera.min_depth) * float(
+                np.median(depth[rows[inside], cols[inside], 0])
+            )
+            span = int(cols[inside].max() - cols[inside].min()) + 1
+            keep |= inside & (span * z / focal <= max_width)
+        if keep.sum() > 0:
+            kept[category] = (rows[keep], cols[keep])
+    return kept
 
 
 class DepthProjector:
