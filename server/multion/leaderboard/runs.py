@@ -24,7 +24,6 @@ import datetime as dt
 import logging
 import time
 from collections import OrderedDict
-from dataclasses import dataclass, field
 from typing import Any
 
 from sqlalchemy import select
@@ -33,18 +32,17 @@ from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.hidden import HiddenEpisodes, run_order
+from multion.leaderboard.live_run import LiveRun
 from multion.leaderboard.models import Run, utcnow
 from multion.leaderboard.run_store import (
     EpisodeResult,
     RunMoved,
-    RunState,
     create_run,
     describe_run,
     finish_run,
     save_state,
 )
 from multion.leaderboard.storage import Database
-from multion.task.episode import Episode
 from multion_client import errors
 from multion_client.protocol import (
     CreateRun,
@@ -57,31 +55,11 @@ from multion_client.protocol import (
     Step,
     decode,
     encode,
+    space_from_wire,
 )
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
-
-
-@dataclass
-class LiveRun:
-    """A running run held by this server process."""
-
-    run_id: str
-    team_id: int
-    track: Track
-    phase: Phase
-    episodes: list[Episode]
-    """The hidden episodes in this run's order."""
-    order: list[int]
-    config: dict[str, Any]
-    created_at: dt.datetime
-    state: RunState
-    session_id: str | None = None
-    last_answer: bytes | None = None
-    last_end_reason: str | None = None
-    episode_clock: float = field(default_factory=time.monotonic)
-    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
 
 
 class RunService:
@@ -135,7 +113,7 @@ class RunService:
         )
         async with self._creating:
             await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
-        live = self._live_from(row, track, phase, hidden)
+        live = LiveRun.of(row, track, phase, hidden)
         self.live[run_id] = live
         async with live.lock:
             info = await self._open_session(live)
@@ -240,7 +218,7 @@ class RunService:
         live = await self._get_live(team_id, run_id)
         async with live.lock:
             await self._check_running(live)
-            results = [self._result(live, "abandoned")] if live.state.episode_active else []
+            results = [live.result("abandoned")] if live.state.episode_active else []
             await self._finish(live, results, "ended", "abandoned")
         return await self.status(team_id, run_id)
 
@@ -304,17 +282,17 @@ class RunService:
         results: list[EpisodeResult] = []
         if now > live.created_at + dt.timedelta(seconds=limits.run_timeout_s):
             if st.episode_active:
-                results.append(self._result(live, "timeout"))
+                results.append(live.result("timeout"))
             await self._finish(live, results, "ended", "run_timeout")
             return
         while st.deadline is not None and now > st.deadline:
             if st.episode_active:
-                results.append(self._result(live, "timeout"))
+                results.append(live.result("timeout"))
                 st.episode_active = False
             elif st.position + 1 < len(live.order):  # the next episode was never started
                 st.position += 1
                 st.seq, st.actions, st.last_metrics = 0, [], None
-                results.append(self._result(live, "timeout"))
+                results.append(live.result("timeout"))
             st.consecutive_timeouts += 1
             st.deadline += dt.timedelta(seconds=limits.step_timeout_s)
             if st.position == len(live.order) - 1 and not st.episode_active:
@@ -341,22 +319,6 @@ class RunService:
             )
         return track, phase
 
-    def _live_from(self, row: Run, track: Track, phase: Phase, hidden: list[Episode]) -> LiveRun:
-        episodes = [hidden[i] for i in row.order]
-        config = track.env_config(phase, tuple(row.sensors), row.maps)
-        config["episodes"] = [e.to_dict() for e in episodes]
-        return LiveRun(
-            run_id=row.id,
-            team_id=row.team_id,
-            track=track,
-            phase=phase,
-            episodes=episodes,
-            order=list(row.order),
-            config=config,
-            created_at=row.created_at,
-            state=RunState.of(row),
-        )
-
     async def _get_live(self, team_id: int, run_id: str) -> LiveRun:
         live = self.live.get(run_id) or self.ended.get(run_id)
         if live is not None:
@@ -370,7 +332,7 @@ class RunService:
             raise errors.RunOver(_over(row.state, row.end_reason))
         track, phase = self._track_phase(row.track, row.phase)
         hidden = await asyncio.to_thread(self.hidden.get, track, phase)
-        live = self.live.setdefault(run_id, self._live_from(row, track, phase, hidden))
+        live = self.live.setdefault(run_id, LiveRun.of(row, track, phase, hidden))
         return live
 
     async def _check_running(self, live: LiveRun) -> None:
@@ -387,8 +349,6 @@ class RunService:
             raise type(error)(f"{error.message} (the run was refunded)") from None
         info = decode(answer)
         live.session_id = info["session_id"]
-        from multion_client.protocol import space_from_wire
-
         return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
 
     async def _session_call(self, live: LiveRun, verb: str, argument: int) -> dict[str, Any]:
@@ -448,7 +408,7 @@ class RunService:
         results = []
         if done:
             st.episode_active = False
-            results.append(self._result(live, str(end_reason)))
+            results.append(live.result(str(end_reason)))
         run_done = done and st.position == len(live.order) - 1
         if run_done:
             await self._finish(live, results, "finished", None)
@@ -461,22 +421,6 @@ class RunService:
         )  # fmt: skip
         live.last_answer = encode(answer.to_wire())
         return live.last_answer
-
-    def _result(self, live: LiveRun, end_reason: str) -> EpisodeResult:
-        from multion.leaderboard.results import missed_metrics
-
-        st = live.state
-        live.last_end_reason = end_reason
-        metrics = st.last_metrics or missed_metrics(live.track.num_goals, end_reason)
-        return EpisodeResult(
-            position=st.position,
-            episode_index=live.order[st.position],
-            episode_id=live.episodes[st.position].episode_id,
-            end_reason=end_reason,
-            metrics=metrics,
-            actions="".join(str(a) for a in st.actions),
-            seconds=time.monotonic() - live.episode_clock if st.actions else 0.0,
-        )
 
     async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
         def save() -> None:
