@@ -4,6 +4,7 @@ baselines through the protocol, runs listing, CSV / JSON export, replay."""
 from __future__ import annotations
 
 import csv
+import datetime as dt
 import json
 from pathlib import Path
 from typing import Any
@@ -11,6 +12,9 @@ from typing import Any
 import pytest
 
 from multion.cli import main
+from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.storage import Database
+from multion.leaderboard.web.queries import leaderboards
 
 
 def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -66,9 +70,15 @@ def test_admin_submit_baselines_export_replay(
         capsys, "leaderboard", "export", *db, "--best", "--out", str(tmp_path / "best.json")
     )
     best = json.loads((tmp_path / "best.json").read_text())["runs"]
-    assert code == 0 and all(r["state"] == "finished" for r in best)
-    assert len({(r["team"], r["track"], r["phase"]) for r in best}) == len(best)
-    assert all(len(r["episode_records"]) == r["episodes"] for r in best)
+    assert code == 0 and all(len(r["episode_records"]) == r["episodes"] for r in best)
+    # exactly the runs the leaderboard page shows: one per team, one per baseline method
+    db_ = Database.open(database)
+    with db_.sessions() as session:
+        boards = leaderboards(session, load_challenge(challenge_file), dt.datetime(9999, 1, 1, tzinfo=dt.timezone.utc))
+    db_.close()
+    shown = {row.run_id for board in boards for row in board.rows}
+    assert {r["run_id"] for r in best} == shown
+    assert sum(r["baseline"] for r in best) == 4  # the four baseline methods on 1-on-oracle
     planner = next(r for r in rows if r["method"] == "oracle-planner")
     code, out, _ = run_cli(capsys, "leaderboard", "replay", planner["run_id"], *db,
                            "--challenge", str(challenge_file))  # fmt: skip

@@ -69,7 +69,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p.add_argument(f"--{option}", default=None)
     p = command("export", "write results as CSV or JSON (by --out's suffix)")
     p.add_argument("--out", type=Path, required=True, help="results.csv or results.json")
-    p.add_argument("--best", action="store_true", help="each team's best run per track/phase")
+    p.add_argument(
+        "--best",
+        action="store_true",
+        help="only the runs the leaderboard shows: each team's best per track and phase (each "
+        "baseline method's for the baselines team)",
+    )
     p = command("replay", "replay a stored run and compare (or re-score) it", challenge=True)
     p.add_argument("run_id")
     p.add_argument("--write", action="store_true", help="store the replayed metrics")
@@ -246,16 +251,19 @@ def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
 
 
 def best_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Each team's best finished run per (track, phase), by the track's ranking metric."""
-    best: dict[tuple[str, str, str], dict[str, Any]] = {}
-    for row in rows:
-        if row["state"] != "finished" or row["primary"] is None:
-            continue
-        key = (row["team"], row["track"], row["phase"])
-        score = row[f"{row['primary']}_mean"]
-        if key not in best or score > best[key][f"{row['primary']}_mean"]:
-            best[key] = row
-    return sorted(best.values(), key=lambda r: (r["track"], r["phase"], -r[f"{r['primary']}_mean"]))
+    """The runs the leaderboard shows: each team's best run per (track, phase) by the track's
+    ranking metric, and each baseline method's (the rule of the leaderboard page)."""
+    from multion.leaderboard.results import RANKED_STATES, entrant, keep_best
+
+    def score(row: dict[str, Any]) -> float:
+        return row[f"{row['primary']}_mean"] or 0.0
+
+    best = keep_best(
+        (r for r in rows if r["state"] in RANKED_STATES and r["primary"] is not None),
+        key=lambda r: (r["track"], r["phase"], *entrant(r["team"], r["method"], r["baseline"])),
+        score=score,
+    )
+    return sorted(best.values(), key=lambda r: (r["track"], r["phase"], -score(r)))
 
 
 def _runs(args: argparse.Namespace) -> int:

@@ -3,13 +3,34 @@
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Hashable, Iterable, Sequence
+from typing import Any, TypeVar
 
 from multion import stats
 from multion.stats import CI_METHOD
 
 SUMMARY_METRICS = ("ppl", "progress", "success", "spl")
+RANKED_STATES = ("finished", "ended")
+"""Runs that count on a leaderboard: played to the end, or ended early (missing = failed)."""
+
+T = TypeVar("T")
+
+
+def entrant(team: str, method: str, baseline: bool) -> tuple[str, str]:
+    """Whose best run a leaderboard row shows: a team's, or each method's of the baselines."""
+    return (team, method if baseline else "")
+
+
+def keep_best(
+    runs: Iterable[T], key: Callable[[T], Hashable], score: Callable[[T], float]
+) -> dict[Hashable, T]:
+    """The highest-scoring run per key (the first seen on equal scores)."""
+    best: dict[Hashable, T] = {}
+    for run in runs:
+        k = key(run)
+        if k not in best or score(run) > score(best[k]):
+            best[k] = run
+    return best
 
 
 def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:

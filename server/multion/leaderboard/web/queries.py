@@ -19,11 +19,10 @@ from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team
-from multion.leaderboard.results import SUMMARY_METRICS
+from multion.leaderboard.results import RANKED_STATES, SUMMARY_METRICS, entrant, keep_best
 from multion.stats import Estimate, bootstrap
 from multion.task.measures import seen_split
 
-RANKED_STATES = ("finished", "ended")
 """Runs that end up on the leaderboard: every episode played, or stopped early (the missing
 episodes count as failures). Failed runs were the server's fault and are refunded."""
 METRIC_NAMES = {"ppl": "PPL", "progress": "Progress", "success": "Success", "spl": "SPL"}
@@ -86,22 +85,20 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
         .join(Team)
         .where(Run.state.in_(RANKED_STATES), Run.summary.is_not(None))
     )
-    best: dict[tuple[str, str], dict[tuple[str, str], Any]] = defaultdict(dict)
-    metric_of = {t.name: f"{t.metric}_mean" for t in challenge.tracks}
+    by_board: dict[tuple[str, str], list[Any]] = defaultdict(list)
     for row in session.execute(query):
-        column = metric_of.get(row.track)
-        if column is None:
-            continue
-        key = (row.name, row.method if row.baseline else "")
-        board = best[(row.track, row.phase)]
-        kept = board.get(key)
-        if kept is None or (getattr(row, column) or 0.0) > (getattr(kept, column) or 0.0):
-            board[key] = row
+        by_board[(row.track, row.phase)].append(row)
     boards = []
     for track in challenge.tracks:
+        column = f"{track.metric}_mean"
         for phase in track.phases:
             sealed = not phase.results_visible(now)
-            runs = [] if sealed else list(best[(track.name, phase.name)].values())
+            best = keep_best(
+                by_board[(track.name, phase.name)],
+                key=lambda r: entrant(r.name, r.method, bool(r.baseline)),
+                score=lambda r, column=column: getattr(r, column) or 0.0,
+            )
+            runs = [] if sealed else list(best.values())
             boards.append(Board(track, phase, sealed, _ranked(runs, track.metric)))
     return boards
 
