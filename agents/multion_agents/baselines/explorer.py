@@ -13,10 +13,14 @@ Policy, per step:
    map and in a straight, free line (or in view), which keeps inside the 1.5 m geodesic radius;
 3. otherwise go to the nearest frontier (known free cells next to unknown ones).
 
-Two escapes (the failures of docs/baselines.md): stuck for two full turns on the way to a
+Escapes (the failures of docs/baselines.md): stuck for two full turns on the way to a
 remembered goal, it explores elsewhere for ``detour_steps`` steps (another way in shows up);
 arriving a second time where a frontier plan already ended, it gives that spot up (a frontier
-round a table that depth never closes).
+round a table that depth never closes); when the margin kept round seen obstacles walls it in,
+or leaves the plan's way one cell wide, it plans over the obstacles alone for ``tight_steps``.
+
+A goal colour is a goal only in a blob at most 0.2 m wide (:func:`~.mapping.goal_shaped`): white
+paint under bright light renders exactly as the white goal does.
 
 Plans are fast-marching fields (:mod:`.navigation`) over the explored part of the map, refreshed
 every ``replan_every`` steps, on arrival, when a step is refused, or when the target changes, so
