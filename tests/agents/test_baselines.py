@@ -82,6 +82,8 @@ def test_explorer_finds_goals_in_a_room() -> None:
         # a cluttered corner where the margin kept round obstacles leaves the plan's only way
         # one cell wide: the agent used to turn on the spot for 2,400 steps
         ("val-1-on-00650", 256),
+        # the goal seen over a box 0.7 m away, 1.7 m round it: FOUND was called there
+        ("val-1-on-00000", 256),
     ],
 )
 def test_explorer_gets_out_of_its_old_traps(episode_id: str, image: int) -> None:
