@@ -35,6 +35,7 @@ from multion_agents.baselines.navigation import (
     distance_field,
     interpolate,
     nearest_free,
+    two_step_action,
 )
 from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
 
@@ -139,6 +140,10 @@ class OraclePlannerAgent(Agent):
         if goal_known and here <= self.found_distance:
             return int(Action.FOUND)
         action = choose_action(self._grid, self._field, self._moves, position, heading, self.motion)
+        if action is None:
+            action = two_step_action(
+                self._grid, self._field, self._moves, position, heading, self.motion
+            )
         if action is None:
             # no step goes downhill through the cells the plan may cross: probe straight ahead,
             # and turn after a refused probe; the simulator, not the map, has the last word
