@@ -70,7 +70,9 @@ WOODS = ("wood_light", "wood_mid", "wood_dark")
 # rug, a white fridge, a black screen, a yellow stool. They are not muted, so a recogniser that
 # thresholds colours meets false positives, as it would in a real home. Each stays at least
 # ``GOAL_MARGIN`` (largest per-channel difference) from every goal colour, so goals keep their
-# exact colours and the two can still be told apart by a careful look.
+# exact colours and the two can still be told apart by a careful look; only white paint can
+# render as pure white (its channels saturate under the brightest lights), and then only its
+# shape tells it from a white goal.
 GOAL_MARGIN = 0.08
 BRIGHT_COLOURS: dict[str, tuple[float, float, float]] = {
     "paint_red": (0.82, 0.10, 0.08),
