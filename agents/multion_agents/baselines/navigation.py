@@ -219,11 +219,16 @@ def choose_action(
         value = interpolate(grid, field, points[-1]) + turn_cost * abs(turns)
         if value < best_value:
             best_value, best_turns = value, turns
-    if best_turns is None:
+    return _starting(best_turns)
+
+
+def _starting(turns: int | None) -> int | None:
+    """The action that starts a move after ``turns`` turns left (negative: right), or None."""
+    if turns is None:
         return None
-    if best_turns == 0:
+    if turns == 0:
         return int(Action.MOVE_FORWARD)
-    return int(Action.TURN_LEFT if best_turns > 0 else Action.TURN_RIGHT)
+    return int(Action.TURN_LEFT if turns > 0 else Action.TURN_RIGHT)
 
 
 def _turned(angle: float, index: int | None, turns: int, motion: Motion) -> float:
@@ -266,11 +271,7 @@ def two_step_action(
             value = interpolate(grid, field, steps_two[-1]) + cost
             if value < best_value:
                 best_value, best_first = value, first
-    if best_first is None:
-        return None
-    if best_first == 0:
-        return int(Action.MOVE_FORWARD)
-    return int(Action.TURN_LEFT if best_first > 0 else Action.TURN_RIGHT)
+    return _starting(best_first)
 
 
 def cells_ahead(
