@@ -32,6 +32,14 @@ class CameraModel:
     min_depth: float = 0.5
     max_depth: float = 5.0
 
+    def focal(self, width: int) -> float:
+        """Focal length in pixels of an image ``width`` pixels wide (square pixels)."""
+        return (width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
+
+    def metres(self, depth: np.ndarray | float) -> np.ndarray | float:
+        """Planar depth in metres from the normalised sensor value(s) in [0, 1]."""
+        return self.min_depth + (self.max_depth - self.min_depth) * depth
+
 
 # goal colour → category id, by which channels are "on": (red, green, blue)
 _PATTERN_TO_CATEGORY = {
@@ -91,8 +99,7 @@ def goal_shaped(
     (255, 255, 255). A goal is a 0.1 m cylinder, so a white plant pot or fridge, tens of
     centimetres wide at its depth, is not one.
     """
-    width = depth.shape[1]
-    focal = (width / 2) / math.tan(math.radians(camera.hfov_deg) / 2)
+    focal = camera.focal(depth.shape[1])
     kept: Detections = {}
     for category, (rows, cols) in detections.items():
         mask = np.zeros(depth.shape[:2], dtype=bool)
@@ -102,9 +109,7 @@ def goal_shaped(
         keep = np.zeros(len(rows), dtype=bool)
         for label in range(1, count + 1):
             inside = blob == label
-            z = camera.min_depth + (camera.max_depth - camera.min_depth) * float(
-                np.median(depth[rows[inside], cols[inside], 0])
-            )
+            z = camera.metres(float(np.median(depth[rows[inside], cols[inside], 0])))
             span = int(cols[inside].max() - cols[inside].min()) + 1
             keep |= inside & (span * z / focal <= max_width)
         if keep.sum() > 0:
@@ -119,7 +124,7 @@ class DepthProjector:
         height, width = shape
         self.camera = camera
         self.stride = stride
-        focal = (width / 2) / math.tan(math.radians(camera.hfov_deg) / 2)
+        focal = camera.focal(width)
         rows = np.arange(stride // 2, height, stride)
         cols = np.arange(stride // 2, width, stride)
         self.rows, self.cols = rows, cols
@@ -136,7 +141,7 @@ class DepthProjector:
         """
         cam = self.camera
         sampled = depth[self.rows][:, self.cols, 0].astype(np.float64)
-        z = cam.min_depth + (cam.max_depth - cam.min_depth) * sampled
+        z = cam.metres(sampled)
         forward, left = z, -self.right * z
         c, s = math.cos(heading), math.sin(heading)
         xy = np.stack(
@@ -261,11 +266,11 @@ class SemanticMap:
     ) -> list[int]:
         cam = projector.camera
         width = depth.shape[1]
-        focal = (width / 2) / math.tan(math.radians(cam.hfov_deg) / 2)
+        focal = cam.focal(width)
         c, s = math.cos(heading), math.sin(heading)
         placed = []
         for category, (rows, cols) in detections.items():
-            z = cam.min_depth + (cam.max_depth - cam.min_depth) * depth[rows, cols, 0]
+            z = cam.metres(depth[rows, cols, 0])
             reliable = z < cam.max_depth - 1e-3
             if reliable.sum() < 3:
                 continue  # too far to place; it will be seen again from closer
