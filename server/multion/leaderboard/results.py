@@ -11,7 +11,8 @@ from multion.stats import CI_METHOD
 
 SUMMARY_METRICS = ("ppl", "progress", "success", "spl")
 RANKED_STATES = ("finished", "ended")
-"""Runs that count on a leaderboard: played to the end, or ended early (missing = failed)."""
+"""Runs that count on a leaderboard: played to the end, or ended early (the missing episodes
+count as failures). Failed runs were the server's fault and are refunded."""
 
 T = TypeVar("T")
 

@@ -23,8 +23,6 @@ from multion.leaderboard.results import RANKED_STATES, SUMMARY_METRICS, entrant,
 from multion.stats import Estimate, bootstrap
 from multion.task.measures import seen_split
 
-"""Runs that end up on the leaderboard: every episode played, or stopped early (the missing
-episodes count as failures). Failed runs were the server's fault and are refunded."""
 METRIC_NAMES = {"ppl": "PPL", "progress": "Progress", "success": "Success", "spl": "SPL"}
 
 
