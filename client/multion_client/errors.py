@@ -75,6 +75,12 @@ class Unauthorized(MultiONError):
     code, status = "unauthorized", 401
 
 
+class SessionsNotAllowed(MultiONError):
+    """Plain sessions are off on this server (``--sessions off``: leaderboard runs only)."""
+
+    code, status = "sessions_not_allowed", 403
+
+
 class NotAllowedInRun(BadRequest):
     """Something a run does not let a participant choose: seeds, reset options, episodes, or a
     sensor (oracle maps, goal distance) the track does not allow."""
@@ -198,6 +204,7 @@ ERRORS: dict[str, type[MultiONError]] = {
         InvalidEpisode,
         PathNotAllowed,
         Unauthorized,
+        SessionsNotAllowed,
         NotAllowedInRun,
         NotFound,
         SessionNotFound,

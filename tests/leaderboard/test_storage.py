@@ -49,7 +49,7 @@ def db(
 
 
 def test_migrations_make_the_schema(db: Database) -> None:
-    assert current_revision(db.engine) == "0001"
+    assert current_revision(db.engine) == "0002"
     tables = set(inspect(db.engine).get_table_names())
     assert {"teams", "tokens", "runs", "episodes", "alembic_version"} <= tables
     Database.open(str(db.engine.url.render_as_string(hide_password=False))).close()  # idempotent

@@ -49,6 +49,11 @@ def create_app(
     routes of :mod:`multion.leaderboard`; without, it behaves as a plain session server.
     """
     settings = settings or ServerSettings()
+    if settings.sessions == "token" and leaderboard is None:
+        raise ValueError(
+            "sessions = 'token' needs a challenge (--challenge FILE): team tokens come from "
+            "the leaderboard"
+        )
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

@@ -25,6 +25,23 @@ _OPTIONS: tuple[tuple[str, type, str], ...] = (
         "estimates share (default 8192)",
     ),
     (
+        "sessions",
+        str,
+        "who may open plain sessions: open (anyone, default), token (a team token; needs "
+        "--challenge), off (leaderboard runs only)",
+    ),
+    (
+        "sessions_per_client",
+        int,
+        "plain sessions one client (team token, else IP address) may hold at once (default 16)",
+    ),
+    (
+        "run_reserve",
+        float,
+        "with --challenge: share of each worker's memory and of --max-sessions that plain "
+        "sessions cannot take, kept for leaderboard runs (default 0.5, at most 0.9)",
+    ),
+    (
         "replica",
         str,
         "this replica's name (1-8 of a-z 0-9) behind a reverse proxy: session and run ids "
@@ -128,7 +145,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"multion serve: {error}")
             return 2
     else:
-        app = create_app(settings)
+        try:
+            app = create_app(settings)
+        except ValueError as error:
+            print(f"multion serve: {error}")
+            return 2
     uvicorn.run(
         app,
         host=settings.host,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from typing import Annotated, Any
 
 from fastapi import Depends, Request
@@ -9,8 +10,11 @@ from fastapi.responses import Response
 
 from multion.api.sessions import SessionRegistry
 from multion.api.settings import ServerSettings
-from multion_client.errors import MalformedMessage, RequestTooLarge
+from multion_client.errors import MalformedMessage, RequestTooLarge, SessionsNotAllowed
 from multion_client.protocol import CONTENT_TYPE, decode, encode
+
+Authenticate = Callable[[Request], Awaitable[int]]
+"""The team id of a request's bearer token (401 without a valid one): the leaderboard's."""
 
 
 class MsgpackResponse(Response):
@@ -35,6 +39,20 @@ async def get_registry(request: Request) -> SessionRegistry:
 
 async def get_settings(request: Request) -> ServerSettings:
     return request.app.state.settings
+
+
+async def session_owner(request: Request) -> str:
+    """Who opens a plain session, by the server's ``sessions`` mode: its team (token), else its
+    IP address (open); 403 when plain sessions are off."""
+    settings: ServerSettings = request.app.state.settings
+    if settings.sessions == "off":
+        raise SessionsNotAllowed(
+            "this server serves leaderboard runs only: plain sessions are off (--sessions off)"
+        )
+    if settings.sessions == "token":
+        authenticate: Authenticate = request.app.state.authenticate
+        return f"team:{await authenticate(request)}"
+    return f"ip:{request.client.host if request.client else 'unknown'}"
 
 
 async def read_message(request: Request) -> Any:

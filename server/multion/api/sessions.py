@@ -47,6 +47,8 @@ class Shard:
     count: int
     reserved_bytes: int
     """The memory estimate of its environments, reserved on its worker."""
+    plain: bool = True
+    """A plain session's (not a leaderboard run's): counts against the plain share."""
     closed: bool = False
 
 
@@ -64,6 +66,8 @@ class Session:
     failed: str | None = None
     busy: int = 0
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    owner: str | None = None
+    """Who opened a plain session (``team:ID`` or ``ip:ADDRESS``); None for a run's."""
 
 
 class SessionRegistry:
@@ -74,14 +78,23 @@ class SessionRegistry:
         self.pool = pool
         self.sessions: dict[str, Session] = {}
         self.reaped = 0
+        self.run_reserve = 0.0
+        """The share of memory and session slots plain sessions cannot take (set when the
+        server runs a challenge: ``settings.run_reserve``)."""
         self._pending_sessions = 0
         self._pending_envs = 0
+        self._pending_owners: dict[str, int] = {}
         self.roots = allowed_roots(settings.allowed_dataset_dirs)
         pool.on_death = self._worker_died
 
     # ------------------------------------------------------------------ operations
-    async def create(self, message: CreateSession) -> bytes:
-        """Start the environments of a new session; returns the encoded SessionInfo."""
+    async def create(
+        self, message: CreateSession, owner: str | None = None, for_run: bool = False
+    ) -> bytes:
+        """Start the environments of a new session; returns the encoded SessionInfo.
+
+        ``owner`` names the client of a plain session (its per-client cap); ``for_run``
+        marks a leaderboard run's session, which may use the share kept for runs."""
         try:  # fail fast, before any worker is involved
             config, _ = session_config_from_dict(message.config)
         except ConfigError as error:
@@ -111,13 +124,44 @@ class SessionRegistry:
                 f"{n} more environments would exceed the server's limit of {s.max_envs_total} "
                 f"({in_use} in use)"
             )
+        if not for_run:
+            self._check_plain_limits(owner)
         self._pending_sessions += 1
         self._pending_envs += n
+        if owner is not None:
+            self._pending_owners[owner] = self._pending_owners.get(owner, 0) + 1
         try:
-            return await _shielded(self._create(message, env_bytes))
+            return await _shielded(self._create(message, env_bytes, owner, for_run))
         finally:
             self._pending_sessions -= 1
             self._pending_envs -= n
+            if owner is not None:
+                self._pending_owners[owner] -= 1
+                if not self._pending_owners[owner]:
+                    del self._pending_owners[owner]
+
+    def _check_plain_limits(self, owner: str | None) -> None:
+        """A plain session may not take a client's share twice, nor the room kept for runs."""
+        s = self.settings
+        if owner is not None:
+            held = sum(1 for x in self.sessions.values() if x.owner == owner and x.failed is None)
+            held += self._pending_owners.get(owner, 0)
+            if held >= s.sessions_per_client:
+                raise errors.TooManySessions(
+                    f"this client holds {held} sessions, the most one client may hold "
+                    f"(sessions_per_client = {s.sessions_per_client}); close one first"
+                )
+        if self.run_reserve > 0:
+            allowed = int(s.max_sessions * (1 - self.run_reserve))
+            plain = sum(1 for x in self.sessions.values() if x.owner is not None) + sum(
+                self._pending_owners.values()
+            )
+            if plain >= allowed:
+                raise errors.TooManySessions(
+                    f"plain sessions may hold {allowed} of this server's {s.max_sessions} "
+                    f"session slots and all are taken; the rest is kept for leaderboard runs "
+                    f"(run_reserve = {self.run_reserve})"
+                )
 
     async def reset(self, session_id: str, message: Reset) -> bytes:
         session = self.get(session_id)
@@ -248,13 +292,22 @@ class SessionRegistry:
             )
         return f"no session {session_id!r} (never created, closed, or closed after being idle)"
 
-    async def _create(self, message: CreateSession, env_bytes: int) -> bytes:
+    async def _create(
+        self, message: CreateSession, env_bytes: int, owner: str | None, for_run: bool
+    ) -> bytes:
         session_id = self.settings.new_id()  # NAME-<hex> on a named replica
         shards, start = [], 0
-        for k, (worker, count) in enumerate(self.pool.choose(message.num_envs, env_bytes)):
-            shards.append(Shard(worker, f"{session_id}/{k}", start, count, count * env_bytes))
+        plain_cap = None
+        if not for_run and self.run_reserve > 0:
+            plain_cap = int(self.pool.capacity_bytes * (1 - self.run_reserve))
+        chosen = self.pool.choose(message.num_envs, env_bytes, plain_cap)
+        for k, (worker, count) in enumerate(chosen):
+            shard = Shard(worker, f"{session_id}/{k}", start, count, count * env_bytes, not for_run)
+            shards.append(shard)
             worker.env_count += count
-            worker.reserved_bytes += count * env_bytes
+            worker.reserved_bytes += shard.reserved_bytes
+            if shard.plain:
+                worker.plain_bytes += shard.reserved_bytes
             start += count
         payload = {"config": message.config, "auto_reset": message.auto_reset}
         payloads = [{**payload, "num_envs": sh.count} for sh in shards]
@@ -273,8 +326,9 @@ class SessionRegistry:
             }
         )
         session = Session(
-            session_id, message.num_envs, message.auto_reset, shards, done=[True] * message.num_envs
-        )
+            session_id, message.num_envs, message.auto_reset, shards,
+            done=[True] * message.num_envs, owner=None if for_run else owner or "",
+        )  # fmt: skip
         session.info = encode(info.to_wire())
         self.sessions[session_id] = session
         return session.info
@@ -327,6 +381,8 @@ class SessionRegistry:
             shard.closed = True
             shard.worker.env_count -= shard.count
             shard.worker.reserved_bytes -= shard.reserved_bytes
+            if shard.plain:
+                shard.worker.plain_bytes -= shard.reserved_bytes
             if shard.worker.alive:
                 try:
                     await shard.worker.request(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import uuid
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -37,6 +38,26 @@ class ServerSettings(BaseSettings):
         description="address-space limit of each simulator worker (RLIMIT_AS); the memory "
         "estimates of the sessions a worker holds must fit in it, less what the process itself "
         "needs",
+    )
+    sessions: Literal["open", "token", "off"] = Field(
+        "open",
+        description="who may open plain sessions (the /v1/sessions routes): anyone (open); "
+        "holders of a team token (token: needs a challenge); nobody (off: a server for "
+        "leaderboard runs only)",
+    )
+    sessions_per_client: int = Field(
+        16,
+        ge=1,
+        le=1024,
+        description="plain sessions one client may hold at once; a client is its team token "
+        "(--sessions token), else its IP address (behind a proxy: the forwarded address)",
+    )
+    run_reserve: float = Field(
+        0.5,
+        ge=0.0,
+        le=0.9,
+        description="with a challenge: the share of each simulator worker's memory and of "
+        "max_sessions that plain sessions cannot take, kept for leaderboard runs",
     )
     allowed_dataset_dirs: list[Path] = Field(
         default_factory=list,

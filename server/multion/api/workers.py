@@ -54,6 +54,8 @@ class Worker:
         self.env_count = 0
         self.reserved_bytes = 0
         """The memory estimates of the environments this worker holds."""
+        self.plain_bytes = 0
+        """… of which those of plain sessions (not leaderboard runs)."""
         self.alive = True
         self.failure = ""
         self._loop = asyncio.get_running_loop()
@@ -207,25 +209,32 @@ class WorkerPool:
         """What one worker's environments may reserve in all."""
         return self.memory_limit_bytes - WORKER_RESERVED_BYTES
 
-    def choose(self, num_envs: int, env_bytes: int) -> list[tuple[Worker, int]]:
+    def choose(
+        self, num_envs: int, env_bytes: int, plain_cap_bytes: int | None = None
+    ) -> list[tuple[Worker, int]]:
         """Spread ``num_envs`` environments of ``env_bytes`` each over the least loaded live
         workers with memory to spare: [(worker, count), ...]; raises
-        :class:`MemoryBudgetExceeded` when they do not fit now."""
+        :class:`MemoryBudgetExceeded` when they do not fit now. With ``plain_cap_bytes`` (a
+        plain session on a server that keeps room for runs) a worker's plain sessions may
+        reserve no more than that in all."""
         live = [w for w in self.workers if w.alive]
         if not live:
             raise WorkerFailed("no simulator worker is running")
         load = {id(w): w.env_count for w in live}
         free = {id(w): w.free_bytes for w in live}
+        if plain_cap_bytes is not None:
+            free = {id(w): min(free[id(w)], plain_cap_bytes - w.plain_bytes) for w in live}
+        initial = ", ".join(f"{mib(max(0, free[id(w)]))} MiB" for w in live)
+        kept = "" if plain_cap_bytes is None else " for plain sessions: the rest is kept for runs"
         counts: dict[int, int] = {}
         for placed in range(num_envs):
             room = [w for w in live if free[id(w)] >= env_bytes]
             if not room:
                 raise MemoryBudgetExceeded(
                     f"{num_envs} environment(s) of this config need up to {mib(env_bytes)} MiB "
-                    f"each; the simulator workers have room for {placed} now "
-                    f"({', '.join(f'{mib(w.free_bytes)} MiB' for w in live)} free). Close "
-                    "sessions, retry later, or use fewer environments, smaller images or a "
-                    "coarser navgrid.cell_size"
+                    f"each; the simulator workers have room for {placed} now ({initial} free"
+                    f"{kept}). Close sessions, retry later, or use fewer environments, smaller "
+                    "images or a coarser navgrid.cell_size"
                 )
             best = min(room, key=lambda w: (load[id(w)], w.slot))
             load[id(best)] += 1

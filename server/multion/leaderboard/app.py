@@ -16,7 +16,7 @@ from fastapi import FastAPI
 
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, load_challenge
-from multion.leaderboard.routes import TokenCache, router
+from multion.leaderboard.routes import TokenCache, router, team_of
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database
@@ -42,6 +42,8 @@ async def leaderboard_lifespan(
     db = await asyncio.to_thread(Database.open, settings.database)
     service = RunService(challenge, db, registry)
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
+    app.state.authenticate = team_of  # for plain sessions on a `--sessions token` server
+    registry.run_reserve = app.state.settings.run_reserve
     app.state.episode_pictures = pictures = EpisodePictures()
     tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
     if settings.warm_up:
@@ -59,11 +61,12 @@ async def leaderboard_lifespan(
 
 
 async def _warm_up(service: RunService) -> None:
-    """Generate every phase's hidden episodes now, so the first run does not wait for them."""
+    """Generate every phase's fixed episodes and build its houses now, so the first run does
+    not wait for them."""
     for track in service.challenge.tracks:
         for phase in track.phases:
             try:
-                await asyncio.to_thread(service.hidden.get, track, phase)
+                await asyncio.to_thread(service.hidden.warm, track, phase)
             except Exception:  # noqa: BLE001 - reported; the first run will try again
                 log.exception(
                     "generating the hidden episodes of %s/%s failed", track.name, phase.name

@@ -11,8 +11,8 @@ An organiser writes one file (see ``docs/leaderboard.md``)::
     max_consecutive_timeouts = 3 # that many expired episodes in a row end the run
     run_timeout_s = 86400        # a run still going after this long ends
 
-    [hidden]
-    rooms = [3, 6]               # room count range of the hidden houses
+    [hidden]                     # optional; default: the packaged houses' generator (8–16 rooms)
+    rooms = [8, 12]              # narrow the room count range, within [1, 16]
 
     [[tracks]]
     name = "3-on"
@@ -26,6 +26,7 @@ An organiser writes one file (see ``docs/leaderboard.md``)::
     houses = 2
     feedback = "episodes"        # per-episode results to the team
     daily_quota = 20
+    episodes_per_run = "fixed"   # or "fresh" (the default of aggregate and sealed phases)
 
 Every value is checked when the file is read; :class:`ChallengeError` names the field and the
 allowed range. The config classes are frozen dataclasses, one per section, with their ranges.
@@ -48,6 +49,7 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from multion.api.config_io import ConfigError, env_config_from_dict
+from multion.scenes.registry import HOUSE_CONFIG, MAX_SIZED_ROOMS
 from multion.task.env import SENSORS
 
 STANDARD_SENSORS = ("rgb", "depth", "goal", "goal_onehot", "gps", "compass")
@@ -59,6 +61,10 @@ METRICS = ("ppl", "progress", "success", "spl")
 FEEDBACK = ("episodes", "aggregate", "sealed")
 """What a team sees of its finished runs: per-episode records and aggregates (minival),
 aggregates only (test-standard), nothing until ``sealed_until`` (test-challenge)."""
+EPISODE_SETS = ("fresh", "fixed")
+"""Which episodes a run plays: its own, drawn for it from the secret and its id (``fresh``), or
+the phase's one set in a per-run order (``fixed``: paired comparisons, but a team can learn the
+episodes in one run and replay what it learned in the next)."""
 MIN_SECRET_CHARS = 16
 _NAME = re.compile(r"[a-z0-9][a-z0-9._-]{0,39}")
 
@@ -88,13 +94,23 @@ class Limits:
 class HiddenScenes:
     """The generator of the hidden houses (their numbers come from the secret)."""
 
-    rooms: tuple[int, int] = (3, 6)
-    """[1, 8] each, low ≤ high: room count range of a hidden house (small houses load faster)."""
+    rooms: tuple[int, int] | None = None
+    """None: the packaged houses' own distribution (the generator draws 8–16 rooms, the
+    calibrated benchmark); else [low, high] in [1, 16], a narrower room count range (houses
+    under 8 rooms are easier than val: ``multion leaderboard check --generate`` says by how
+    much)."""
 
     def __post_init__(self) -> None:
+        if self.rooms is None:
+            return
         low, high = self.rooms
-        _check_range("hidden.rooms[0]", low, 1, 8)
-        _check_range("hidden.rooms[1]", high, low, 8)
+        _check_range("hidden.rooms[0]", low, 1, MAX_SIZED_ROOMS)
+        _check_range("hidden.rooms[1]", high, low, MAX_SIZED_ROOMS)
+
+    @property
+    def room_range(self) -> tuple[int, int]:
+        """The room counts hidden houses may have."""
+        return self.rooms or (HOUSE_CONFIG.min_rooms, HOUSE_CONFIG.max_rooms)
 
 
 @dataclass(frozen=True)
@@ -115,6 +131,9 @@ class Phase:
     """With feedback "sealed": results become visible to teams from this UTC time on."""
     max_steps: int | None = None
     """[1, 100000] the episode step limit, if not the track's."""
+    episodes_per_run: str | None = None
+    """``fresh`` or ``fixed`` (see :data:`EPISODE_SETS`); None: ``fixed`` on phases with
+    per-episode feedback, ``fresh`` on aggregate and sealed phases."""
 
     def __post_init__(self) -> None:
         where = f"phase {self.name!r}"
@@ -135,6 +154,18 @@ class Phase:
             )
         if self.max_steps is not None:
             _check_range(f"{where}: max_steps", self.max_steps, 1, 100_000)
+        if self.episodes_per_run is not None and self.episodes_per_run not in EPISODE_SETS:
+            raise ChallengeError(
+                f"{where}: episodes_per_run must be one of {EPISODE_SETS}, got "
+                f"{self.episodes_per_run!r}"
+            )
+
+    @property
+    def episode_set(self) -> str:
+        """``fresh`` or ``fixed``: what the phase's new runs play."""
+        if self.episodes_per_run is not None:
+            return self.episodes_per_run
+        return "fixed" if self.feedback == "episodes" else "fresh"
 
     def results_visible(self, now: dt.datetime) -> bool:
         return self.sealed_until is None or now >= self.sealed_until
@@ -254,6 +285,7 @@ class Challenge:
                             "name": p.name,
                             "episodes": p.episodes,
                             "feedback": p.feedback,
+                            "episodes_per_run": p.episode_set,
                             "daily_quota": p.daily_quota,
                             "total_quota": p.total_quota,
                             "sealed_until": None
@@ -366,9 +398,12 @@ def _phase(raw: Any, where: str) -> Phase:
         "total_quota",
         "sealed_until",
         "max_steps",
+        "episodes_per_run",
     )
     d = _section(raw, where, fields, ("name", "episodes"))
     _typed(d["name"], str, f"{where}.name")
+    if "episodes_per_run" in d:
+        _typed(d["episodes_per_run"], str, f"{where}.episodes_per_run")
     for key in ("episodes", "houses", "daily_quota", "total_quota", "max_steps"):
         if key in d:
             _typed(d[key], int, f"{where}.{key}")

@@ -1,31 +1,54 @@
 """Hidden episodes and houses, generated on the server from the challenge's secret.
 
-Every number here comes from ``HMAC-SHA256(secret, label)``: the houses of a phase are
-``house-N-rK`` with N ≥ 10⁹ drawn from the secret (the packaged splits use houses 0–89), and the
-episodes of a (track, phase) are sampled in them with a seed drawn from the secret. Nothing is
-written to disk; the same secret always gives the same houses and episodes, so a stored run can
-be replayed and re-scored later. Without the secret the house numbers cannot be guessed.
+Every number here comes from ``HMAC-SHA256(secret, label)``:
+
+* the houses of a (track, phase) are procedural houses ``house-N`` with N ≥ 10⁹ drawn from the
+  secret (the packaged splits use houses 0–89), built by the packaged houses' own generator
+  (8–16 rooms) unless the challenge narrows the room range (``house-N-rK``). No two (track,
+  phase) pairs of a challenge share a house, so an oracle track cannot map a standard track's;
+* a **fixed** phase has one set of episodes sampled in its houses, which every run plays in
+  its own shuffled order;
+* a **fresh** phase draws each run's episodes from the secret and the run's id (episode k of
+  run r in a house assigned to k), so no two runs play the same episodes and nothing learned
+  in one run can be replayed in the next.
+
+Nothing is written to disk; the same secret always gives the same houses and episodes, so a
+stored run can be replayed and re-scored later. Without the secret nothing can be guessed.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import hmac
 import multiprocessing
 import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.processes import die_with_parent
-from multion.scenes.registry import sized_house_id
+from multion.scenes.registry import house_id, sized_house_id
+from multion.sim.navgrid import NavGrid
+from multion.sim.simulator import Simulator
+from multion.task.dataset import EpisodeConstraints, sample_episode, variant_name
 from multion.task.episode import Episode
 from multion.task.generate import generate_episodes
 
 HIDDEN_HOUSE_BASE = 10**9
 """Hidden house numbers start here, far from the packaged splits' 0–89."""
 HIDDEN_HOUSE_SPAN = 10**12
+SAMPLE_TRIES = 8
+"""Fresh episodes: sampling attempts (each of ``EpisodeConstraints.max_tries`` starts) before
+giving up on a house (the packaged generator allows 4)."""
+T = TypeVar("T")
+GRIDS_KEPT = 32
+"""Navigable grids the episode sampler keeps in memory (a phase may have up to 1000 houses)."""
 
 
 def derived_int(secret: str, label: str, bits: int = 63) -> int:
@@ -34,64 +57,219 @@ def derived_int(secret: str, label: str, bits: int = 63) -> int:
     return int.from_bytes(digest[:8], "big") >> (64 - bits)
 
 
-def hidden_houses(challenge: Challenge, phase: Phase) -> list[str]:
-    """The hidden house ids of ``phase`` (shared by its tracks), with secret room counts."""
-    low, high = challenge.hidden.rooms
-    houses = []
-    for index in range(phase.houses):
-        number = (
-            HIDDEN_HOUSE_BASE
-            + derived_int(challenge.secret, f"house/{phase.name}/{index}") % HIDDEN_HOUSE_SPAN
-        )
-        rooms = low + derived_int(challenge.secret, f"rooms/{phase.name}/{index}") % (
-            high - low + 1
-        )
-        houses.append(sized_house_id(number, rooms))
+# ---------------------------------------------------------------------- houses
+def challenge_houses(challenge: Challenge) -> dict[tuple[str, str], list[str]]:
+    """The hidden house ids of every (track, phase), all distinct.
+
+    Drawn in the sorted order of (track, phase) names, so the order of the challenge file does
+    not matter; a number already taken (by chance: about one in 10⁹ for a big challenge) is
+    drawn again with a counter in its label.
+    """
+    taken: set[int] = set()
+    houses: dict[tuple[str, str], list[str]] = {}
+    for track in sorted(challenge.tracks, key=lambda t: t.name):
+        for phase in sorted(track.phases, key=lambda p: p.name):
+            ids = []
+            for index in range(phase.houses):
+                label, attempt = f"house/{track.name}/{phase.name}/{index}", 0
+                number = _house_number(challenge.secret, label)
+                while number in taken:
+                    attempt += 1
+                    number = _house_number(challenge.secret, f"{label}/{attempt}")
+                taken.add(number)
+                ids.append(_house_id(challenge, number, label))
+            houses[(track.name, phase.name)] = ids
     return houses
 
 
+def _house_number(secret: str, label: str) -> int:
+    return HIDDEN_HOUSE_BASE + derived_int(secret, label) % HIDDEN_HOUSE_SPAN
+
+
+def _house_id(challenge: Challenge, number: int, label: str) -> str:
+    if challenge.hidden.rooms is None:
+        return house_id(number)  # the generator draws the rooms, as for the packaged houses
+    low, high = challenge.hidden.rooms
+    rooms = low + derived_int(challenge.secret, f"rooms/{label}") % (high - low + 1)
+    return sized_house_id(number, rooms)
+
+
+def hidden_houses(challenge: Challenge, track: Track, phase: Phase) -> list[str]:
+    """The hidden house ids of (track, phase)."""
+    return challenge_houses(challenge)[(track.name, phase.name)]
+
+
+# ---------------------------------------------------------------------- episodes
 def generate_hidden_episodes(challenge: Challenge, track: Track, phase: Phase) -> list[Episode]:
-    """The hidden episodes of (track, phase), in their canonical order (runs shuffle them)."""
+    """The fixed episode set of (track, phase), in canonical order (runs shuffle it)."""
     seed = derived_int(challenge.secret, f"episodes/{track.name}/{phase.name}")
     return generate_episodes(
         track.num_goals,
         f"hidden-{phase.name}",
         phase.episodes,
         seed=seed,
-        scenes=hidden_houses(challenge, phase),
+        scenes=hidden_houses(challenge, track, phase),
         progress=False,
     )
 
 
 def run_order(challenge: Challenge, run_id: str, count: int) -> list[int]:
-    """The order in which run ``run_id`` plays the ``count`` episodes: a per-run shuffle."""
+    """The order in which a run of a fixed phase plays its ``count`` episodes."""
     rng = np.random.default_rng(derived_int(challenge.secret, f"order/{run_id}"))
     return [int(i) for i in rng.permutation(count)]
 
 
-class HiddenEpisodes:
-    """The hidden episodes of every (track, phase), generated once on first need and kept.
+def fresh_house_plan(challenge: Challenge, track: Track, phase: Phase, run_id: str) -> list[int]:
+    """The house (index into :func:`hidden_houses`) of each episode of a fresh run: every house
+    as often as the others (±1), in an order drawn for the run."""
+    plan = np.arange(phase.episodes) % phase.houses
+    rng = np.random.default_rng(
+        derived_int(challenge.secret, f"plan/{track.name}/{phase.name}/{run_id}")
+    )
+    rng.shuffle(plan)
+    return [int(h) for h in plan]
 
-    With ``in_subprocess`` they are generated in a fresh process: building houses holds the
-    GIL for seconds, which would stall a server's event loop.
+
+def fresh_episode_id(run_id: str, position: int) -> str:
+    """The id of episode ``position`` of a fresh run (known before it is drawn)."""
+    return f"run-{run_id}-{position:05d}"
+
+
+def fresh_episode(
+    challenge: Challenge, track: Track, phase: Phase, run_id: str, position: int
+) -> Episode:
+    """Episode ``position`` of fresh run ``run_id``: a pure function of the secret, the run
+    id and the position. Blocking (the house's grid may have to be built)."""
+    scene = hidden_houses(challenge, track, phase)[
+        fresh_house_plan(challenge, track, phase, run_id)[position]
+    ]
+    label = f"episode/{track.name}/{phase.name}/{run_id}/{position}"
+    rng = np.random.default_rng(derived_int(challenge.secret, label))
+    grid = _grid(scene)
+    for _ in range(SAMPLE_TRIES):
+        episode = sample_episode(
+            grid, scene, track.num_goals, rng, fresh_episode_id(run_id, position),
+            EpisodeConstraints(),
+        )  # fmt: skip
+        if episode is not None:
+            return episode
+    raise RuntimeError(
+        f"cannot place {variant_name(track.num_goals, 0)} goals in a hidden house of "
+        f"{track.name}/{phase.name}"
+    )
+
+
+_grids: OrderedDict[str, NavGrid] = OrderedDict()
+_grids_lock = threading.Lock()
+
+
+def _grid(scene: str) -> NavGrid:
+    """A house's navigable grid, kept for the next episodes (this process's own simulator)."""
+    with _grids_lock:
+        if scene in _grids:
+            _grids.move_to_end(scene)
+            return _grids[scene]
+        simulator = _simulator()
+        grid = simulator.load_scene(scene)
+        simulator.close()  # the grid is all the sampler needs; free the bodies
+        _grids[scene] = grid
+        while len(_grids) > GRIDS_KEPT:
+            _grids.popitem(last=False)
+        return grid
+
+
+@functools.cache
+def _simulator() -> Simulator:
+    return Simulator()
+
+
+def _warm(scenes: list[str]) -> int:
+    """Build (or load from the grid cache) the navigable grids of ``scenes``."""
+    for scene in scenes:
+        _grid(scene)
+    return len(scenes)
+
+
+# ---------------------------------------------------------------------- the service's view
+@dataclass(frozen=True)
+class RunDraw:
+    """Which episodes a run plays: its id, ``fresh`` or ``fixed``, and its stored order
+    (fixed: indices into the phase's set; fresh: its positions 0..n-1)."""
+
+    run_id: str
+    episode_set: str
+    order: tuple[int, ...]
+
+
+class HiddenEpisodes:
+    """The hidden episodes of a server's runs: fixed sets generated once and kept, fresh
+    episodes drawn one at a time as runs reach them.
+
+    With ``in_subprocess`` the work happens in one helper process kept for the server's
+    lifetime (with its grids): building houses and sampling hold the GIL for seconds, which
+    would stall the server's event loop.
     """
 
     def __init__(self, challenge: Challenge, in_subprocess: bool = True) -> None:
         self.challenge = challenge
         self.in_subprocess = in_subprocess
-        self._cache: dict[tuple[str, str], list[Episode]] = {}
+        self.houses = challenge_houses(challenge)
+        self._sets: dict[tuple[str, str], list[Episode]] = {}
         self._lock = threading.Lock()
+        self._pool_lock = threading.Lock()
+        self._pool: ProcessPoolExecutor | None = None
 
-    def get(self, track: Track, phase: Phase) -> list[Episode]:
-        """Blocking (house building and sampling take seconds): call it from a thread."""
+    # Every method below blocks: call it from a thread.
+    def phase_set(self, track: Track, phase: Phase) -> list[Episode]:
+        """The fixed episode set of (track, phase), generated on first need."""
         key = (track.name, phase.name)
         with self._lock:
-            if key not in self._cache:
-                if self.in_subprocess:
-                    spawn = multiprocessing.get_context("spawn")
-                    with ProcessPoolExecutor(1, spawn, initializer=die_with_parent) as pool:
-                        future = pool.submit(generate_hidden_episodes, self.challenge, track, phase)
-                        self._cache[key] = future.result()
-                else:
-                    self._cache[key] = generate_hidden_episodes(self.challenge, track, phase)
-            return self._cache[key]
+            if key not in self._sets:
+                self._sets[key] = self._call(generate_hidden_episodes, track, phase)
+            return self._sets[key]
+
+    def episode(self, track: Track, phase: Phase, draw: RunDraw, position: int) -> Episode:
+        """The episode a run plays at ``position``."""
+        if draw.episode_set == "fixed":
+            return self.phase_set(track, phase)[draw.order[position]]
+        return self._call(fresh_episode, track, phase, draw.run_id, position)
+
+    def episode_ids(self, track: Track, phase: Phase, draw: RunDraw) -> list[str]:
+        """The ids of a run's episodes in play order, without drawing fresh ones."""
+        if draw.episode_set == "fixed":
+            fixed = self.phase_set(track, phase)
+            return [fixed[i].episode_id for i in draw.order]
+        return [fresh_episode_id(draw.run_id, p) for p in range(len(draw.order))]
+
+    def house_of(self, track: Track, phase: Phase, draw: RunDraw) -> list[int]:
+        """The house (index into the phase's hidden houses) of each position of a run."""
+        houses = self.houses[(track.name, phase.name)]
+        if draw.episode_set == "fixed":
+            fixed = self.phase_set(track, phase)
+            return [houses.index(fixed[i].scene_id) for i in draw.order]
+        return fresh_house_plan(self.challenge, track, phase, draw.run_id)
+
+    def warm(self, track: Track, phase: Phase) -> None:
+        """Prepare a phase before its first run: its fixed set, or its houses' grids."""
+        if phase.episode_set == "fixed":
+            self.phase_set(track, phase)
+        else:
+            self._call_plain(_warm, self.houses[(track.name, phase.name)])
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+
+    def _call(self, function: Callable[..., T], track: Track, phase: Phase, *args: object) -> T:
+        return self._call_plain(function, self.challenge, track, phase, *args)
+
+    def _call_plain(self, function: Callable[..., T], *args: object) -> T:
+        if not self.in_subprocess:
+            return function(*args)
+        with self._pool_lock:
+            if self._pool is None:
+                spawn = multiprocessing.get_context("spawn")
+                self._pool = ProcessPoolExecutor(1, spawn, initializer=die_with_parent)
+            pool = self._pool
+        return pool.submit(function, *args).result()

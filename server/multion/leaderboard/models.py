@@ -88,8 +88,11 @@ class Run(Base):
     baseline: Mapped[bool] = mapped_column(Boolean, default=False)
     sensors: Mapped[list[str]] = mapped_column(JSON)
     maps: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    episode_set: Mapped[str] = mapped_column(String(8), default="fixed", server_default="fixed")
+    """``fixed``: the phase's one episode set; ``fresh``: episodes drawn for this run."""
     order: Mapped[list[int]] = mapped_column(JSON)
-    """Indices into the phase's hidden episodes, in the order this run plays them."""
+    """Fixed: indices into the phase's episode set, in the order this run plays them;
+    fresh: 0..n-1 (its own episodes)."""
     state: Mapped[str] = mapped_column(String(16), default="running", index=True)
     """running, finished (every episode played), ended (stopped early), failed (server fault)."""
     end_reason: Mapped[str | None] = mapped_column(String(40), nullable=True)
@@ -125,7 +128,8 @@ class EpisodeRecord(Base):
     run_id: Mapped[str] = mapped_column(ForeignKey("runs.id"), index=True)
     position: Mapped[int] = mapped_column(Integer)
     episode_index: Mapped[int] = mapped_column(Integer)
-    """Index in the phase's hidden episodes (canonical order)."""
+    """Fixed runs: index in the phase's episode set (canonical order); fresh runs: the
+    position."""
     episode_id: Mapped[str] = mapped_column(String(80))
     end_reason: Mapped[str] = mapped_column(String(40))
     """success, wrong_found, max_steps (the env's), timeout, not_played (the run's)."""

@@ -11,7 +11,8 @@ from sqlalchemy.orm import Session
 
 from multion.api.config_io import session_config_from_dict
 from multion.leaderboard.challenge import Challenge
-from multion.leaderboard.hidden import generate_hidden_episodes
+from multion.leaderboard.hidden import HiddenEpisodes
+from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import EpisodeRecord, Run
 from multion.leaderboard.results import summarize
 from multion.leaderboard.storage import StorageError
@@ -44,21 +45,25 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
         raise StorageError(
             f"run {run.id}: the challenge has no track/phase {run.track}/{run.phase}"
         )
-    hidden = generate_hidden_episodes(challenge, track, phase)
+    hidden, draw = HiddenEpisodes(challenge, in_subprocess=False), draw_of(run)
+    ids = hidden.episode_ids(track, phase, draw)
     config = track.env_config(phase, tuple(REPLAY_SENSORS), run.maps)
     env_config, _ = session_config_from_dict(config)
-    env = MultiONEnv(env_config, episodes=[hidden[i] for i in run.order])
+    env: MultiONEnv | None = None
     try:
         for record in run.episodes:
             if record.end_reason == "not_played":
                 yield ReplayedEpisode(record.position, record.metrics, record.metrics)
                 continue
-            if hidden[record.episode_index].episode_id != record.episode_id:
+            episode = hidden.episode(track, phase, draw, record.position)
+            if ids[record.position] != record.episode_id:
                 raise StorageError(
                     f"run {run.id}: episode {record.position} was {record.episode_id}, the "
-                    f"secret now gives {hidden[record.episode_index].episode_id}: wrong secret?"
+                    f"secret now gives {ids[record.position]}: wrong secret?"
                 )
-            _, info = env.reset(options={"episode_index": record.position})
+            if env is None:
+                env = MultiONEnv(env_config, episodes=[episode])
+            _, info = env.reset(options={"episode": episode})
             for action in record.actions:
                 _, _, terminated, truncated, info = env.step(int(action))
             metrics = dict(info["metrics"])
@@ -66,7 +71,8 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
                 metrics["end_reason"] = record.end_reason  # timeout / abandoned: the run's
             yield ReplayedEpisode(record.position, record.metrics, metrics)
     finally:
-        env.close()
+        if env is not None:
+            env.close()
 
 
 def rescore(session: Session, challenge: Challenge, run_id: str, write: bool) -> dict[str, Any]:

@@ -191,7 +191,9 @@ def describe_run(
     """A run's status, with the results its phase lets the team see."""
     track = challenge.track(run.track)
     phase = track.phase(run.phase) if track is not None else None
-    visible = phase is not None and phase.results_visible(utcnow())
+    # A refunded run (the server broke it) shows nothing: its partial results would be a free
+    # evaluation for anyone who can make a worker die.
+    visible = phase is not None and phase.results_visible(utcnow()) and not run.refunded
     done = session.scalar(
         select(EpisodeRecord.position)
         .where(EpisodeRecord.run_id == run.id)

@@ -31,8 +31,8 @@ from sqlalchemy import select
 from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, Phase, Track
-from multion.leaderboard.hidden import HiddenEpisodes, run_order
-from multion.leaderboard.live_run import LiveRun
+from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
+from multion.leaderboard.live_run import LiveRun, draw_of
 from multion.leaderboard.models import Run, utcnow
 from multion.leaderboard.run_store import (
     EpisodeResult,
@@ -43,6 +43,7 @@ from multion.leaderboard.run_store import (
     save_state,
 )
 from multion.leaderboard.storage import Database
+from multion.task.episode import Episode
 from multion_client import errors
 from multion_client.protocol import (
     CreateRun,
@@ -60,6 +61,9 @@ from multion_client.protocol import (
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
+KNOWN_END_REASONS = ("max_steps", "timeout")
+"""End reasons a participant knows anyway (it counted its steps, it was late): the only ones
+sent on phases without per-episode feedback (success vs wrong_found would leak results)."""
 
 
 class RunService:
@@ -94,9 +98,14 @@ class RunService:
             session_config_from_dict(config)
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
-        hidden = await asyncio.to_thread(self.hidden.get, track, phase)
         run_id = self.registry.settings.new_id()  # NAME-<hex> on a named replica, ≤ 32
-        order = run_order(self.challenge, run_id, len(hidden))
+        if phase.episode_set == "fixed":
+            fixed = await asyncio.to_thread(self.hidden.phase_set, track, phase)
+            order = run_order(self.challenge, run_id, len(fixed))
+        else:
+            order = list(range(phase.episodes))
+        draw = RunDraw(run_id, phase.episode_set, tuple(order))
+        episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
         row = Run(
             id=run_id,
             team_id=team_id,
@@ -107,13 +116,14 @@ class RunService:
             code_url=message.code_url,
             sensors=list(sensors),
             maps=dict(message.maps or {}),
+            episode_set=phase.episode_set,
             order=order,
             created_at=utcnow(),
             deadline=utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s),
         )
         async with self._creating:
             await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
-        live = LiveRun.of(row, track, phase, hidden)
+        live = LiveRun.of(row, track, phase, episode_ids)
         self.live[run_id] = live
         async with live.lock:
             info = await self._open_session(live)
@@ -147,8 +157,10 @@ class RunService:
                 raise errors.SequenceMismatch(
                     f"the next episode of this run is {st.position + 1}, not {message.episode}"
                 )
-            reply = await self._session_call(live, "reset", st.position + 1)
+            episode = await self._draw(live, st.position + 1)
+            reply = await self._session_call(live, "reset", episode)
             observation, info = reply["observations"][0], reply["infos"][0]
+            live.episode = episode
             st.position += 1
             st.episode_active, st.seq, st.actions = True, 0, []
             st.last_metrics = info["metrics"]
@@ -172,8 +184,9 @@ class RunService:
             await self._expire_due(live)
             await self._check_running(live)
             if not st.episode_active and episode == st.position:
+                why = self._shown_reason(live, live.last_end_reason)
                 raise errors.EpisodeOver(
-                    f"episode {episode} has ended ({live.last_end_reason}); start episode "
+                    f"episode {episode} has ended{f' ({why})' if why else ''}; start episode "
                     f"{episode + 1} (POST episodes)"
                 )
             if not st.episode_active or episode != st.position or seq != st.seq + 1:
@@ -289,13 +302,13 @@ class RunService:
             if st.episode_active:
                 results.append(live.result("timeout"))
                 st.episode_active = False
-            elif st.position + 1 < len(live.order):  # the next episode was never started
+            elif st.position + 1 < len(live.draw.order):  # the next episode was never started
                 st.position += 1
                 st.seq, st.actions, st.last_metrics = 0, [], None
                 results.append(live.result("timeout"))
             st.consecutive_timeouts += 1
             st.deadline += dt.timedelta(seconds=limits.step_timeout_s)
-            if st.position == len(live.order) - 1 and not st.episode_active:
+            if st.position == len(live.draw.order) - 1 and not st.episode_active:
                 await self._finish(live, results, "finished", None)
                 return
             if st.consecutive_timeouts >= limits.max_consecutive_timeouts:
@@ -331,8 +344,8 @@ class RunService:
         if row.state != "running":
             raise errors.RunOver(_over(row.state, row.end_reason))
         track, phase = self._track_phase(row.track, row.phase)
-        hidden = await asyncio.to_thread(self.hidden.get, track, phase)
-        live = self.live.setdefault(run_id, LiveRun.of(row, track, phase, hidden))
+        episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw_of(row))
+        live = self.live.setdefault(run_id, LiveRun.of(row, track, phase, episode_ids))
         return live
 
     async def _check_running(self, live: LiveRun) -> None:
@@ -340,27 +353,41 @@ class RunService:
             row = await self._db(lambda s: s.get(Run, live.run_id))
             raise errors.RunOver(_over(row.state, row.end_reason) if row else "the run is over")
 
+    async def _draw(self, live: LiveRun, position: int) -> Episode:
+        """The episode the run plays at ``position`` (a fresh one is drawn now)."""
+        return await asyncio.to_thread(
+            self.hidden.episode, live.track, live.phase, live.draw, position
+        )
+
     async def _open_session(self, live: LiveRun) -> dict[str, Any]:
         """Create the run's session; on a server fault the run fails and is refunded."""
+        if live.episode is None:  # the config needs an episode; each reset names its own
+            live.episode = await self._draw(live, max(live.state.position, 0))
+        config = {**live.config, "episodes": [live.episode.to_dict()]}
         try:
-            answer = await self.registry.create(CreateSession(live.config, 1, False))
+            answer = await self.registry.create(CreateSession(config, 1, False), for_run=True)
         except (errors.WorkerFailed, errors.LimitExceeded, errors.InternalError) as error:
+            log.error("run %s: no session: %s", live.run_id, error.message)
             await self._finish(live, [], "failed", "server_error", refunded=True)
-            raise type(error)(f"{error.message} (the run was refunded)") from None
+            why = "has no room for" if isinstance(error, errors.LimitExceeded) else "failed in"
+            raise type(error)(
+                f"the server {why} this run's simulator; the run is over and refunded (it does "
+                "not count against your quota): retry later"
+            ) from None
         info = decode(answer)
         live.session_id = info["session_id"]
         return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
 
-    async def _session_call(self, live: LiveRun, verb: str, argument: int) -> dict[str, Any]:
-        """Reset (argument: episode index) or step (argument: action) the run's environment,
+    async def _session_call(self, live: LiveRun, verb: str, argument: Episode | int) -> Any:
+        """Reset (argument: the episode) or step (argument: the action) the run's environment,
         rebuilding the session first if it is gone (restart, idle reaper, another replica)."""
         for attempt in range(2):
             try:
                 if live.session_id is None:
                     await self._rebuild(live)
                 assert live.session_id is not None
-                if verb == "reset":
-                    options = [{"episode_index": argument}]
+                if isinstance(argument, Episode):
+                    options = [{"episode": argument.to_dict()}]
                     reply = await self.registry.reset(live.session_id, Reset([None], options))
                 else:
                     reply = await self.registry.step(live.session_id, Step([argument]))
@@ -370,26 +397,27 @@ class RunService:
                 if attempt == 1:
                     raise
             except (errors.WorkerFailed, errors.InternalError) as error:
+                log.error("run %s: the simulator failed: %s", live.run_id, error.message)
                 await self._close_session(live)
                 await self._finish(live, [], "failed", "server_error", refunded=True)
                 raise errors.WorkerFailed(
-                    f"the simulator failed during this run ({error.message}); the run is over "
-                    "and refunded: it does not count against your quota"
+                    "the simulator failed during this run; the run is over and refunded: it "
+                    "does not count against your quota, and shows no results"
                 ) from None
         raise AssertionError("unreachable")
 
     async def _rebuild(self, live: LiveRun) -> None:
         """A new session in the run's state: the current episode reset and its actions replayed."""
         await self._close_session(live)
-        await self._open_session(live)
         st = live.state
+        if st.episode_active and live.episode is None:
+            live.episode = await self._draw(live, st.position)
+        await self._open_session(live)
         if not st.episode_active or live.session_id is None:
             return
-        reply = decode(
-            await self.registry.reset(
-                live.session_id, Reset([None], [{"episode_index": st.position}])
-            )
-        )
+        assert live.episode is not None
+        options = [{"episode": live.episode.to_dict()}]
+        reply = decode(await self.registry.reset(live.session_id, Reset([None], options)))
         done = False
         for action in st.actions:
             reply = decode(await self.registry.step(live.session_id, Step([action])))
@@ -397,6 +425,12 @@ class RunService:
         st.last_metrics = reply["infos"][0]["metrics"]
         # the state is as saved, unless (defensively) its last action ended the episode unrecorded
         await self._conclude(live, reply["observations"][0], done, save_unfinished=False)
+
+    def _shown_reason(self, live: LiveRun, end_reason: str | None) -> str | None:
+        """What the participant may learn of why an episode ended (see KNOWN_END_REASONS)."""
+        if live.phase.feedback == "episodes" or end_reason in KNOWN_END_REASONS:
+            return end_reason
+        return None
 
     async def _conclude(
         self, live: LiveRun, observation: Any, done: bool, save_unfinished: bool = True
@@ -409,15 +443,15 @@ class RunService:
         if done:
             st.episode_active = False
             results.append(live.result(str(end_reason)))
-        run_done = done and st.position == len(live.order) - 1
+        run_done = done and st.position == len(live.draw.order) - 1
         if run_done:
             await self._finish(live, results, "finished", None)
         elif done or save_unfinished:
             await self._save(live, results)
         metrics = st.last_metrics if done and live.phase.feedback == "episodes" else None
         answer = RunObservation(
-            st.position, st.seq, observation, done=done, end_reason=end_reason,
-            metrics=metrics, run_done=run_done,
+            st.position, st.seq, observation, done=done,
+            end_reason=self._shown_reason(live, end_reason), metrics=metrics, run_done=run_done,
         )  # fmt: skip
         live.last_answer = encode(answer.to_wire())
         return live.last_answer
@@ -449,7 +483,6 @@ class RunService:
         reason: str | None,
         refunded: bool = False,
     ) -> None:
-        ids = [e.episode_id for e in live.episodes]
         await self._db(
             lambda s: finish_run(
                 s,
@@ -459,8 +492,8 @@ class RunService:
                 outcome,
                 reason,
                 live.track,
-                ids,
-                live.order,
+                live.episode_ids,
+                list(live.draw.order),
                 refunded,
             )
         )
@@ -491,6 +524,7 @@ class RunService:
     async def close(self) -> None:
         for live in list(self.live.values()):
             await self._close_session(live)
+        self.hidden.close()
 
 
 def _over(state: str, reason: str | None) -> str:

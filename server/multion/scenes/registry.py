@@ -5,7 +5,8 @@ Accepted ids:
 * ``house-NNNNN``: procedural house number N (any non-negative integer, usually 5 digits);
   the default splits use houses 0–60 (train), 61–71 (val) and 72–89 (test), the same counts
   as Matterport3D's 61 / 11 / 18 scenes.
-* ``house-NNNNN-rK``: house number N built with exactly K rooms (1..8), e.g. hidden houses.
+* ``house-NNNNN-rK``: house number N built with exactly K rooms (1..16), e.g. hidden houses of a
+  challenge that narrows their room range.
 * ``room-WxD``: one empty W × D metre room, e.g. ``room-6x4`` or ``room-10x2.5`` (sides up to
   50 m).
 * a path ending in ``.obj``, ``.glb``, ``.gltf`` or ``.ply``: a mesh scan, loaded elsewhere.
@@ -31,9 +32,11 @@ datasets made for other houses are refused and navigable grids cached on disk ar
 (``multion.sim.grid_cache``). 1: the small 3–8 room houses;
 2: Matterport3D-calibrated houses (issue 12)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
+MAX_SIZED_ROOMS = 16
+"""``house-N-rK`` takes K in 1..this (the generator's calibrated maximum)."""
 
 _HOUSE = re.compile(r"house-(\d+)")
-_SIZED_HOUSE = re.compile(r"house-(\d+)-r([1-8])")
+_SIZED_HOUSE = re.compile(r"house-(\d+)-r([1-9]|1[0-6])")
 _ROOM = re.compile(r"room-(\d+(?:\.\d+)?)x(\d+(?:\.\d+)?)")
 _ACCEPTED = "'house-NNNNN' (e.g. house-00042), 'room-WxD' in metres (e.g. room-6x4, room-10x2.5)"
 
@@ -65,10 +68,10 @@ def house_id(seed: int) -> str:
 
 
 def sized_house_id(seed: int, rooms: int) -> str:
-    """The id of house number ``seed`` built with exactly ``rooms`` rooms (1..8), e.g.
-    ``house-1234567-r3``; used for the leaderboard's hidden houses, which may be small."""
-    if not 1 <= rooms <= 8:
-        raise ValueError(f"rooms must be in 1..8, got {rooms}")
+    """The id of house number ``seed`` built with exactly ``rooms`` rooms (1..16), e.g.
+    ``house-1234567-r3``; used for the hidden houses of a challenge that narrows their range."""
+    if not 1 <= rooms <= MAX_SIZED_ROOMS:
+        raise ValueError(f"rooms must be in 1..{MAX_SIZED_ROOMS}, got {rooms}")
     return f"{house_id(seed)}-r{rooms}"
 
 

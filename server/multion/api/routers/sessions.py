@@ -4,7 +4,14 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
-from multion.api.deps import Message, MsgpackResponse, Registry, read_message, registry_of
+from multion.api.deps import (
+    Message,
+    MsgpackResponse,
+    Registry,
+    read_message,
+    registry_of,
+    session_owner,
+)
 from multion.api.openapi import answers, request_body
 from multion_client import errors as e
 from multion_client.protocol import (
@@ -36,12 +43,16 @@ SESSION_ERRORS = (e.SessionNotFound, e.WorkerFailed)
     "maps, unknown fields are rejected; `episodes` may list Episode maps to play). With "
     "`auto_reset`, an environment whose episode ends is reset in the same step (Gymnasium "
     "SAME_STEP: `infos[i].final_obs` / `final_info` hold the ended episode's last outputs). "
-    "The environments may be spread over several simulator workers.",
+    "The environments may be spread over several simulator workers. A server may need a team "
+    "token for this (`--sessions token`), refuse it (`--sessions off`), and caps the sessions "
+    "one client holds.",
     openapi_extra=request_body(CreateSession),
     responses=answers(
         201,
         SessionInfo,
         *BODY_ERRORS,
+        e.Unauthorized,
+        e.SessionsNotAllowed,
         e.PathNotAllowed,
         e.InvalidConfig,
         e.TooManySessions,
@@ -50,8 +61,11 @@ SESSION_ERRORS = (e.SessionNotFound, e.WorkerFailed)
         e.WorkerFailed,
     ),
 )
-async def create_session(message: Message, registry: Registry) -> MsgpackResponse:
-    body = await registry.create(CreateSession.from_wire(message))
+async def create_session(
+    message: Message, registry: Registry, request: Request
+) -> MsgpackResponse:
+    owner = await session_owner(request)
+    body = await registry.create(CreateSession.from_wire(message), owner=owner)
     return MsgpackResponse(body, status_code=201)
 
 

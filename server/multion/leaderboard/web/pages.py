@@ -18,7 +18,7 @@ from fastapi.responses import HTMLResponse, Response
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
-from multion.leaderboard.hidden import hidden_houses
+from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
@@ -106,8 +106,8 @@ async def run_page(run_id: str, request: Request) -> HTMLResponse:
     houses: list[queries.Breakdown] = []
     pictures: list[EpisodeRecord] = []
     if page.per_episode and page.track is not None and page.phase is not None:
-        hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
-        houses = queries.breakdown(page.records, _house_labels(service, page, hidden))
+        labels = await asyncio.to_thread(_house_labels, service, page)
+        houses = queries.breakdown(page.records, labels)
         pictures = pictured(page.records)
     return _page(request, "run.html", page=page, houses=houses, pictures=pictures)
 
@@ -121,10 +121,12 @@ async def episode_picture(run_id: str, position: int, request: Request) -> Respo
     record = next((r for r in shown if r.position == position), None)
     if page is None or record is None or page.track is None or page.phase is None:
         return _not_found(request, f"a picture of episode {position} of run {run_id}")
-    hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
+    episode = await asyncio.to_thread(
+        service.hidden.episode, page.track, page.phase, draw_of(page.run), position
+    )
     pictures: EpisodePictures = request.app.state.episode_pictures
     replay = EpisodeReplay(
-        page.track, page.phase, dict(page.run.maps or {}), hidden[record.episode_index],
+        page.track, page.phase, dict(page.run.maps or {}), episode,
         record.actions, record.metrics, f"episode {position + 1}",
     )  # fmt: skip
     png = await pictures.get((run_id, position), replay)
@@ -148,15 +150,10 @@ async def team_page(team: str, request: Request) -> HTMLResponse:
     return _page(request, "team.html", team=team, runs=runs, charts=charts)
 
 
-def _house_labels(
-    service: RunService, page: queries.RunPage, hidden: list[Any]
-) -> dict[int, str]:
-    """Hidden episode index → "house N (K rooms)", numbered in the phase's house order (the
-    house ids themselves stay secret)."""
-    assert page.phase is not None
-    numbers = {house: i + 1 for i, house in enumerate(hidden_houses(service.challenge, page.phase))}
-    labels = {}
-    for index, episode in enumerate(hidden):
-        rooms = episode.scene_id.rsplit("-r", 1)[-1]
-        labels[index] = f"house {numbers.get(episode.scene_id, 0)} ({rooms} rooms)"
-    return labels
+def _house_labels(service: RunService, page: queries.RunPage) -> dict[int, str]:
+    """The run's episode indices → "house N", numbered in the phase's house order (the house
+    ids themselves stay secret). Blocking: call it from a thread."""
+    assert page.track is not None and page.phase is not None
+    draw = draw_of(page.run)
+    houses = service.hidden.house_of(page.track, page.phase, draw)
+    return {index: f"house {houses[p] + 1}" for p, index in enumerate(draw.order)}
