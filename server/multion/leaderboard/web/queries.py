@@ -189,7 +189,10 @@ def run_page(
     run, team = found
     track = challenge.track(run.track)
     phase = track.phase(run.phase) if track is not None else None
-    visible = phase is not None and phase.results_visible(now) and run.summary is not None
+    visible = (  # a refunded run (the server broke it) shows nothing: no free evaluation
+        phase is not None and phase.results_visible(now) and run.summary is not None
+        and not run.refunded
+    )  # fmt: skip
     page = RunPage(run, team, track, phase, visible)
     if not visible:
         return page
@@ -268,7 +271,7 @@ def team_runs(
     query = (
         select(
             Run.id, Run.track, Run.phase, Run.method, Run.state, Run.baseline, Run.created_at,
-            Run.finished_at, Run.summary,
+            Run.finished_at, Run.summary, Run.refunded,
         )  # fmt: skip
         .where(Run.team_id == team_id)
         .order_by(Run.created_at.desc())
@@ -277,7 +280,10 @@ def team_runs(
     for row in session.execute(query):
         track = challenge.track(row.track)
         phase = track.phase(row.phase) if track is not None else None
-        shown = phase is not None and phase.results_visible(now) and row.summary is not None
+        shown = (
+            phase is not None and phase.results_visible(now) and row.summary is not None
+            and not row.refunded
+        )  # fmt: skip
         runs.append(
             TeamRun(
                 row.id, row.track, row.phase, row.method, row.state, bool(row.baseline),

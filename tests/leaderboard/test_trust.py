@@ -1,0 +1,299 @@
+"""Leaderboard trust, round 2, as a hostile participant would try it over real HTTP: hidden
+houses never shared between tracks, fresh episodes per run (nothing to replay from one run to
+the next), no end reasons that leak results, refunded runs that show nothing, plain sessions
+that cannot take the capacity kept for runs, and messages that name no internal id."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import signal
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from multion.api.local_server import LocalServer
+from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.hidden import challenge_houses
+from multion.leaderboard.replay import rescore
+from multion.leaderboard.storage import Database
+from multion.scenes.registry import HOUSE_CONFIG, scene_split
+from multion_client import errors
+from multion_client.client import Client
+from multion_client.protocol import CreateRun
+
+SECRET = "trust-secret-0123456789abcdef"
+
+TWO_TRACKS = f"""
+[challenge]
+name = "trust"
+secret = "{SECRET}"
+
+[limits]
+step_timeout_s = 60
+
+[hidden]
+rooms = [1, 1]
+
+[[tracks]]
+name = "std"
+num_goals = 1
+camera = {{ width = 16, height = 16 }}
+max_steps = 8
+
+[[tracks.phases]]
+name = "minival"
+episodes = 2
+houses = 1
+feedback = "episodes"
+
+[[tracks.phases]]
+name = "test-standard"
+episodes = 3
+houses = 2
+feedback = "aggregate"
+
+[[tracks.phases]]
+name = "paired"
+episodes = 3
+houses = 1
+feedback = "aggregate"
+episodes_per_run = "fixed"
+
+[[tracks]]
+name = "orc"
+num_goals = 1
+kind = "oracle"
+camera = {{ width = 16, height = 16 }}
+max_steps = 8
+
+[[tracks.phases]]
+name = "test-standard"
+episodes = 3
+houses = 2
+feedback = "aggregate"
+"""
+
+
+@pytest.fixture(scope="module")
+def trust_challenge(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("trust") / "challenge.toml"
+    path.write_text(TWO_TRACKS)
+    return path
+
+
+@pytest.fixture(scope="module")
+def trust_server(
+    trust_challenge: Path, database: str, launch: Callable[..., LocalServer]
+) -> Iterator[LocalServer]:
+    server = launch(trust_challenge, database)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def first_views(client: Client, run_id: str, episodes: int) -> list[str]:
+    """Play each episode of a run with one FOUND; the hash of each first observation."""
+    views = []
+    for episode in range(episodes):
+        answer = client.start_episode(run_id, episode)
+        views.append(hashlib.sha256(answer.observation["rgb"].tobytes()).hexdigest())
+        assert client.run_step(run_id, episode, 1, 0).done  # FOUND ends it (found or wrong)
+    return views
+
+
+# ---------------------------------------------------------------------- houses
+def read(text: str, directory: Path) -> Challenge:
+    path = directory / "challenge.toml"
+    path.write_text(text)
+    return load_challenge(path)
+
+
+def test_no_two_tracks_or_phases_share_a_hidden_house(tmp_path: Path) -> None:
+    text = TWO_TRACKS.replace("[hidden]\nrooms = [1, 1]\n", "")
+    challenge = read(text, tmp_path)
+    houses = challenge_houses(challenge)
+    every = [h for ids in houses.values() for h in ids]
+    assert len(every) == len(set(every)) == 2 + 1 + 1 + 2
+    # the same phase name on two tracks: different houses (an oracle track cannot map them)
+    assert not set(houses[("std", "test-standard")]) & set(houses[("orc", "test-standard")])
+    # by default, houses of the packaged generator: plain ids, 8-16 rooms drawn by it
+    for house in houses[("std", "minival")]:
+        assert re.fullmatch(r"house-\d{10,}", house) and scene_split(house) is None
+    # a challenge may narrow the range, within the generator's own
+    narrowed = read(text.replace("[[tracks]]", "[hidden]\nrooms = [8, 9]\n\n[[tracks]]", 1), tmp_path)
+    rooms = {int(h.rsplit("-r", 1)[1]) for ids in challenge_houses(narrowed).values() for h in ids}
+    assert rooms <= {8, 9} and HOUSE_CONFIG.min_rooms == 8
+
+
+# ---------------------------------------------------------------------- episodes
+def test_fresh_runs_never_play_the_same_episodes(
+    trust_server: LocalServer, trust_challenge: Path, database: str, new_team: Callable[[str], str]
+) -> None:
+    client = Client(trust_server.url, token=new_team("prober"))
+    runs = [
+        client.create_run(CreateRun("std", "test-standard", f"probe {i}", ["rgb"]))
+        for i in range(2)
+    ]
+    views = [first_views(client, run.run_id, 3) for run in runs]
+    assert len(set(views[0])) == 3 and not set(views[0]) & set(views[1])
+    # a fixed phase (opted in for paired comparisons) plays one set, reordered
+    paired = [
+        client.create_run(CreateRun("std", "paired", f"paired {i}", ["rgb"])) for i in range(2)
+    ]
+    fixed = [first_views(client, run.run_id, 3) for run in paired]
+    assert sorted(fixed[0]) == sorted(fixed[1])
+    # replay and re-scoring stay exact for fresh runs
+    challenge = load_challenge(trust_challenge)
+    db = Database.open(database)
+    try:
+        with db.sessions() as session:
+            for run in runs:
+                report = rescore(session, challenge, run.run_id, write=False)
+                assert report["episodes"] == 3 and report["differences"] == []
+    finally:
+        db.close()
+    info = client.challenge()
+    phases = {p["name"]: p["episodes_per_run"] for p in info["tracks"][0]["phases"]}
+    assert phases == {"minival": "fixed", "test-standard": "fresh", "paired": "fixed"}
+
+
+def test_aggregate_phases_send_no_end_reason_that_leaks_a_result(
+    trust_server: LocalServer, new_team: Callable[[str], str]
+) -> None:
+    client = Client(trust_server.url, token=new_team("curious"))
+    test = client.create_run(CreateRun("std", "test-standard", "curious", ["goal"]))
+    client.start_episode(test.run_id, 0)
+    found = client.run_step(test.run_id, 0, 1, 0)
+    assert found.done and found.end_reason is None and found.metrics is None
+    with pytest.raises(errors.EpisodeOver) as over:  # nor does the error name it
+        client.run_step(test.run_id, 0, 2, 1)
+    assert "success" not in over.value.message and "wrong_found" not in over.value.message
+    client.start_episode(test.run_id, 1)
+    answer = None
+    for seq in range(1, 9):  # turning until the step limit: that the participant knows
+        answer = client.run_step(test.run_id, 1, seq, 2)
+    assert answer is not None and answer.done and answer.end_reason == "max_steps"
+    minival = client.create_run(CreateRun("std", "minival", "curious", ["goal"]))
+    client.start_episode(minival.run_id, 0)
+    shown = client.run_step(minival.run_id, 0, 1, 0)
+    assert shown.end_reason in ("success", "wrong_found") and shown.metrics is not None
+
+
+def test_a_refunded_run_shows_nothing_and_names_no_internal_id(
+    trust_server: LocalServer, new_team: Callable[[str], str]
+) -> None:
+    client = Client(trust_server.url, token=new_team("breaker"))
+    run = client.create_run(CreateRun("std", "test-standard", "breaker-method", ["goal"]))
+    client.start_episode(run.run_id, 0)
+    assert client.run_step(run.run_id, 0, 1, 0).done  # one episode recorded
+    client.start_episode(run.run_id, 1)
+    for worker in client.health()["workers"]:
+        os.kill(worker["pid"], signal.SIGKILL)
+    with pytest.raises(errors.WorkerFailed) as failed:
+        client.run_step(run.run_id, 1, 1, 1)
+    assert "refunded" in failed.value.message
+    assert not re.search(r"[0-9a-f]{16}", failed.value.message)  # no session or run id
+    status = client.run_status(run.run_id)
+    assert status.state == "failed" and status.refunded
+    assert status.results is None and status.episodes is None
+    listed = next(r for r in client.list_runs() if r.run_id == run.run_id)
+    assert listed.results is None
+    deadline = time.monotonic() + 30
+    while client.health()["status"] != "ok":
+        assert time.monotonic() < deadline
+        time.sleep(0.2)
+    with httpx.Client(base_url=trust_server.url) as web:
+        page = web.get(f"/leaderboard/runs/{run.run_id}").text
+        assert "refunded and shows nothing" in page and "Results over" not in page
+        team_page = web.get("/leaderboard/teams/breaker").text
+        row = team_page.split(f'data-run="{run.run_id}"', 1)[1].split("</tr>", 1)[0]
+        assert "breaker-method" in row and "%" not in row
+        assert "breaker-method" not in web.get("/leaderboard").text
+
+
+# ---------------------------------------------------------------------- capacity
+def plain_config() -> dict[str, Any]:
+    return {
+        "task": {"num_goals": 1},
+        "camera": {"width": 16, "height": 16},
+        "sensors": ["goal"],
+        "split": "val",
+    }
+
+
+def start(trust_challenge: Path, database: str, *options: str) -> LocalServer:
+    env = {"MULTION_LEADERBOARD_WARM_UP": "false", "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0"}
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        server = LocalServer(
+            options=["--challenge", str(trust_challenge), "--database", database, *options]
+        )
+        return server.start()
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def test_plain_sessions_cannot_take_what_runs_need(
+    trust_challenge: Path, database: str, new_team: Callable[[str], str]
+) -> None:
+    server = start(
+        trust_challenge, database, "--max-sessions", "10", "--sessions-per-client", "100",
+        "--worker-memory-mb", "2048",
+    )  # fmt: skip
+    try:
+        anonymous = Client(server.url)
+        held = []
+        with pytest.raises(errors.LimitExceeded) as full:
+            for _ in range(12):  # a client with no token opens all it can
+                held.append(anonymous.create_session(plain_config()))
+        assert "kept for" in full.value.message
+        assert 1 <= len(held) <= 5  # half of the memory and of the 10 session slots
+        team = Client(server.url, token=new_team("squeezed"))
+        run = team.create_run(CreateRun("std", "minival", "squeezed", ["goal"]))
+        team.start_episode(run.run_id, 0)
+        assert team.run_step(run.run_id, 0, 1, 0).done  # runs still play
+    finally:
+        server.stop()
+
+
+def test_plain_sessions_per_client_off_and_token(
+    trust_challenge: Path, database: str, new_team: Callable[[str], str]
+) -> None:
+    server = start(trust_challenge, database, "--sessions-per-client", "2")
+    try:
+        anonymous = Client(server.url)
+        for _ in range(2):
+            anonymous.create_session(plain_config())
+        with pytest.raises(errors.TooManySessions, match="sessions_per_client = 2"):
+            anonymous.create_session(plain_config())
+    finally:
+        server.stop()
+    server = start(trust_challenge, database, "--sessions", "off")
+    try:
+        with pytest.raises(errors.SessionsNotAllowed, match="--sessions off"):
+            Client(server.url).create_session(plain_config())
+        team = Client(server.url, token=new_team("runs-only"))
+        run = team.create_run(CreateRun("std", "minival", "runs-only", ["goal"]))
+        team.start_episode(run.run_id, 0)
+    finally:
+        server.stop()
+    server = start(trust_challenge, database, "--sessions", "token")
+    try:
+        with pytest.raises(errors.Unauthorized):
+            Client(server.url).create_session(plain_config())
+        member = Client(server.url, token=new_team("member"))
+        assert member.create_session(plain_config()).session_id
+    finally:
+        server.stop()
