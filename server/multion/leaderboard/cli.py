@@ -27,7 +27,10 @@ import os
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from multion.leaderboard.challenge import Challenge
 
 DEFAULT_DATABASE = "sqlite:///leaderboard.db"
 
@@ -131,16 +134,33 @@ def _check(args: argparse.Namespace) -> int:
         f"{args.challenge}: challenge {challenge.name!r}, {len(challenge.tracks)} tracks, {phases} phases: OK"
     )
     if args.generate:
-        from multion.leaderboard.hidden import generate_hidden_episodes
-
-        for track in challenge.tracks:
-            for phase in track.phases:
-                episodes = generate_hidden_episodes(challenge, track, phase)
-                scenes = len({e.scene_id for e in episodes})
-                print(
-                    f"  {track.name}/{phase.name}: {len(episodes)} episodes in {scenes} hidden houses"
-                )
+        _generate(challenge)
     return 0
+
+
+def _generate(challenge: Challenge) -> None:
+    """Build every phase's hidden houses and episodes; their statistics beside val's."""
+    from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
+    from multion.leaderboard.house_stats import HEADER, house_stats, val_stats
+
+    hidden = HiddenEpisodes(challenge, in_subprocess=False)
+    rows = [val_stats().row("packaged val (calibrated)")]
+    for track in challenge.tracks:
+        for phase in track.phases:
+            houses = hidden.houses[(track.name, phase.name)]
+            if phase.episode_set == "fixed":
+                count = len(hidden.phase_set(track, phase))
+                what = f"{count} episodes (one fixed set)"
+            else:  # a probe run's first episodes: each run draws its own
+                probe = RunDraw("check", "fresh", tuple(range(phase.episodes)))
+                count = min(phase.episodes, 10)
+                for position in range(count):
+                    hidden.episode(track, phase, probe, position)
+                what = f"{count} of a probe run's {phase.episodes} fresh episodes drawn"
+            print(f"  {track.name}/{phase.name}: {what} in {len(houses)} hidden houses")
+            rows.append(house_stats(houses).row(f"{track.name}/{phase.name}"))
+    print(HEADER)
+    print("\n".join(rows))
 
 
 def _tracks(args: argparse.Namespace) -> int:

@@ -1,0 +1,65 @@
+"""How hidden houses compare with the packaged val houses: the same benchmark, or an easier one?
+
+``multion leaderboard check --generate`` prints one row per (track, phase) beside val's: rooms,
+footprint and navigable share, the numbers the houses were calibrated on (issue 12).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from multion.scenes.registry import layout_for, scene_ids
+from multion.sim.simulator import Simulator
+
+
+@dataclass(frozen=True)
+class HouseStats:
+    """Summary of a set of procedural houses."""
+
+    houses: int
+    rooms: tuple[int, int, float]
+    """min, max, mean room count (corridors included)."""
+    footprint_m2: tuple[float, float, float]
+    """min, max, mean footprint area."""
+    navigable: float
+    """Mean navigable share of the footprint."""
+
+    def row(self, name: str) -> str:
+        r, f = self.rooms, self.footprint_m2
+        return (
+            f"{name:<28}{self.houses:>7}{r[0]:>6}–{r[1]:<3}{r[2]:>6.1f}"
+            f"{f[2]:>8.0f} ({f[0]:.0f}–{f[1]:.0f}){100 * self.navigable:>9.1f}"
+        )
+
+
+HEADER = f"{'houses of':<28}{'count':>7}{'rooms':>10}{'mean':>6}{'m² mean (range)':>20}{'nav %':>9}"
+
+
+def house_stats(houses: Sequence[str]) -> HouseStats:
+    """Rooms, footprint and navigable share of ``houses`` (builds them: seconds each)."""
+    rooms, areas, shares = [], [], []
+    simulator = Simulator()
+    try:
+        for house in houses:
+            meta = layout_for(house).metadata
+            grid = simulator.load_scene(house)
+            area = float(meta["footprint_area"])
+            rooms.append(int(meta["room_count"]))
+            areas.append(area)
+            shares.append(float(grid.navigable.sum()) * grid.cell_size**2 / area)
+    finally:
+        simulator.close()
+    return HouseStats(
+        len(houses),
+        (min(rooms), max(rooms), float(np.mean(rooms))),
+        (min(areas), max(areas), float(np.mean(areas))),
+        float(np.mean(shares)),
+    )
+
+
+def val_stats() -> HouseStats:
+    """The packaged val houses' (the calibrated benchmark)."""
+    return house_stats(scene_ids("val"))
