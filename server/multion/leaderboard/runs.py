@@ -28,12 +28,12 @@ from typing import Any
 
 from sqlalchemy import select
 
-from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.sessions import SessionRegistry
-from multion.leaderboard.challenge import Challenge, Phase, Track
+from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
 from multion.leaderboard.live_run import LiveRun, draw_of
 from multion.leaderboard.models import Run, utcnow
+from multion.leaderboard.run_request import checked_request, track_phase
 from multion.leaderboard.run_store import (
     EpisodeResult,
     RunMoved,
@@ -83,21 +83,8 @@ class RunService:
     async def create(self, team_id: int, message: CreateRun) -> RunInfo:
         """Start a run (the quota is debited here); runs of the team ``baselines`` are marked
         baselines by :func:`run_store.create_run`."""
-        track, phase = self._track_phase(message.track, message.phase)
-        sensors = tuple(message.sensors or track.allowed_sensors)
-        refused = [s for s in sensors if s not in track.allowed_sensors]
-        if refused:
-            raise errors.NotAllowedInRun(
-                f"track {track.name!r} ({track.kind}) does not allow sensor(s) {refused}; it "
-                f"allows {list(track.allowed_sensors)}"
-            )
-        if message.maps and not {"oracle_map", "oracle_ego_map"} & set(track.allowed_sensors):
-            raise errors.NotAllowedInRun(f"track {track.name!r} has no oracle maps to configure")
-        config = track.env_config(phase, sensors, message.maps)
-        try:
-            session_config_from_dict(config)
-        except ConfigError as error:
-            raise errors.InvalidConfig(str(error)) from None
+        request = checked_request(self.challenge, message)
+        track, phase, sensors = request.track, request.phase, request.sensors
         run_id = self.registry.settings.new_id()  # NAME-<hex> on a named replica, ≤ 32
         if phase.episode_set == "fixed":
             fixed = await asyncio.to_thread(self.hidden.phase_set, track, phase)
@@ -106,6 +93,7 @@ class RunService:
             order = list(range(phase.episodes))
         draw = RunDraw(run_id, phase.episode_set, tuple(order))
         episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
+        first = await asyncio.to_thread(self.hidden.episode, track, phase, draw, 0)
         row = Run(
             id=run_id,
             team_id=team_id,
@@ -124,9 +112,13 @@ class RunService:
         async with self._creating:
             await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
         live = LiveRun.of(row, track, phase, episode_ids)
+        live.episode = first
         self.live[run_id] = live
         async with live.lock:
             info = await self._open_session(live)
+            # the first step budget starts now, with the run ready (opening took a while)
+            live.state.deadline = self._deadline()
+            await self._save(live, [])
         limits = self.challenge.describe()["limits"]
         return RunInfo(
             run_id=run_id,
@@ -319,19 +311,6 @@ class RunService:
             await self._save(live, results)
 
     # ------------------------------------------------------------------ internals
-    def _track_phase(self, track_name: str, phase_name: str) -> tuple[Track, Phase]:
-        track = self.challenge.track(track_name)
-        if track is None:
-            names = [t.name for t in self.challenge.tracks]
-            raise errors.UnknownTrack(f"no track {track_name!r}; tracks are {names}")
-        phase = track.phase(phase_name)
-        if phase is None:
-            names = [p.name for p in track.phases]
-            raise errors.UnknownTrack(
-                f"track {track_name!r} has no phase {phase_name!r}; phases are {names}"
-            )
-        return track, phase
-
     async def _get_live(self, team_id: int, run_id: str) -> LiveRun:
         live = self.live.get(run_id) or self.ended.get(run_id)
         if live is not None:
@@ -343,7 +322,7 @@ class RunService:
             raise errors.RunNotFound(f"no run {run_id!r} for this team")
         if row.state != "running":
             raise errors.RunOver(_over(row.state, row.end_reason))
-        track, phase = self._track_phase(row.track, row.phase)
+        track, phase = track_phase(self.challenge, row.track, row.phase)
         episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw_of(row))
         live = self.live.setdefault(run_id, LiveRun.of(row, track, phase, episode_ids))
         return live
