@@ -46,6 +46,7 @@ camera = {{ width = {size}, height = {size} }}
 name = "minival"
 episodes = 4
 houses = 1
+episodes_per_run = "fixed"   # the session plays the same episodes inline
 """
 
 
