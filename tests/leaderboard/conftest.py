@@ -123,7 +123,10 @@ def new_team(database: str) -> Callable[[str], str]:
 
 
 def start_server(
-    challenge_file: Path, database: str, extra_env: dict[str, str] | None = None
+    challenge_file: Path,
+    database: str,
+    extra_env: dict[str, str] | None = None,
+    options: tuple[str, ...] = (),
 ) -> LocalServer:
     """A real server with the leaderboard on; tokens are checked at every request."""
     env = {
@@ -137,7 +140,7 @@ def start_server(
     try:
         server = LocalServer(
             options=["--challenge", str(challenge_file), "--database", database,
-                     "--max-request-bytes", "65536"],
+                     "--max-request-bytes", "65536", *options],
         )  # fmt: skip
         return server.start()
     finally:

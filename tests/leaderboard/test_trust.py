@@ -228,30 +228,14 @@ def plain_config() -> dict[str, Any]:
     }
 
 
-def start(trust_challenge: Path, database: str, *options: str) -> LocalServer:
-    env = {"MULTION_LEADERBOARD_WARM_UP": "false", "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0"}
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    try:
-        server = LocalServer(
-            options=["--challenge", str(trust_challenge), "--database", database, *options]
-        )
-        return server.start()
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
 def test_plain_sessions_cannot_take_what_runs_need(
-    trust_challenge: Path, database: str, new_team: Callable[[str], str]
+    trust_challenge: Path,
+    database: str,
+    new_team: Callable[[str], str],
+    launch: Callable[..., LocalServer],
 ) -> None:
-    server = start(
-        trust_challenge, database, "--max-sessions", "10", "--sessions-per-client", "100",
-        "--worker-memory-mb", "2048",
-    )  # fmt: skip
+    options = ("--max-sessions", "10", "--sessions-per-client", "100", "--worker-memory-mb", "2048")
+    server = launch(trust_challenge, database, options=options)
     try:
         anonymous = Client(server.url)
         held = []
@@ -269,9 +253,12 @@ def test_plain_sessions_cannot_take_what_runs_need(
 
 
 def test_plain_sessions_per_client_off_and_token(
-    trust_challenge: Path, database: str, new_team: Callable[[str], str]
+    trust_challenge: Path,
+    database: str,
+    new_team: Callable[[str], str],
+    launch: Callable[..., LocalServer],
 ) -> None:
-    server = start(trust_challenge, database, "--sessions-per-client", "2")
+    server = launch(trust_challenge, database, options=("--sessions-per-client", "2"))
     try:
         anonymous = Client(server.url)
         for _ in range(2):
@@ -280,7 +267,7 @@ def test_plain_sessions_per_client_off_and_token(
             anonymous.create_session(plain_config())
     finally:
         server.stop()
-    server = start(trust_challenge, database, "--sessions", "off")
+    server = launch(trust_challenge, database, options=("--sessions", "off"))
     try:
         with pytest.raises(errors.SessionsNotAllowed, match="--sessions off"):
             Client(server.url).create_session(plain_config())
@@ -289,7 +276,7 @@ def test_plain_sessions_per_client_off_and_token(
         team.start_episode(run.run_id, 0)
     finally:
         server.stop()
-    server = start(trust_challenge, database, "--sessions", "token")
+    server = launch(trust_challenge, database, options=("--sessions", "token"))
     try:
         with pytest.raises(errors.Unauthorized):
             Client(server.url).create_session(plain_config())
