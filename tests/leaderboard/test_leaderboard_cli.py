@@ -33,7 +33,7 @@ def test_admin_submit_baselines_export_replay(
 ) -> None:
     db = ["--database", database]
     code, out, _ = run_cli(capsys, "leaderboard", "init", *db)
-    assert code == 0 and "schema 0001" in out
+    assert code == 0 and "schema 0002" in out
     code, out, _ = run_cli(capsys, "leaderboard", "tracks", "--challenge", str(challenge_file))
     assert code == 0 and "minival: 3 episodes" in out and "1 total" in out
     code, out, _ = run_cli(capsys, "leaderboard", "team", "add", "Lab One", *db)
@@ -53,8 +53,7 @@ def test_admin_submit_baselines_export_replay(
 
     # baselines on the oracle track's minival, through the same protocol
     code, out, err = run_cli(capsys, "leaderboard", "baselines", "--server", server.url,
-                             "--challenge", str(challenge_file), *db, "--track", "1-on-oracle",
-                             "--phase", "minival", "--quiet")  # fmt: skip
+                             *db, "--track", "1-on-oracle", "--phase", "minival", "--quiet")  # fmt: skip
     assert code == 0, err
     code, out, _ = run_cli(capsys, "leaderboard", "runs", *db, "--track", "1-on-oracle")
     names = [line.split("  ")[3] for line in out.strip().splitlines()]

@@ -19,7 +19,7 @@ from multion.leaderboard.challenge import Challenge, load_challenge
 from multion.leaderboard.routes import TokenCache, router
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
-from multion.leaderboard.storage import Database
+from multion.leaderboard.storage import Database, check_secret
 from multion.leaderboard.web.pages import install_pages
 from multion.leaderboard.web.pictures import EpisodePictures
 
@@ -27,8 +27,16 @@ log = logging.getLogger("multion.leaderboard")
 
 
 def check_leaderboard(app: FastAPI, settings: LeaderboardSettings) -> Challenge:
-    """Read the challenge (ChallengeError on a bad file) and add the routes and web pages."""
+    """Read the challenge (ChallengeError on a bad file), open (create or upgrade) the database
+    and check it was used with the same secret (StorageError if not), and add the routes and
+    web pages."""
     challenge = load_challenge(settings.challenge)
+    db = Database.open(settings.database)
+    try:
+        with db.sessions.begin() as session:
+            check_secret(session, challenge.secret)
+    finally:
+        db.close()
     app.include_router(router)
     install_pages(app)
     return challenge

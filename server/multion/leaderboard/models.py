@@ -134,3 +134,16 @@ class EpisodeRecord(Base):
     seconds: Mapped[float] = mapped_column(Float, default=0.0)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     run: Mapped[Run] = relationship(back_populates="episodes")
+
+
+class SecretFingerprint(Base):
+    """A fingerprint of the challenge secret the database's runs were played with (one row).
+
+    HMAC-SHA256 of a fixed label keyed by the secret: it tells whether a server is started with
+    the same secret, and reveals nothing about the secret itself."""
+
+    __tablename__ = "secret_fingerprint"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    fingerprint: Mapped[str] = mapped_column(String(64))
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
