@@ -50,6 +50,7 @@ async def leaderboard_lifespan(
     db = await asyncio.to_thread(Database.open, settings.database)
     service = RunService(challenge, db, registry)
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
+    app.state.docs_url = settings.docs_url
     app.state.episode_pictures = pictures = EpisodePictures()
     tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
     if settings.warm_up:
