@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import io
 import re
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -20,7 +21,7 @@ def get(server: Any, path: str) -> httpx.Response:
 def board(page: str, track: str, phase: str) -> str:
     """The HTML of one board section."""
     match = re.search(
-        rf'<section class="board" id="{track}-{phase}".*?</section>', page, flags=re.S
+        rf'<section class="board" id="board-{track}-{phase}".*?</section>', page, flags=re.S
     )
     assert match, f"no board {track}/{phase}"
     return match.group(0)
@@ -91,7 +92,7 @@ def test_a_run_page_shows_its_results_breakdowns_and_pictures(
         assert f"[{percent(value['low'])}, {percent(value['high'])}]" in row
     assert "Per house" in page and "house 1 (1 rooms)" in page
     assert len(re.findall(r"<tr data-position=", page)) == run.summary["episodes"]
-    pictures = re.findall(rf'src="(/leaderboard/runs/{run.run_id}/episodes/\d+\.png)"', page)
+    pictures = drawn_pictures(server, run.run_id)
     assert 1 <= len(pictures) <= 3
     answer = get(server, pictures[0])
     assert answer.status_code == 200 and answer.headers["content-type"] == "image/png"
@@ -105,6 +106,19 @@ def test_a_run_page_shows_its_results_breakdowns_and_pictures(
     assert ".png" not in standard
     picture = f"/leaderboard/runs/{played['standard'].run_id}/episodes/0.png"
     assert get(server, picture).status_code == 404
+
+
+def drawn_pictures(server: Any, run_id: str, timeout_s: float = 180.0) -> list[str]:
+    """The picture addresses of a run page, once the background drawer has drawn them (until
+    then the page says they are being drawn and has no image)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        page = get(server, f"/leaderboard/runs/{run_id}").text
+        pictures = re.findall(rf'src="(/leaderboard/runs/{run_id}/episodes/\d+\.png)"', page)
+        if "being drawn" not in page:
+            return pictures
+        assert time.monotonic() < deadline, "the run's pictures were not drawn in time"
+        time.sleep(0.5)
 
 
 def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None:

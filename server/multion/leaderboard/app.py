@@ -21,7 +21,7 @@ from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database, check_secret
 from multion.leaderboard.web.pages import install_pages
-from multion.leaderboard.web.pictures import EpisodePictures
+from multion.leaderboard.web.pictures import PictureDrawer
 
 log = logging.getLogger("multion.leaderboard")
 
@@ -51,8 +51,11 @@ async def leaderboard_lifespan(
     service = RunService(challenge, db, registry)
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
     app.state.docs_url = settings.docs_url
-    app.state.episode_pictures = pictures = EpisodePictures()
-    tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
+    pictures = PictureDrawer(challenge, db, lambda t, p, r: service.hidden.get(t, p)[r.episode_index])
+    tasks = [
+        asyncio.create_task(service.expire_forever(settings.expire_interval_s)),
+        asyncio.create_task(pictures.draw_forever(settings.picture_interval_s)),
+    ]
     if settings.warm_up:
         tasks.append(asyncio.create_task(_warm_up(service)))
     try:

@@ -19,11 +19,11 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from multion.leaderboard.hidden import hidden_houses
-from multion.leaderboard.models import EpisodeRecord, utcnow
+from multion.leaderboard.models import EpisodePicture, EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
 from multion.leaderboard.web.charts import best_over_time
-from multion.leaderboard.web.pictures import EpisodePictures, EpisodeReplay, pictured
+from multion.leaderboard.web.pictures import DISPLAY_SCALE, pictured, stored_pictures
 
 HERE = Path(__file__).resolve().parent
 GUIDE = HERE.parents[3] / "docs" / "leaderboard.md"
@@ -122,34 +122,42 @@ async def guide(request: Request) -> HTMLResponse:
 @router.api_route("/leaderboard/runs/{run_id}", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def run_page(run_id: str, request: Request) -> HTMLResponse:
     service = _service(request)
-    page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
+
+    def read(session: Any) -> tuple[queries.RunPage | None, dict[int, EpisodePicture]]:
+        page = queries.run_page(session, service.challenge, run_id, utcnow())
+        drawn = stored_pictures(session, run_id) if page is not None and page.per_episode else {}
+        return page, drawn
+
+    page, drawn = await _read(request, read)
     if page is None:
         return _not_found(request, f"run {run_id}")
     houses: list[queries.Breakdown] = []
-    pictures: list[EpisodeRecord] = []
+    pictures: list[tuple[EpisodeRecord, EpisodePicture | None]] = []
     if page.per_episode and page.track is not None and page.phase is not None:
         hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
         houses = queries.breakdown(page.records, _house_labels(service, page, hidden))
-        pictures = pictured(page.records)
-    return _page(request, "run.html", page=page, houses=houses, pictures=pictures)
+        pictures = [(r, drawn.get(r.position)) for r in pictured(page.records)]
+    return _page(
+        request, "run.html", page=page, houses=houses, pictures=pictures, scale=DISPLAY_SCALE
+    )
 
 
 @router.get("/leaderboard/runs/{run_id}/episodes/{position}.png")
 async def episode_picture(run_id: str, position: int, request: Request) -> Response:
-    """The picture of one of the first episodes of a run on a phase with per-episode feedback."""
+    """A stored picture of one of a run's first episodes (drawn when the run ended; nothing is
+    drawn here, so a burst of requests costs only database reads)."""
     service = _service(request)
-    page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
-    shown = pictured(page.records) if page is not None else []
-    record = next((r for r in shown if r.position == position), None)
-    if page is None or record is None or page.track is None or page.phase is None:
+
+    def read(session: Any) -> bytes | None:
+        page = queries.run_page(session, service.challenge, run_id, utcnow())
+        if page is None or not page.per_episode:
+            return None
+        found = stored_pictures(session, run_id).get(position)
+        return found.png if found is not None else None
+
+    png = await _read(request, read)
+    if png is None:
         return _not_found(request, f"a picture of episode {position} of run {run_id}")
-    hidden = await asyncio.to_thread(service.hidden.get, page.track, page.phase)
-    pictures: EpisodePictures = request.app.state.episode_pictures
-    replay = EpisodeReplay(
-        page.track, page.phase, dict(page.run.maps or {}), hidden[record.episode_index],
-        record.actions, record.metrics, f"episode {position + 1}",
-    )  # fmt: skip
-    png = await pictures.get((run_id, position), replay)
     headers = {**SECURITY_HEADERS, "Cache-Control": "public, max-age=86400"}
     return Response(png, media_type="image/png", headers=headers)
 
