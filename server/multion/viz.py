@@ -148,10 +148,13 @@ def _scale_bar(draw: ImageDraw.ImageDraw, frame: PictureFrame, font) -> None:
     """A 1 m bar in the lower-left corner."""
     ppm = frame.pixels_per_metre
     _, height = frame.image_size
+    left, top, right, bottom = draw.textbbox((0, 0), "1 m", font=font)
     x0, y = 8, height - 10
-    draw.rectangle([x0 - 3, y - 16, x0 + ppm + 24, y + 5], fill=(255, 255, 255))
+    draw.rectangle(
+        [x0 - 3, y - (bottom - top) - 6, x0 + ppm + (right - left) + 10, y + 5], fill=(255, 255, 255)
+    )
     draw.line([(x0, y), (x0 + ppm, y)], fill=TEXT, width=3)
-    draw.text((x0 + ppm + 3, y - 12), "1 m", fill=TEXT, font=font)
+    draw.text((x0 + ppm + 5 - left, y - (bottom - top) - top + 2), "1 m", fill=TEXT, font=font)
 
 
 def _caption(draw: ImageDraw.ImageDraw, frame: PictureFrame, text: str, font) -> None:

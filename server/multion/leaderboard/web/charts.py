@@ -24,7 +24,7 @@ SCORE_STEPS = (1, 2, 5, 10, 20, 25)
 TIME_STEPS = tuple(
     dt.timedelta(**unit)
     for unit in (
-        {"minutes": 1}, {"minutes": 5}, {"minutes": 15}, {"minutes": 30}, {"hours": 1},
+        {"seconds": 1}, {"seconds": 5}, {"seconds": 15}, {"seconds": 30}, {"minutes": 1}, {"minutes": 5}, {"minutes": 15}, {"minutes": 30}, {"hours": 1},
         {"hours": 3}, {"hours": 6}, {"hours": 12}, {"days": 1}, {"days": 2}, {"days": 7},
         {"days": 14}, {"days": 30}, {"days": 91}, {"days": 365},
     )
@@ -54,12 +54,15 @@ def time_ticks(t0: dt.datetime, t1: dt.datetime) -> list[dt.datetime]:
     return ticks or [t0]
 
 
-def _time_label(t: dt.datetime, previous: dt.datetime | None, with_time: bool) -> str:
-    if not with_time:
+def _time_label(t: dt.datetime, previous: dt.datetime | None, span: dt.timedelta) -> str:
+    """Dates for long spans, times (with seconds under 5 minutes) for short ones; the date
+    is written on the first tick of each day."""
+    if span >= dt.timedelta(days=2):
         return f"{t:%Y-%m-%d}" if previous is None or previous.year != t.year else f"{t:%m-%d}"
+    clock = f"{t:%H:%M:%S}" if span < dt.timedelta(minutes=5) else f"{t:%H:%M}"
     if previous is None or previous.date() != t.date():
-        return f"{t:%m-%d %H:%M}"
-    return f"{t:%H:%M}"
+        return f"{t:%m-%d} {clock}"
+    return clock
 
 
 def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
@@ -100,14 +103,13 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
     parts.append(f'<line x1="{LEFT}" y1="{bottom}" x2="{WIDTH - RIGHT}" y2="{bottom}" class="axis"/>')
     parts.append(f'<line x1="{LEFT}" y1="{TOP}" x2="{LEFT}" y2="{bottom}" class="axis"/>')
     marks = [times[0]] if single else time_ticks(t0, t1)
-    with_time = (t1 - t0) < dt.timedelta(days=2)
     previous = None
     for t in marks:
         tx = x(t)
         parts.append(f'<line x1="{tx:.1f}" y1="{bottom}" x2="{tx:.1f}" y2="{bottom + 4}" class="axis"/>')
         parts.append(
             f'<text x="{tx:.1f}" y="{bottom + 16}" text-anchor="middle" class="tick">'
-            f"{_time_label(t, previous, with_time)}</text>"
+            f"{_time_label(t, previous, t1 - t0)}</text>"
         )
         previous = t
     parts.append(

@@ -43,8 +43,9 @@ from multion.task.episode import Episode
 log = logging.getLogger("multion.leaderboard.pictures")
 
 PICTURES_PER_RUN = 3
-PIXELS_PER_METRE = 64
-"""Drawing scale; pages show pictures at half their pixel size (32 CSS px per metre)."""
+PIXELS_PER_METRE = 80
+"""Drawing scale; pages show pictures at half their pixel size (40 CSS px per metre, room
+labels and captions 12 CSS px high)."""
 DISPLAY_SCALE = 2
 DRAWER_MEMORY_BYTES = 3 * 2**30
 """Address-space limit of the drawing process (a house of 16 rooms needs well under a GiB)."""
