@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -82,19 +83,9 @@ def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFr
         if box.kind == "wall":
             (x0, y0, _), (x1, y1, _) = box.min_corner, box.max_corner
             draw.rectangle(_rect_pixels(x0, y0, x1, y1, frame), fill=WALL)
-    obstacles = [
-        _rect_pixels(b.min_corner[0], b.min_corner[1], b.max_corner[0], b.max_corner[1], frame)
-        for b in furniture
-    ]
     font = label_font(frame)
-    placed: list[list[float]] = []
-    for room in layout.rooms:  # room type where it covers the least furniture
-        text = room.room_type.replace("_", " ")
-        left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
-        box = place_label(
-            _rect_pixels(*room.rect, frame), (right - left + 4, bottom - top + 4), obstacles, placed
-        )
-        placed.append(box)
+    for text, box in room_labels(draw, layout, frame, font):
+        left, top, _, _ = draw.textbbox((0, 0), text, font=font)
         draw.rectangle(box, fill=LABEL_PATCH)
         draw.text((box[0] + 2 - left, box[1] + 2 - top), text, fill=ROOM_LABEL, font=font)
     for door in layout.doors:
@@ -102,6 +93,31 @@ def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFr
         dx, dy = (door.width / 2, 0.0) if door.axis == "x" else (0.0, door.width / 2)
         a, b = world_to_pixel(cx - dx, cy - dy, frame), world_to_pixel(cx + dx, cy + dy, frame)
         draw.line([a, b], fill=DOOR, width=max(1, round(frame.pixels_per_metre * 0.04)))
+
+
+def furniture_pixels(layout: SceneLayout, frame: PictureFrame) -> list[list[float]]:
+    """The pixel boxes of the layout's furniture."""
+    return [
+        _rect_pixels(b.min_corner[0], b.min_corner[1], b.max_corner[0], b.max_corner[1], frame)
+        for b in layout.boxes
+        if b.kind == "furniture"
+    ]
+
+
+def room_labels(
+    draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFrame, font: Any
+) -> list[tuple[str, list[float]]]:
+    """Each room's type and the pixel box of its label: where it covers the least furniture,
+    clear of the labels placed before it."""
+    obstacles = furniture_pixels(layout, frame)
+    labels: list[tuple[str, list[float]]] = []
+    for room in layout.rooms:
+        text = room.room_type.replace("_", " ")
+        left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
+        size = (right - left + 4, bottom - top + 4)
+        box = place_label(_rect_pixels(*room.rect, frame), size, obstacles, [b for _, b in labels])
+        labels.append((text, box))
+    return labels
 
 
 def label_font(frame: PictureFrame) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:

@@ -155,3 +155,39 @@ def test_names_are_escaped_and_an_abandoned_run_counts_its_missed_episodes(
     run_page = get(server, f"/leaderboard/runs/{env.run_id}").text
     assert "<script>alert" not in run_page and "&lt;script&gt;alert(" in run_page
     assert "not_played 3" in run_page
+
+
+def test_pages_answer_head_and_ids_start_with_a_letter(
+    server: Any, played: dict[str, PlayedRun]
+) -> None:
+    for path in ("/", "/leaderboard", "/leaderboard/rules", "/leaderboard/teams/alpha",
+                 f"/leaderboard/runs/{played['beta'].run_id}"):  # fmt: skip
+        answer = httpx.head(server.url + path, timeout=60)
+        assert answer.status_code == 200, path
+        assert answer.headers["content-type"].startswith("text/html") and answer.content == b""
+        page = get(server, path).text
+        ids = re.findall(r'\sid="([^"]*)"', page)
+        assert all(re.match(r"[A-Za-z]", i) for i in ids), ids
+        assert all(f'href="#{i}"' not in page or i[0].isalpha() for i in ids)
+    assert "#board-1-on-minival" in get(server, f"/leaderboard/runs/{played['beta'].run_id}").text
+
+
+def test_the_rules_page_links_the_guide_and_says_how_to_get_a_token(server: Any) -> None:
+    rules = get(server, "/leaderboard/rules").text
+    link = re.search(r'<a href="([^"]+)">the participants\' guide</a>', rules)
+    assert link, "no link to the guide"
+    guide = get(server, link.group(1))
+    assert guide.status_code == 200 and "multion submit" in guide.text
+    assert "token" in rules and "MULTION_TOKEN" in rules and "team add" in rules
+    assert f"multion submit --server {server.url}" in rules
+
+
+def test_metric_headings_sort_best_first(server: Any, played: dict[str, PlayedRun]) -> None:
+    page = get(server, "/leaderboard").text
+    minival = board(page, "1-on", "minival")
+    headings = re.findall(r"<th ([^>]*)>([^<]*)</th>", minival)
+    for attributes, name in headings:
+        if name.endswith("%"):  # every score: best (highest) first on the first click
+            assert 'data-first="descending"' in attributes, name
+        if name in ("rank", "team"):
+            assert "data-first" not in attributes

@@ -52,10 +52,9 @@ async def leaderboard_lifespan(
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
     app.state.docs_url = settings.docs_url
     pictures = PictureDrawer(challenge, db, lambda t, p, r: service.hidden.get(t, p)[r.episode_index])
-    tasks = [
-        asyncio.create_task(service.expire_forever(settings.expire_interval_s)),
-        asyncio.create_task(pictures.draw_forever(settings.picture_interval_s)),
-    ]
+    tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
+    if settings.draw_pictures:
+        tasks.append(asyncio.create_task(pictures.draw_forever(settings.picture_interval_s)))
     if settings.warm_up:
         tasks.append(asyncio.create_task(_warm_up(service)))
     try:

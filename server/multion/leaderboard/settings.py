@@ -29,6 +29,9 @@ class LeaderboardSettings(BaseSettings):
         description="where the rules page links the participants' guide (default: the server's "
         "own /leaderboard/guide, docs/leaderboard.md of the source tree it runs from)",
     )
+    draw_pictures: bool = Field(
+        True, description="draw the pictures of ended minival runs in the background"
+    )
     picture_interval_s: float = Field(
         5.0, gt=0, description="how often ended minival runs are looked for to draw their pictures"
     )
