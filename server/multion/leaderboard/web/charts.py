@@ -107,9 +107,15 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
     for t in marks:
         tx = x(t)
         parts.append(f'<line x1="{tx:.1f}" y1="{bottom}" x2="{tx:.1f}" y2="{bottom + 4}" class="axis"/>')
+        label = _time_label(t, previous, t1 - t0)
+        # a long label near an edge starts (or ends) at its tick rather than leaving the chart
+        anchor = "middle"
+        if len(label) > 6 and tx < LEFT + 60:
+            anchor, tx = "start", tx - 4
+        elif len(label) > 6 and tx > WIDTH - RIGHT - 60:
+            anchor, tx = "end", tx + 4
         parts.append(
-            f'<text x="{tx:.1f}" y="{bottom + 16}" text-anchor="middle" class="tick">'
-            f"{_time_label(t, previous, t1 - t0)}</text>"
+            f'<text x="{tx:.1f}" y="{bottom + 16}" text-anchor="{anchor}" class="tick">{label}</text>'
         )
         previous = t
     parts.append(
@@ -151,8 +157,8 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
     ly = legend_y + LEGEND_ROW * len(phases)
     parts.append(
         f'<circle cx="{LEFT + 11}" cy="{ly - 4}" r="3.5" fill="#fff" stroke="#5d6873" stroke-width="1.5"/>'
-        f'<text x="{LEFT + 30}" y="{ly}" class="legend">hollow: the run ended early '
-        "(missing episodes count as failures)</text>"
+        f'<text x="{LEFT + 30}" y="{ly}" class="legend">hollow: ended early (missed episodes '
+        "failed)</text>"
     )
     parts.append("</svg>")
     return "".join(parts)
