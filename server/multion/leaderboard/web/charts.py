@@ -17,7 +17,7 @@ from multion.leaderboard.web.queries import TeamRun
 WIDTH = 560
 PLOT_HEIGHT = 200
 LEFT, RIGHT, TOP, AXIS = 48, 16, 12, 40
-LEGEND_ROW = 18
+LEGEND_ROW = 20
 PHASE_COLOURS = ("#1f6fb2", "#d9731a", "#2a9d55", "#8e44ad", "#c0392b")
 SCORE_STEPS = (1, 2, 5, 10, 20, 25)
 """Percent between score ticks: the smallest giving at most 5 intervals."""

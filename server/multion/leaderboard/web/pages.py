@@ -23,7 +23,12 @@ from multion.leaderboard.models import EpisodePicture, EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
 from multion.leaderboard.web.charts import best_over_time
-from multion.leaderboard.web.pictures import DISPLAY_SCALE, pictured, stored_pictures
+from multion.leaderboard.web.pictures import (
+    DISPLAY_SCALE,
+    picture_png,
+    pictured,
+    stored_pictures,
+)
 
 HERE = Path(__file__).resolve().parent
 GUIDE = HERE.parents[3] / "docs" / "leaderboard.md"
@@ -149,11 +154,7 @@ async def episode_picture(run_id: str, position: int, request: Request) -> Respo
     service = _service(request)
 
     def read(session: Any) -> bytes | None:
-        page = queries.run_page(session, service.challenge, run_id, utcnow())
-        if page is None or not page.per_episode:
-            return None
-        found = stored_pictures(session, run_id).get(position)
-        return found.png if found is not None else None
+        return picture_png(session, service.challenge, run_id, position, utcnow())
 
     png = await _read(request, read)
     if png is None:

@@ -15,6 +15,7 @@ one scale, :data:`PIXELS_PER_METRE`, so text has the same size on every picture.
 from __future__ import annotations
 
 import asyncio
+import datetime as dt
 import io
 import logging
 import multiprocessing
@@ -108,6 +109,28 @@ def stored_pictures(session: Session, run_id: str) -> dict[int, EpisodePicture]:
     """The run's drawn pictures by episode position (failed drawings left out)."""
     rows = session.scalars(select(EpisodePicture).where(EpisodePicture.run_id == run_id))
     return {p.position: p for p in rows if p.png}
+
+
+def picture_png(
+    session: Session, challenge: Challenge, run_id: str, position: int, now: dt.datetime
+) -> bytes | None:
+    """One stored picture, if its run's phase shows episodes now (two short reads: the run's
+    phase and state, then the picture; never the run's episodes)."""
+    found = session.execute(
+        select(Run.track, Run.phase, Run.summary.is_not(None)).where(Run.id == run_id)
+    ).first()
+    if found is None or not found[2]:
+        return None
+    track = challenge.track(found.track)
+    phase = track.phase(found.phase) if track is not None else None
+    if phase is None or phase.feedback != "episodes" or not phase.results_visible(now):
+        return None
+    png = session.scalar(
+        select(EpisodePicture.png).where(
+            EpisodePicture.run_id == run_id, EpisodePicture.position == position
+        )
+    )
+    return png or None
 
 
 def runs_without_pictures(session: Session, challenge: Challenge, limit: int = 20) -> list[Run]:
