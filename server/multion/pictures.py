@@ -21,7 +21,7 @@ from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim.geodesic import distance_field, shortest_path
 from multion.sim.simulator import Simulator
 from multion.task.episode import Episode
-from multion.viz import PictureFrame, picture_frame, scene_picture, world_to_pixel
+from multion.viz import PictureFrame, label_font, picture_frame, scene_picture, world_to_pixel
 from multion_client.constants import GOAL_RGBA
 
 AGENT_PATH = (245, 130, 20)
@@ -84,7 +84,7 @@ def episode_picture(
     _polyline(draw, path, frame, AGENT_PATH, width)
     _start(draw, episode, frame)
     _goals(draw, episode, frame)
-    return _with_legend(image, label or episode.episode_id, metrics)
+    return _with_legend(image, label or episode.episode_id, metrics, label_font(frame))
 
 
 def _polyline(
@@ -106,8 +106,8 @@ def _start(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> 
 
 
 def _goals(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> None:
-    font = ImageFont.load_default()
-    radius = frame.pixels_per_metre * 0.18
+    font = label_font(frame)
+    radius = frame.pixels_per_metre * 0.2
     for number, goal in enumerate(episode.goals, start=1):
         x, y = world_to_pixel(*goal.position[:2], frame)
         fill = _rgb(GOAL_RGBA[goal.category])
@@ -115,10 +115,14 @@ def _goals(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> 
         text = str(number)
         left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
         ink = (255, 255, 255) if sum(fill) < 300 else OUTLINE
-        draw.text((x - (right - left) / 2 - left, y - (bottom - top) / 2 - top), text, fill=ink)
+        draw.text(
+            (x - (right - left) / 2 - left, y - (bottom - top) / 2 - top), text, fill=ink, font=font
+        )
 
 
-def _with_legend(image: Image.Image, label: str, metrics: dict[str, Any]) -> Image.Image:
+def _with_legend(
+    image: Image.Image, label: str, metrics: dict[str, Any], font: ImageFont.ImageFont | Any
+) -> Image.Image:
     """The picture under a white strip with the episode's label and headline metrics (above
     the map, not on it: small houses would be hidden under the text)."""
     lines = [
@@ -132,12 +136,12 @@ def _with_legend(image: Image.Image, label: str, metrics: dict[str, Any]) -> Ima
     ]
     text = "\n".join(lines)
     probe = ImageDraw.Draw(image)
-    left, top, right, bottom = probe.multiline_textbbox((0, 0), text)
+    left, top, right, bottom = probe.multiline_textbbox((0, 0), text, font=font)
     strip = bottom - top + 12
     canvas = Image.new(
         "RGB", (max(image.width, right - left + 12), image.height + strip), (255, 255, 255)
     )
-    ImageDraw.Draw(canvas).multiline_text((6 - left, 6 - top), text, fill=OUTLINE)
+    ImageDraw.Draw(canvas).multiline_text((6 - left, 6 - top), text, fill=OUTLINE, font=font)
     canvas.paste(image, (0, strip))
     return canvas
 

@@ -9,7 +9,9 @@ be added on top of :func:`scene_picture`'s result with the same numbers.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -22,7 +24,8 @@ WALL = (48, 48, 52)
 FURNITURE_EDGE = (150, 95, 60)
 DOOR = (70, 140, 200)
 TEXT = (20, 20, 20)
-ROOM_LABEL = (110, 110, 110)
+ROOM_LABEL = (70, 70, 70)
+LABEL_PATCH = (250, 249, 245)
 
 
 @dataclass(frozen=True)
@@ -80,10 +83,11 @@ def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFr
         if box.kind == "wall":
             (x0, y0, _), (x1, y1, _) = box.min_corner, box.max_corner
             draw.rectangle(_rect_pixels(x0, y0, x1, y1, frame), fill=WALL)
-    for room in layout.rooms:  # room type in its top-left corner
-        x0, y0, x1, y1 = room.rect
-        px, py = world_to_pixel(x0 + 0.1, y1 - 0.1, frame)
-        draw.text((px, py), room.room_type.replace("_", " "), fill=ROOM_LABEL)
+    font = label_font(frame)
+    for text, box in room_labels(draw, layout, frame, font):
+        left, top, _, _ = draw.textbbox((0, 0), text, font=font)
+        draw.rectangle(box, fill=LABEL_PATCH)
+        draw.text((box[0] + 2 - left, box[1] + 2 - top), text, fill=ROOM_LABEL, font=font)
     for door in layout.doors:
         cx, cy = door.center
         dx, dy = (door.width / 2, 0.0) if door.axis == "x" else (0.0, door.width / 2)
@@ -91,14 +95,82 @@ def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFr
         draw.line([a, b], fill=DOOR, width=max(1, round(frame.pixels_per_metre * 0.04)))
 
 
+def furniture_pixels(layout: SceneLayout, frame: PictureFrame) -> list[list[float]]:
+    """The pixel boxes of the layout's furniture."""
+    return [
+        _rect_pixels(b.min_corner[0], b.min_corner[1], b.max_corner[0], b.max_corner[1], frame)
+        for b in layout.boxes
+        if b.kind == "furniture"
+    ]
+
+
+def room_labels(
+    draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFrame, font: Any
+) -> list[tuple[str, list[float]]]:
+    """Each room's type and the pixel box of its label: where it covers the least furniture,
+    clear of the labels placed before it."""
+    obstacles = furniture_pixels(layout, frame)
+    labels: list[tuple[str, list[float]]] = []
+    for room in layout.rooms:
+        text = room.room_type.replace("_", " ")
+        left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
+        size = (right - left + 4, bottom - top + 4)
+        box = place_label(_rect_pixels(*room.rect, frame), size, obstacles, [b for _, b in labels])
+        labels.append((text, box))
+    return labels
+
+
+def label_font(frame: PictureFrame) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    """Text scales with the picture (0.3 m high), so pictures at one scale share a text size."""
+    return ImageFont.load_default(size=max(11, round(0.3 * frame.pixels_per_metre)))
+
+
+def _overlap(a: Sequence[float], b: Sequence[float]) -> float:
+    width = min(a[2], b[2]) - max(a[0], b[0])
+    height = min(a[3], b[3]) - max(a[1], b[1])
+    return max(0.0, width) * max(0.0, height)
+
+
+def place_label(
+    room: Sequence[float],
+    size: tuple[float, float],
+    obstacles: Sequence[Sequence[float]],
+    placed: Sequence[Sequence[float]],
+    steps: int = 8,
+) -> list[float]:
+    """Where a label of ``size`` pixels goes in a ``room`` (pixel box): the spot of a grid of
+    candidates inside it that covers the least furniture, never another label if avoidable;
+    top-left first on equal cover (the usual place on a floor plan)."""
+    margin = 3.0
+    x0, y0 = room[0] + margin, room[1] + margin
+    free_x = max(0.0, room[2] - margin - size[0] - x0)
+    free_y = max(0.0, room[3] - margin - size[1] - y0)
+    best: tuple[float, list[float]] | None = None
+    for j in range(steps + 1):
+        for i in range(steps + 1):
+            box = [x0 + free_x * i / steps, y0 + free_y * j / steps]
+            box += [box[0] + size[0], box[1] + size[1]]
+            cost = sum(_overlap(box, o) for o in obstacles)
+            cost += 1e6 * sum(_overlap(box, p) for p in placed)
+            if best is None or cost < best[0]:
+                best = (cost, box)
+            if cost == 0:
+                return box
+    assert best is not None
+    return best[1]
+
+
 def _scale_bar(draw: ImageDraw.ImageDraw, frame: PictureFrame, font) -> None:
     """A 1 m bar in the lower-left corner."""
     ppm = frame.pixels_per_metre
     _, height = frame.image_size
+    left, top, right, bottom = draw.textbbox((0, 0), "1 m", font=font)
     x0, y = 8, height - 10
-    draw.rectangle([x0 - 3, y - 16, x0 + ppm + 24, y + 5], fill=(255, 255, 255))
+    draw.rectangle(
+        [x0 - 3, y - (bottom - top) - 6, x0 + ppm + (right - left) + 10, y + 5], fill=(255, 255, 255)
+    )
     draw.line([(x0, y), (x0 + ppm, y)], fill=TEXT, width=3)
-    draw.text((x0 + ppm + 3, y - 12), "1 m", fill=TEXT, font=font)
+    draw.text((x0 + ppm + 5 - left, y - (bottom - top) - top + 2), "1 m", fill=TEXT, font=font)
 
 
 def _caption(draw: ImageDraw.ImageDraw, frame: PictureFrame, text: str, font) -> None:
@@ -133,7 +205,7 @@ def scene_picture(
     image = Image.fromarray(np.ascontiguousarray(colours[::-1]), mode="RGB")
     image = image.resize(frame.image_size, Image.Resampling.NEAREST)
     draw = ImageDraw.Draw(image)
-    font = ImageFont.load_default()
+    font = label_font(frame)
     if layout is not None:
         draw_layout(draw, layout, frame)
         if caption:

@@ -133,6 +133,7 @@ def start_server(
         "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
         "MULTION_LEADERBOARD_EXPIRE_INTERVAL_S": "0.2",
         "MULTION_LEADERBOARD_WARM_UP": "false",  # only the phases a test plays are generated
+        "MULTION_LEADERBOARD_PICTURE_INTERVAL_S": "0.5",  # run pictures soon after a run ends
         **(extra_env or {}),
     }
     saved = {k: os.environ.get(k) for k in env}

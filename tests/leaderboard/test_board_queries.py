@@ -77,3 +77,71 @@ def test_the_pages_bench_runs() -> None:
     result = run_pages_bench(runs=12, episodes=3, repeats=2, verbose=False)
     assert set(result) >= {"leaderboard median ms", "run (test-standard) p95 ms"}
     assert all(value > 0 for value in result.values())
+
+
+# ---------------------------------------------------------------------- issue 21: ties
+VALUES = [0.1, 0.2, 0.3, 0.7, 0.05, 0.6, 0.9, 0.33]
+SHUFFLED = [0.1, 0.2, 0.3, 0.05, 0.7, 0.9, 0.6, 0.33]
+
+
+def _records(values: list[float]) -> list[dict[str, Any]]:
+    return [
+        {"ppl": v, "progress": v, "success": float(v > 0.5), "spl": v, "end_reason": "success"}
+        for v in values
+    ]
+
+
+def test_equal_per_episode_values_give_equal_scores_ranks_and_intervals(tmp_path: Path) -> None:
+    import numpy as np
+
+    from multion.leaderboard.results import summarize
+
+    # the same eight values played in another order: float means differ in the last bit
+    assert float(np.mean(VALUES)) != float(np.mean(SHUFFLED))
+    one, other = summarize(_records(VALUES), "ppl"), summarize(_records(SHUFFLED), "ppl")
+    for metric in ("ppl", "progress", "success", "spl"):
+        assert one[metric] == other[metric]  # mean, low and high to the last bit
+
+    path = tmp_path / "challenge.toml"
+    path.write_text(
+        CHALLENGE.format(secret=secrets.token_urlsafe(24)) + TRACK.format(name="1-on", m=1, episodes=8)
+    )
+    challenge = load_challenge(path)
+    url = f"sqlite:///{tmp_path / 'results.db'}"
+    start = dt.datetime(2026, 1, 1, tzinfo=dt.timezone.utc)
+    runs = [  # team, state, minutes after start, values
+        ("early", "finished", 1, VALUES),
+        ("late", "finished", 9, SHUFFLED),
+        ("low", "finished", 0, [v / 2 for v in VALUES]),
+        ("mixed", "ended", 2, VALUES),  # ended first, then a finished run, equal scores
+        ("mixed", "finished", 5, SHUFFLED),
+        ("mixed", "finished", 7, VALUES),
+    ]
+    db = Database.open(url)
+    ids: list[str] = []
+    try:
+        with db.sessions.begin() as session:
+            teams = {name: Team(name=name) for name in dict.fromkeys(t for t, *_ in runs)}
+            session.add_all(teams.values())
+            session.flush()
+            for team, state, minutes, values in runs:
+                ids.append(secrets.token_hex(16))
+                session.add(Run(
+                    id=ids[-1], team_id=teams[team].id, track="1-on", phase="minival",
+                    method=team, sensors=["goal"], maps={}, order=list(range(8)), state=state,
+                    created_at=start, finished_at=start + dt.timedelta(minutes=minutes),
+                    summary=summarize(_records(values), "ppl"),
+                ))  # fmt: skip
+        with db.sessions() as session:
+            board = queries.leaderboards(session, challenge, start + dt.timedelta(days=1))[0]
+            from multion.leaderboard.cli import best_rows, run_rows
+
+            exported = [r["run_id"] for r in best_rows(run_rows(session))
+                        if (r["track"], r["phase"]) == ("1-on", "minival")]  # fmt: skip
+    finally:
+        db.close()
+    by_team = {row.team: row for row in board.rows}
+    assert [row.team for row in board.rows] == ["early", "mixed", "late", "low"]
+    assert [row.rank for row in board.rows] == [1, 1, 1, 4]
+    assert by_team["mixed"].run_id == ids[4]  # finished before ended, then the earliest
+    assert exported == [row.run_id for row in board.rows]  # export --best: same runs, same order

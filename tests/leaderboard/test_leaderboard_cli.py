@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import json
+import sqlite3
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,7 @@ def test_admin_submit_baselines_export_replay(
 ) -> None:
     db = ["--database", database]
     code, out, _ = run_cli(capsys, "leaderboard", "init", *db)
-    assert code == 0 and "schema 0002" in out
+    assert code == 0 and "schema 0004" in out
     code, out, _ = run_cli(capsys, "leaderboard", "tracks", "--challenge", str(challenge_file))
     assert code == 0 and "minival: 3 episodes" in out and "1 total" in out
     code, out, _ = run_cli(capsys, "leaderboard", "team", "add", "Lab One", *db)
@@ -53,8 +54,7 @@ def test_admin_submit_baselines_export_replay(
 
     # baselines on the oracle track's minival, through the same protocol
     code, out, err = run_cli(capsys, "leaderboard", "baselines", "--server", server.url,
-                             "--challenge", str(challenge_file), *db, "--track", "1-on-oracle",
-                             "--phase", "minival", "--quiet")  # fmt: skip
+                             *db, "--track", "1-on-oracle", "--phase", "minival", "--quiet")  # fmt: skip
     assert code == 0, err
     code, out, _ = run_cli(capsys, "leaderboard", "runs", *db, "--track", "1-on-oracle")
     names = [line.split("  ")[3] for line in out.strip().splitlines()]
@@ -98,3 +98,76 @@ def test_the_bench_measures_a_run_against_a_session() -> None:
     result = run_leaderboard_bench(size=16, steps=20, verbose=False, rooms=1)
     assert result["session_sps"] > 0 and result["run_sps"] > 0
     assert result["ratio"] == pytest.approx(result["run_sps"] / result["session_sps"])
+
+
+READ_ONLY = [
+    ["runs"],
+    ["team", "list"],
+    ["token", "list", "Lab One"],
+    ["export", "--out", "results.csv"],
+    ["export", "--best", "--out", "results.json"],
+    ["replay", "0123abcd"],
+    ["baselines", "--server", "http://127.0.0.1:9"],
+]
+
+
+@pytest.mark.parametrize("argv", READ_ONLY, ids=lambda a: " ".join(a[:2]))
+def test_commands_never_create_a_database(
+    argv: list[str],
+    challenge_file: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("MULTION_LEADERBOARD_DATABASE", raising=False)
+    monkeypatch.setenv("MULTION_LEADERBOARD_CHALLENGE", str(challenge_file))
+    code, out, err = run_cli(capsys, "leaderboard", *argv)
+    assert code == 2 and "no leaderboard database at" in err
+    assert "leaderboard.db" in err and "--database" in err and "MULTION_LEADERBOARD_DATABASE" in err
+    assert list(tmp_path.iterdir()) == []  # no database, no empty export
+    # a URL given by the variable is named as such
+    monkeypatch.setenv("MULTION_LEADERBOARD_DATABASE", f"sqlite:///{tmp_path / 'typo.db'}")
+    code, out, err = run_cli(capsys, "leaderboard", *argv)
+    assert code == 2 and "typo.db ($MULTION_LEADERBOARD_DATABASE)" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_changed_secret_is_refused_by_serve_and_replay(
+    launch: Any,
+    make_challenge: Any,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import subprocess
+    import sys
+
+    from conftest import SECRET
+
+    database = f"sqlite:///{tmp_path / 'results.db'}"
+    first = make_challenge(tmp_path)
+    server = launch(first, database)  # stores the secret's fingerprint
+    server.stop()
+    other_dir = tmp_path / "other"
+    other_dir.mkdir()
+    other = make_challenge(other_dir)
+    other.write_text(other.read_text().replace(SECRET, "another-secret-0123456789abcdef"))
+    done = subprocess.run(
+        [sys.executable, "-m", "multion.cli", "serve", "--challenge", str(other),
+         "--database", database, "--port", "9"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "the challenge secret is not the one this database was used with" in done.stdout
+    assert "Traceback" not in done.stdout + done.stderr
+    code, _, err = run_cli(capsys, "leaderboard", "replay", "0123abcd", "--database", database,
+                           "--challenge", str(other))  # fmt: skip
+    assert code == 2 and "the challenge secret is not the one" in err
+    # the database keeps the fingerprint, never the secret
+    with sqlite3.connect(tmp_path / "results.db") as connection:
+        stored = connection.execute("SELECT fingerprint FROM secret_fingerprint").fetchall()
+        dump = "\n".join(connection.iterdump())
+    assert len(stored) == 1 and len(stored[0][0]) == 64
+    assert SECRET not in dump
+    # the original secret still starts
+    launch(first, database).stop()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import io
 import re
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -20,7 +21,7 @@ def get(server: Any, path: str) -> httpx.Response:
 def board(page: str, track: str, phase: str) -> str:
     """The HTML of one board section."""
     match = re.search(
-        rf'<section class="board" id="{track}-{phase}".*?</section>', page, flags=re.S
+        rf'<section class="board" id="board-{track}-{phase}".*?</section>', page, flags=re.S
     )
     assert match, f"no board {track}/{phase}"
     return match.group(0)
@@ -91,7 +92,7 @@ def test_a_run_page_shows_its_results_breakdowns_and_pictures(
         assert f"[{percent(value['low'])}, {percent(value['high'])}]" in row
     assert "Per house" in page and "house 1" in page
     assert len(re.findall(r"<tr data-position=", page)) == run.summary["episodes"]
-    pictures = re.findall(rf'src="(/leaderboard/runs/{run.run_id}/episodes/\d+\.png)"', page)
+    pictures = drawn_pictures(server, run.run_id)
     assert 1 <= len(pictures) <= 3
     answer = get(server, pictures[0])
     assert answer.status_code == 200 and answer.headers["content-type"] == "image/png"
@@ -105,6 +106,19 @@ def test_a_run_page_shows_its_results_breakdowns_and_pictures(
     assert ".png" not in standard
     picture = f"/leaderboard/runs/{played['standard'].run_id}/episodes/0.png"
     assert get(server, picture).status_code == 404
+
+
+def drawn_pictures(server: Any, run_id: str, timeout_s: float = 180.0) -> list[str]:
+    """The picture addresses of a run page, once the background drawer has drawn them (until
+    then the page says they are being drawn and has no image)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        page = get(server, f"/leaderboard/runs/{run_id}").text
+        pictures = re.findall(rf'src="(/leaderboard/runs/{run_id}/episodes/\d+\.png)"', page)
+        if "being drawn" not in page:
+            return pictures
+        assert time.monotonic() < deadline, "the run's pictures were not drawn in time"
+        time.sleep(0.5)
 
 
 def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None:
@@ -141,3 +155,39 @@ def test_names_are_escaped_and_an_abandoned_run_counts_its_missed_episodes(
     run_page = get(server, f"/leaderboard/runs/{env.run_id}").text
     assert "<script>alert" not in run_page and "&lt;script&gt;alert(" in run_page
     assert "not_played 3" in run_page
+
+
+def test_pages_answer_head_and_ids_start_with_a_letter(
+    server: Any, played: dict[str, PlayedRun]
+) -> None:
+    for path in ("/", "/leaderboard", "/leaderboard/rules", "/leaderboard/teams/alpha",
+                 f"/leaderboard/runs/{played['beta'].run_id}"):  # fmt: skip
+        answer = httpx.head(server.url + path, timeout=60)
+        assert answer.status_code == 200, path
+        assert answer.headers["content-type"].startswith("text/html") and answer.content == b""
+        page = get(server, path).text
+        ids = re.findall(r'\sid="([^"]*)"', page)
+        assert all(re.match(r"[A-Za-z]", i) for i in ids), ids
+        assert all(f'href="#{i}"' not in page or i[0].isalpha() for i in ids)
+    assert "#board-1-on-minival" in get(server, f"/leaderboard/runs/{played['beta'].run_id}").text
+
+
+def test_the_rules_page_links_the_guide_and_says_how_to_get_a_token(server: Any) -> None:
+    rules = get(server, "/leaderboard/rules").text
+    link = re.search(r'<a href="([^"]+)">the participants\' guide</a>', rules)
+    assert link, "no link to the guide"
+    guide = get(server, link.group(1))
+    assert guide.status_code == 200 and "multion submit" in guide.text
+    assert "token" in rules and "MULTION_TOKEN" in rules and "team add" in rules
+    assert f"multion submit --server {server.url}" in rules
+
+
+def test_metric_headings_sort_best_first(server: Any, played: dict[str, PlayedRun]) -> None:
+    page = get(server, "/leaderboard").text
+    minival = board(page, "1-on", "minival")
+    headings = re.findall(r"<th ([^>]*)>([^<]*)</th>", minival)
+    for attributes, name in headings:
+        if name.endswith("%"):  # every score: best (highest) first on the first click
+            assert 'data-first="descending"' in attributes, name
+        if name in ("rank", "team"):
+            assert "data-first" not in attributes

@@ -42,16 +42,16 @@ def db(
         url = request.getfixturevalue("postgres_url")
     database = Database.open(url)
     with database.engine.begin() as connection:  # a clean slate on the shared PostgreSQL
-        for table in ("episodes", "runs", "tokens", "teams"):
+        for table in ("episode_pictures", "episodes", "runs", "tokens", "teams", "secret_fingerprint"):
             connection.exec_driver_sql(f"DELETE FROM {table}")
     yield database
     database.close()
 
 
 def test_migrations_make_the_schema(db: Database) -> None:
-    assert current_revision(db.engine) == "0002"
+    assert current_revision(db.engine) == "0004"
     tables = set(inspect(db.engine).get_table_names())
-    assert {"teams", "tokens", "runs", "episodes", "alembic_version"} <= tables
+    assert {"teams", "tokens", "runs", "episodes", "secret_fingerprint", "episode_pictures", "alembic_version"} <= tables
     Database.open(str(db.engine.url.render_as_string(hide_password=False))).close()  # idempotent
     if db.engine.dialect.name == "sqlite":
         with db.engine.connect() as connection:

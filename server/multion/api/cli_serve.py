@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from multion.api.settings import ServerSettings
@@ -130,18 +131,23 @@ def run(args: argparse.Namespace) -> int:
         print(f"multion serve: invalid option: {error}")
         return 2
     leaderboard = None
-    if getattr(args, "challenge", None) is not None or getattr(args, "database", None):
+    # the leaderboard is on with --challenge or $MULTION_LEADERBOARD_CHALLENGE (docs' Serving)
+    challenge_file = getattr(args, "challenge", None) or os.environ.get(
+        "MULTION_LEADERBOARD_CHALLENGE"
+    )
+    if challenge_file or getattr(args, "database", None):
         from multion.leaderboard.challenge import ChallengeError
         from multion.leaderboard.settings import LeaderboardSettings
+        from multion.leaderboard.storage import StorageError
 
-        if args.challenge is None:
+        if not challenge_file:
             print("multion serve: --database needs --challenge FILE")
             return 2
-        given = {"challenge": args.challenge, "database": args.database}
+        given = {"challenge": challenge_file, "database": args.database}
         try:
             leaderboard = LeaderboardSettings(**{k: v for k, v in given.items() if v})
             app = create_app(settings, leaderboard)
-        except (ValidationError, ChallengeError) as error:
+        except (ValidationError, ChallengeError, StorageError) as error:
             print(f"multion serve: {error}")
             return 2
     else:

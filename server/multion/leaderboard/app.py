@@ -16,19 +16,28 @@ from fastapi import FastAPI
 
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.routes import TokenCache, router, team_of
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
-from multion.leaderboard.storage import Database
+from multion.leaderboard.storage import Database, check_secret
 from multion.leaderboard.web.pages import install_pages
-from multion.leaderboard.web.pictures import EpisodePictures
+from multion.leaderboard.web.pictures import PictureDrawer
 
 log = logging.getLogger("multion.leaderboard")
 
 
 def check_leaderboard(app: FastAPI, settings: LeaderboardSettings) -> Challenge:
-    """Read the challenge (ChallengeError on a bad file) and add the routes and web pages."""
+    """Read the challenge (ChallengeError on a bad file), open (create or upgrade) the database
+    and check it was used with the same secret (StorageError if not), and add the routes and
+    web pages."""
     challenge = load_challenge(settings.challenge)
+    db = Database.open(settings.database)
+    try:
+        with db.sessions.begin() as session:
+            check_secret(session, challenge.secret)
+    finally:
+        db.close()
     app.include_router(router)
     install_pages(app)
     return challenge
@@ -44,8 +53,13 @@ async def leaderboard_lifespan(
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
     app.state.authenticate = team_of  # for plain sessions on a `--sessions token` server
     registry.run_reserve = app.state.settings.run_reserve
-    app.state.episode_pictures = pictures = EpisodePictures()
+    app.state.docs_url = settings.docs_url
+    pictures = PictureDrawer(
+        challenge, db, lambda t, p, run, r: service.hidden.episode(t, p, draw_of(run), r.position)
+    )
     tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
+    if settings.draw_pictures:
+        tasks.append(asyncio.create_task(pictures.draw_forever(settings.picture_interval_s)))
     if settings.warm_up:
         tasks.append(asyncio.create_task(_warm_up(service)))
     try:

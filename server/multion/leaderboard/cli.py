@@ -14,13 +14,15 @@
     multion leaderboard baselines --server URL           # random, explorer, … as baselines
 
 ``--database`` defaults to ``$MULTION_LEADERBOARD_DATABASE`` or ``sqlite:///leaderboard.db``,
-``--challenge`` to ``$MULTION_LEADERBOARD_CHALLENGE``.
+``--challenge`` to ``$MULTION_LEADERBOARD_CHALLENGE``. Only ``init`` (and ``multion serve``)
+create a database; every other command needs an existing one and says which it looked for.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import importlib
 import io
 import json
 import os
@@ -43,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         if database:
             p.add_argument(
                 "--database",
-                default=os.environ.get("MULTION_LEADERBOARD_DATABASE", DEFAULT_DATABASE),
+                default=None,
                 help="SQLAlchemy URL or SQLite path (default $MULTION_LEADERBOARD_DATABASE or "
                 f"{DEFAULT_DATABASE})",
             )
@@ -81,8 +83,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = command("replay", "replay a stored run and compare (or re-score) it", challenge=True)
     p.add_argument("run_id")
     p.add_argument("--write", action="store_true", help="store the replayed metrics")
-    p = command("baselines", "play the baseline agents through the run protocol", challenge=True)
-    p.add_argument("--server", required=True, help="the challenge server's URL")
+    p = command("baselines", "play the baseline agents through the run protocol")
+    p.add_argument(
+        "--server", required=True, help="the challenge server's URL (its tracks are played)"
+    )
     p.add_argument("--track", action="append", default=None, help="only these tracks")
     p.add_argument("--phase", action="append", default=None, help="only these phases")
     p.add_argument("--agents", nargs="+", default=None, help="default: every baseline allowed")
@@ -110,16 +114,27 @@ def _challenge(args: argparse.Namespace) -> Any:
     return load_challenge(args.challenge)
 
 
+def _database_url(args: argparse.Namespace) -> tuple[str, str]:
+    """The database URL to use and where it came from (for error messages)."""
+    if args.database:
+        return args.database, "--database"
+    if os.environ.get("MULTION_LEADERBOARD_DATABASE"):
+        return os.environ["MULTION_LEADERBOARD_DATABASE"], "$MULTION_LEADERBOARD_DATABASE"
+    return DEFAULT_DATABASE, "the default; give --database URL or set MULTION_LEADERBOARD_DATABASE"
+
+
 def _db(args: argparse.Namespace) -> Any:
+    """The existing database (never created here: a typo must not make an empty one)."""
     from multion.leaderboard.storage import Database
 
-    return Database.open(args.database)
+    url, source = _database_url(args)
+    return Database.open_existing(url, hint=f" ({source})")
 
 
 def _init(args: argparse.Namespace) -> int:
-    from multion.leaderboard.storage import current_revision
+    from multion.leaderboard.storage import Database, current_revision
 
-    db = _db(args)
+    db = Database.open(_database_url(args)[0])
     print(
         f"{db.engine.url.render_as_string(hide_password=True)}: schema {current_revision(db.engine)}"
     )
@@ -273,17 +288,21 @@ def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
 def best_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The runs the leaderboard shows: each team's best run per (track, phase) by the track's
     ranking metric, and each baseline method's (the rule of the leaderboard page)."""
-    from multion.leaderboard.results import RANKED_STATES, entrant, keep_best
+    import datetime as dt
 
-    def score(row: dict[str, Any]) -> float:
-        return row[f"{row['primary']}_mean"] or 0.0
+    from multion.leaderboard.results import RANKED_STATES, best_first, entrant, keep_best
+
+    def order(row: dict[str, Any]) -> tuple:
+        finished = dt.datetime.fromisoformat(row["finished_at"]) if row["finished_at"] else None
+        score = row[f"{row['primary']}_mean"] or 0.0
+        return best_first(score, row["state"], finished, row["run_id"])
 
     best = keep_best(
         (r for r in rows if r["state"] in RANKED_STATES and r["primary"] is not None),
         key=lambda r: (r["track"], r["phase"], *entrant(r["team"], r["method"], r["baseline"])),
-        score=score,
+        order=order,
     )
-    return sorted(best.values(), key=lambda r: (r["track"], r["phase"], -score(r)))
+    return sorted(best.values(), key=lambda r: (r["track"], r["phase"], order(r)))
 
 
 def _runs(args: argparse.Namespace) -> int:
@@ -352,11 +371,13 @@ def _export(args: argparse.Namespace) -> int:
 
 def _replay(args: argparse.Namespace) -> int:
     from multion.leaderboard.replay import rescore
+    from multion.leaderboard.storage import check_secret
 
     challenge = _challenge(args)
     db = _db(args)
     try:
         with db.sessions.begin() as session:
+            check_secret(session, challenge.secret, remember=False)
             report = rescore(session, challenge, args.run_id, write=args.write)
     finally:
         db.close()
@@ -374,13 +395,13 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def _baselines(args: argparse.Namespace) -> int:
-    from multion.leaderboard.baselines import play_baselines
-
-    challenge = _challenge(args)
+    # The agents live in multion_agents (as `multion submit` does): imported by name, so the
+    # leaderboard package never depends on them.
+    baselines = importlib.import_module("multion_agents.leaderboard_baselines")
     db = _db(args)
     try:
-        play_baselines(
-            db, challenge, args.server, args.track, args.phase, args.agents, not args.quiet
+        baselines.play_baselines(
+            db, args.server, args.track, args.phase, args.agents, not args.quiet
         )
     finally:
         db.close()

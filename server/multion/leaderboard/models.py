@@ -17,6 +17,7 @@ from sqlalchemy import (
     Float,
     ForeignKey,
     Integer,
+    LargeBinary,
     String,
     Text,
     UniqueConstraint,
@@ -138,3 +139,30 @@ class EpisodeRecord(Base):
     seconds: Mapped[float] = mapped_column(Float, default=0.0)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     run: Mapped[Run] = relationship(back_populates="episodes")
+
+
+class SecretFingerprint(Base):
+    """A fingerprint of the challenge secret the database's runs were played with (one row).
+
+    HMAC-SHA256 of a fixed label keyed by the secret: it tells whether a server is started with
+    the same secret, and reveals nothing about the secret itself."""
+
+    __tablename__ = "secret_fingerprint"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    fingerprint: Mapped[str] = mapped_column(String(64))
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+
+class EpisodePicture(Base):
+    """The top-down picture of one of a run's first episodes (minival), drawn once after the run
+    ended (:mod:`multion.leaderboard.web.pictures`); an empty ``png`` records a failed drawing."""
+
+    __tablename__ = "episode_pictures"
+
+    run_id: Mapped[str] = mapped_column(ForeignKey("runs.id"), primary_key=True)
+    position: Mapped[int] = mapped_column(Integer, primary_key=True)
+    png: Mapped[bytes] = mapped_column(LargeBinary)
+    width: Mapped[int] = mapped_column(Integer)
+    height: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import math
 from collections import Counter
 from collections.abc import Callable, Hashable, Iterable, Sequence
 from typing import Any, TypeVar
@@ -15,6 +17,7 @@ RANKED_STATES = ("finished", "ended")
 count as failures). Failed runs were the server's fault and are refunded."""
 
 T = TypeVar("T")
+NEVER = dt.datetime.max.replace(tzinfo=dt.timezone.utc)
 
 
 def entrant(team: str, method: str, baseline: bool) -> tuple[str, str]:
@@ -22,16 +25,36 @@ def entrant(team: str, method: str, baseline: bool) -> tuple[str, str]:
     return (team, method if baseline else "")
 
 
+def best_first(score: float, state: str, finished_at: dt.datetime | None, run_id: str) -> tuple:
+    """Sort key of the one "best run" rule (the leaderboard page and ``export --best``): the
+    highest score, then a finished run before an ended one (same score, all episodes played),
+    then the earliest to finish, then the run id (so the choice never depends on query order)."""
+    finished = finished_at or NEVER
+    return (-score, 0 if state == "finished" else 1, finished, run_id)
+
+
 def keep_best(
-    runs: Iterable[T], key: Callable[[T], Hashable], score: Callable[[T], float]
+    runs: Iterable[T], key: Callable[[T], Hashable], order: Callable[[T], tuple]
 ) -> dict[Hashable, T]:
-    """The highest-scoring run per key (the first seen on equal scores)."""
+    """The best run per key: the first by ``order`` (a :func:`best_first` key)."""
     best: dict[Hashable, T] = {}
     for run in runs:
         k = key(run)
-        if k not in best or score(run) > score(best[k]):
+        if k not in best or order(run) < order(best[k]):
             best[k] = run
     return best
+
+
+def competition_ranks(scores: Sequence[float]) -> list[int]:
+    """Ranks of scores sorted best first, equal scores sharing a rank ("1, 1, 3").
+
+    Scores are compared exactly: a run's mean is a correctly rounded sum of its per-episode
+    values (:func:`bootstrap`), so runs with the same per-episode values, in any order, have
+    the same mean to the last bit."""
+    ranks: list[int] = []
+    for position, score in enumerate(scores):
+        ranks.append(ranks[-1] if ranks and score == scores[position - 1] else position + 1)
+    return ranks
 
 
 def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
@@ -58,8 +81,18 @@ def bootstrap(values: Sequence[float], seed: int = 0) -> dict[str, float]:
     """:func:`multion.stats.bootstrap` as stored in a run's summary (zeros for no values)."""
     if len(values) == 0:
         return {"mean": 0.0, "low": 0.0, "high": 0.0}
-    estimate = stats.bootstrap(values, seed=seed)
-    return {"mean": estimate.mean, "low": estimate.low, "high": estimate.high}
+    # Canonical order: the same per-episode values give the same interval whatever order the
+    # episodes were played in; the mean is an exact (correctly rounded) sum over the count.
+    canonical = sorted(float(v) for v in values)
+    estimate = stats.bootstrap(canonical, seed=seed)
+    mean = math.fsum(canonical) / len(canonical)
+    return {"mean": mean, "low": estimate.low, "high": estimate.high}
+
+
+def estimate(values: Sequence[float]) -> stats.Estimate:
+    """:func:`bootstrap` as an :class:`~multion.stats.Estimate` (the pages' breakdowns)."""
+    value = bootstrap(values)
+    return stats.Estimate(value["mean"], value["low"], value["high"])
 
 
 def summarize(records: Sequence[dict[str, Any]], primary: str) -> dict[str, Any]:

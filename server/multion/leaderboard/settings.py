@@ -24,6 +24,17 @@ class LeaderboardSettings(BaseSettings):
     expire_interval_s: float = Field(
         5.0, gt=0, description="how often late episodes of silent clients are expired"
     )
+    docs_url: str | None = Field(
+        None,
+        description="where the rules page links the participants' guide (default: the server's "
+        "own /leaderboard/guide, docs/leaderboard.md of the source tree it runs from)",
+    )
+    draw_pictures: bool = Field(
+        True, description="draw the pictures of ended minival runs in the background"
+    )
+    picture_interval_s: float = Field(
+        5.0, gt=0, description="how often ended minival runs are looked for to draw their pictures"
+    )
     warm_up: bool = Field(
         True, description="generate the hidden episodes at start-up rather than at the first run"
     )

@@ -17,11 +17,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Engine, create_engine, event, func, select
+from sqlalchemy import Engine, create_engine, event, func, make_url, select
 from sqlalchemy.exc import ArgumentError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
-from multion.leaderboard.models import Run, Team, Token, utcnow
+from multion.leaderboard.models import Run, SecretFingerprint, Team, Token, utcnow
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
 TOKEN_PREFIX = "mlb"
@@ -100,8 +100,61 @@ class Database:
             upgrade(engine)
         return cls(engine, sessionmaker(engine, expire_on_commit=False))
 
+    @classmethod
+    def open_existing(cls, url: str, hint: str = "") -> Database:
+        """Open (and upgrade) a database that exists and has the leaderboard's schema; never
+        create one (StorageError naming the URL, and ``hint`` on how to choose another)."""
+        full = database_url(url)
+        missing = f"no leaderboard database at {full}{hint}; `multion leaderboard init` or `multion serve` creates one"
+        if full.startswith("sqlite"):
+            path = make_url(full).database
+            if not path or path == ":memory:" or not Path(path).is_file():
+                raise StorageError(missing)
+        engine = open_engine(full)
+        try:
+            revision = current_revision(engine)
+        except OperationalError as error:
+            engine.dispose()
+            raise StorageError(f"cannot open the database {full}: {error.orig}") from None
+        if revision is None:
+            engine.dispose()
+            raise StorageError(missing)
+        upgrade(engine)
+        return cls(engine, sessionmaker(engine, expire_on_commit=False))
+
     def close(self) -> None:
         self.engine.dispose()
+
+
+# ---------------------------------------------------------------------- the challenge secret
+FINGERPRINT_LABEL = b"multion leaderboard: fingerprint of the challenge secret, v1"
+
+
+def secret_fingerprint(secret: str) -> str:
+    """HMAC-SHA256 of a fixed label keyed by the secret: equal for equal secrets, and no help
+    in finding the secret (it is never stored)."""
+    return hmac.new(secret.encode("utf-8"), FINGERPRINT_LABEL, hashlib.sha256).hexdigest()
+
+
+def check_secret(session: Session, secret: str, remember: bool = True) -> None:
+    """StorageError if the database was used with another secret (its runs' hidden episodes
+    could not be replayed or continued); with ``remember``, store the fingerprint on first use."""
+    given = secret_fingerprint(secret)
+    stored = session.scalar(select(SecretFingerprint).order_by(SecretFingerprint.id))
+    if stored is None:
+        if not remember:
+            return
+        session.add(SecretFingerprint(fingerprint=given))
+        session.flush()
+        return
+    if not hmac.compare_digest(stored.fingerprint, given):
+        raise StorageError(
+            "the challenge secret is not the one this database was used with (its fingerprint, "
+            f"stored on {stored.created_at:%Y-%m-%d %H:%M} UTC, differs): the hidden episodes "
+            "would not be the ones its runs played. Start with the original secret (the "
+            "challenge file's `secret` or the variable its `secret_env` names), or give another "
+            "--database for a new challenge"
+        )
 
 
 # ---------------------------------------------------------------------- teams and tokens

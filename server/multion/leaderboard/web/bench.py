@@ -127,7 +127,9 @@ def run_pages_bench(
             )
         app = create_app(
             ServerSettings(workers=1),
-            LeaderboardSettings(challenge=challenge, database=url, warm_up=False),
+            LeaderboardSettings(
+                challenge=challenge, database=url, warm_up=False, draw_pictures=False
+            ),
         )
         pages = {
             "leaderboard": "/leaderboard",

@@ -19,13 +19,20 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from multion.leaderboard.live_run import draw_of
-from multion.leaderboard.models import EpisodeRecord, utcnow
+from multion.leaderboard.models import EpisodePicture, EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
 from multion.leaderboard.web.charts import best_over_time
-from multion.leaderboard.web.pictures import EpisodePictures, EpisodeReplay, pictured
+from multion.leaderboard.web.pictures import (
+    DISPLAY_SCALE,
+    picture_png,
+    pictured,
+    stored_pictures,
+)
 
 HERE = Path(__file__).resolve().parent
+GUIDE = HERE.parents[3] / "docs" / "leaderboard.md"
+"""The participants' guide, in a source checkout (server/multion/leaderboard/web → docs)."""
 STATIC_PATH = "/leaderboard/static"
 SECURITY_HEADERS = {
     "Content-Security-Policy": "default-src 'none'; style-src 'self'; script-src 'self'; "
@@ -36,6 +43,8 @@ SECURITY_HEADERS = {
 
 templates = Jinja2Templates(directory=HERE / "templates")
 router = APIRouter(include_in_schema=False)
+PAGE_METHODS = ["GET", "HEAD"]
+"""HTML pages answer HEAD too (uptime checkers use it); the server sends no body for it."""
 
 
 def install_pages(app: FastAPI) -> None:
@@ -49,7 +58,12 @@ def _percent(value: float | None) -> str:
 
 
 def _date(value: dt.datetime | None) -> str:
-    return "–" if value is None else f"{value:%Y-%m-%d %H:%M}"
+    """Dates are stored and shown in UTC, and say so."""
+    if value is None:
+        return "–"
+    if value.tzinfo is not None:
+        value = value.astimezone(dt.timezone.utc)
+    return f"{value:%Y-%m-%d %H:%M} UTC"
 
 
 templates.env.filters["percent"] = _percent
@@ -84,57 +98,72 @@ async def _read(request: Request, work: Any) -> Any:
     return await asyncio.to_thread(read)
 
 
-@router.get("/", response_class=HTMLResponse)
-@router.get("/leaderboard", response_class=HTMLResponse)
+@router.api_route("/", methods=PAGE_METHODS, response_class=HTMLResponse)
+@router.api_route("/leaderboard", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def leaderboard(request: Request) -> HTMLResponse:
     challenge = _service(request).challenge
     boards = await _read(request, lambda s: queries.leaderboards(s, challenge, utcnow()))
     return _page(request, "leaderboard.html", boards=boards)
 
 
-@router.get("/leaderboard/rules", response_class=HTMLResponse)
+@router.api_route("/leaderboard/rules", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def rules(request: Request) -> HTMLResponse:
-    return _page(request, "rules.html")
+    docs_url = getattr(request.app.state, "docs_url", None)
+    if docs_url is None and GUIDE.is_file():
+        docs_url = "/leaderboard/guide"
+    server_url = str(request.base_url).rstrip("/")
+    return _page(request, "rules.html", docs_url=docs_url, server_url=server_url)
 
 
-@router.get("/leaderboard/runs/{run_id}", response_class=HTMLResponse)
+@router.api_route("/leaderboard/guide", methods=PAGE_METHODS, response_class=HTMLResponse)
+async def guide(request: Request) -> HTMLResponse:
+    """docs/leaderboard.md as it is (Markdown reads as text), where the server runs from a
+    source tree; elsewhere the organisers set MULTION_LEADERBOARD_DOCS_URL."""
+    if not GUIDE.is_file():
+        return _not_found(request, "copy of the guide on this server")
+    return _page(request, "guide.html", text=GUIDE.read_text(encoding="utf-8"))
+
+
+@router.api_route("/leaderboard/runs/{run_id}", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def run_page(run_id: str, request: Request) -> HTMLResponse:
     service = _service(request)
-    page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
+
+    def read(session: Any) -> tuple[queries.RunPage | None, dict[int, EpisodePicture]]:
+        page = queries.run_page(session, service.challenge, run_id, utcnow())
+        drawn = stored_pictures(session, run_id) if page is not None and page.per_episode else {}
+        return page, drawn
+
+    page, drawn = await _read(request, read)
     if page is None:
         return _not_found(request, f"run {run_id}")
     houses: list[queries.Breakdown] = []
-    pictures: list[EpisodeRecord] = []
+    pictures: list[tuple[EpisodeRecord, EpisodePicture | None]] = []
     if page.per_episode and page.track is not None and page.phase is not None:
         labels = await asyncio.to_thread(_house_labels, service, page)
         houses = queries.breakdown(page.records, labels)
-        pictures = pictured(page.records)
-    return _page(request, "run.html", page=page, houses=houses, pictures=pictures)
+        pictures = [(r, drawn.get(r.position)) for r in pictured(page.records)]
+    return _page(
+        request, "run.html", page=page, houses=houses, pictures=pictures, scale=DISPLAY_SCALE
+    )
 
 
 @router.get("/leaderboard/runs/{run_id}/episodes/{position}.png")
 async def episode_picture(run_id: str, position: int, request: Request) -> Response:
-    """The picture of one of the first episodes of a run on a phase with per-episode feedback."""
+    """A stored picture of one of a run's first episodes (drawn when the run ended; nothing is
+    drawn here, so a burst of requests costs only database reads)."""
     service = _service(request)
-    page = await _read(request, lambda s: queries.run_page(s, service.challenge, run_id, utcnow()))
-    shown = pictured(page.records) if page is not None else []
-    record = next((r for r in shown if r.position == position), None)
-    if page is None or record is None or page.track is None or page.phase is None:
+
+    def read(session: Any) -> bytes | None:
+        return picture_png(session, service.challenge, run_id, position, utcnow())
+
+    png = await _read(request, read)
+    if png is None:
         return _not_found(request, f"a picture of episode {position} of run {run_id}")
-    episode = await asyncio.to_thread(
-        service.hidden.episode, page.track, page.phase, draw_of(page.run), position
-    )
-    pictures: EpisodePictures = request.app.state.episode_pictures
-    replay = EpisodeReplay(
-        page.track, page.phase, dict(page.run.maps or {}), episode,
-        record.actions, record.metrics, f"episode {position + 1}",
-    )  # fmt: skip
-    png = await pictures.get((run_id, position), replay)
     headers = {**SECURITY_HEADERS, "Cache-Control": "public, max-age=86400"}
     return Response(png, media_type="image/png", headers=headers)
 
 
-@router.get("/leaderboard/teams/{team}", response_class=HTMLResponse)
+@router.api_route("/leaderboard/teams/{team}", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def team_page(team: str, request: Request) -> HTMLResponse:
     challenge = _service(request).challenge
     runs = await _read(request, lambda s: queries.team_runs(s, challenge, team, utcnow()))

@@ -19,8 +19,16 @@ from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team
-from multion.leaderboard.results import RANKED_STATES, SUMMARY_METRICS, entrant, keep_best
-from multion.stats import Estimate, bootstrap
+from multion.leaderboard.results import (
+    RANKED_STATES,
+    SUMMARY_METRICS,
+    best_first,
+    competition_ranks,
+    entrant,
+    keep_best,
+)
+from multion.leaderboard.results import estimate as bootstrap
+from multion.stats import Estimate
 from multion.task.measures import seen_split
 
 METRIC_NAMES = {"ppl": "PPL", "progress": "Progress", "success": "Success", "spl": "SPL"}
@@ -64,7 +72,8 @@ class Board:
 
 def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> list[Board]:
     """One board per track and phase: each team's best run (each baseline method's best for the
-    baselines team), ranked by the track's metric; equal means share a rank.
+    baselines team), ranked by the track's metric; equal means share a rank. The best run and the
+    order of rows follow :func:`~multion.leaderboard.results.best_first`, as ``export --best``.
 
     The database extracts the few numbers needed from each run's aggregates (JSON), so the cost
     is one short row per run."""
@@ -76,7 +85,7 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
     query = (
         select(
             Run.id, Run.track, Run.phase, Run.method, Run.paper_url, Run.code_url, Run.baseline,
-            Run.finished_at, Team.name, *numbers,
+            Run.state, Run.finished_at, Team.name, *numbers,
             Run.summary["episodes"].as_integer().label("episodes"),
             Run.summary["end_reasons"]["not_played"].as_integer().label("not_played"),
         )  # fmt: skip
@@ -94,11 +103,15 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
             best = keep_best(
                 by_board[(track.name, phase.name)],
                 key=lambda r: entrant(r.name, r.method, bool(r.baseline)),
-                score=lambda r, column=column: getattr(r, column) or 0.0,
+                order=lambda r, column=column: _order(r, column),
             )
             runs = [] if sealed else list(best.values())
             boards.append(Board(track, phase, sealed, _ranked(runs, track.metric)))
     return boards
+
+
+def _order(row: Any, column: str) -> tuple:
+    return best_first(getattr(row, column) or 0.0, row.state, row.finished_at, row.id)
 
 
 def _scores(row: Any) -> dict[str, Estimate]:
@@ -109,16 +122,12 @@ def _scores(row: Any) -> dict[str, Estimate]:
 
 
 def _ranked(runs: Sequence[Any], metric: str) -> list[BoardRow]:
-    scored = sorted(
-        ((_scores(r), r) for r in runs),
-        key=lambda item: (-item[0][metric].mean, item[1].finished_at, item[1].id),
-    )
+    column = f"{metric}_mean"
+    scored = [(_scores(r), r) for r in sorted(runs, key=lambda r: _order(r, column))]
+    ranks = competition_ranks([scores[metric].mean for scores, _ in scored])
     rows: list[BoardRow] = []
     leader = scored[0][0][metric] if scored else None
-    for position, (scores, run) in enumerate(scored):
-        rank = position + 1
-        if rows and scores[metric].mean == rows[-1].scores[metric].mean:
-            rank = rows[-1].rank
+    for rank, (scores, run) in zip(ranks, scored, strict=True):
         total = int(run.episodes or 0)
         rows.append(
             BoardRow(

@@ -1,4 +1,5 @@
 // Sort a table by a column when its heading (th[data-sort]) is clicked; click again to reverse.
+// The first click sorts in the heading's data-first order (scores: "descending", best first).
 // Cells may carry data-value (the raw number or ISO date) so formatted text sorts correctly.
 "use strict";
 document.addEventListener("DOMContentLoaded", () => {
@@ -9,7 +10,9 @@ document.addEventListener("DOMContentLoaded", () => {
       th.tabIndex = 0;
       th.classList.add("sort-key");
       const sort = () => {
-        const ascending = th.getAttribute("aria-sort") !== "ascending";
+        const first = th.dataset.first === "descending" ? "descending" : "ascending";
+        const current = th.getAttribute("aria-sort");
+        const ascending = current === null ? first === "ascending" : current !== "ascending";
         headings.forEach((h) => h.removeAttribute("aria-sort"));
         th.setAttribute("aria-sort", ascending ? "ascending" : "descending");
         const key = (row) => {

@@ -1,0 +1,113 @@
+"""``multion leaderboard baselines``: the non-learned agents played through the run protocol.
+
+They play as the organisers' team ``baselines`` (created if needed, with a fresh token that is
+revoked afterwards), over HTTP like any participant, so their runs go through the same checks,
+expiry and scoring; runs of that team are marked baselines and have no quota. The tracks and
+phases are the server's own (``GET /v1/challenge``), so no challenge file is needed here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from multion.leaderboard.run_store import BASELINE_TEAM
+from multion.leaderboard.storage import (
+    Database,
+    StorageError,
+    add_team,
+    add_token,
+    find_team,
+    revoke_tokens,
+)
+
+BASELINE_AGENTS = ("random", "random-oracle-found", "explorer", "oracle-planner")
+
+
+def agents_for(allowed_sensors: Sequence[str], names: Sequence[str] | None = None) -> list[str]:
+    """The baselines whose sensors the track allows (``random-oracle-found`` needs
+    ``goal_distance``, ``oracle-planner`` the oracle map)."""
+    from multion_agents.registry import agent_class
+
+    return [
+        name
+        for name in names or BASELINE_AGENTS
+        if set(agent_class(name).sensors) <= set(allowed_sensors)
+    ]
+
+
+def baseline_token(db: Database) -> str:
+    with db.sessions.begin() as session:
+        try:
+            return add_token(session, find_team(session, BASELINE_TEAM))
+        except StorageError:
+            return add_team(session, BASELINE_TEAM)[1]
+
+
+def server_tracks(server: str) -> list[dict[str, Any]]:
+    """The tracks the server hosts (name, sensors, metric, phases)."""
+    from multion_client.client import Client
+
+    client = Client(server)
+    try:
+        return list(client.challenge()["tracks"])
+    finally:
+        client.close()
+
+
+def play_baselines(
+    db: Database,
+    server: str,
+    tracks: Sequence[str] | None = None,
+    phases: Sequence[str] | None = None,
+    agents: Sequence[str] | None = None,
+    progress: bool = True,
+) -> list[str]:
+    """Play the baselines on every (track, phase) of the server selected; returns the run ids.
+
+    ``db`` must be the server's own database: the token is written there."""
+    from multion_agents.cli_submit import oracle_maps, play_run
+    from multion_agents.registry import agent_class
+    from multion_client.errors import Unauthorized
+    from multion_client.run import RunEnv
+
+    hosted = server_tracks(server)
+    unknown = sorted(set(tracks or ()) - {t["name"] for t in hosted})
+    if unknown:
+        raise ValueError(f"--track {', '.join(unknown)}: the server has {[t['name'] for t in hosted]}")
+    token = baseline_token(db)
+    run_ids = []
+    try:
+        for track in hosted:
+            if tracks and track["name"] not in tracks:
+                continue
+            for phase in track["phases"]:
+                if phases and phase["name"] not in phases:
+                    continue
+                for name in agents_for(track["sensors"], agents):
+                    cls = agent_class(name)
+                    try:
+                        env = RunEnv(
+                            server, track["name"], phase["name"], name, token=token,
+                            sensors=list(cls.sensors), maps=oracle_maps(cls),
+                        )  # fmt: skip
+                    except Unauthorized:
+                        raise StorageError(
+                            f"{server} refused the baselines' token: the token was written to "
+                            f"{db.engine.url.render_as_string(hide_password=True)}, which is not "
+                            "that server's database (give the server's --database, or set "
+                            "MULTION_LEADERBOARD_DATABASE as for `multion serve`)"
+                        ) from None
+                    if progress:
+                        print(f"{track['name']}/{phase['name']}: {name} (run {env.run_id})")
+                    play_run(env, cls, 0, None, progress)
+                    status = env.status()
+                    env.close()
+                    run_ids.append(env.run_id)
+                    if progress and status.results:
+                        value = status.results[track["metric"]]["mean"]
+                        print(f"  {status.state}: {track['metric']} {100 * value:.1f}%")
+    finally:
+        with db.sessions.begin() as session:
+            revoke_tokens(session, find_team(session, BASELINE_TEAM))
+    return run_ids
