@@ -531,7 +531,7 @@ class RunInfo:
     OPTIONAL = ("num_envs",)
 
     def to_wire(self) -> dict[str, Any]:
-        wire = {name: getattr(self, name) for name in self.FIELDS}
+        wire = {name: getattr(self, name) for name in (*self.FIELDS, *self.OPTIONAL)}
         wire["observation_space"] = space_to_wire(self.observation_space)
         wire["action_space"] = space_to_wire(self.action_space)
         return wire

@@ -20,6 +20,7 @@ So:
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import datetime as dt
 import logging
 import time
@@ -255,7 +256,8 @@ class RunService:
         if live is not None and (team_id is None or live.team_id == team_id):
             for lane in live.lanes:
                 async with lane.lock:
-                    await self._expire_due(live, lane)
+                    with contextlib.suppress(errors.RunOver):  # another lane ended it
+                        await self._expire_due(live, lane)
 
         def read(session: Any) -> RunStatus:
             run = session.get(Run, run_id)
@@ -369,7 +371,9 @@ class RunService:
     async def _check_running(self, live: LiveRun) -> None:
         if live.run_id not in self.live:
             row = await self._db(lambda s: s.get(Run, live.run_id))
-            raise errors.RunOver(_over(row.state, row.end_reason) if row else "the run is over")
+            if row is None or row.state == "running":  # its end is being written
+                raise errors.RunOver("the run is over")
+            raise errors.RunOver(_over(row.state, row.end_reason))
 
     async def _open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
         """Open a lane's session; on a server fault the run fails and is refunded."""
@@ -441,6 +445,7 @@ class RunService:
 
     async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
         async with live.save_lock:  # lanes act at once; their saves take turns
+            await self._check_running(live)  # another lane may have ended the run meanwhile
             state = live.run_state()
 
             def save() -> None:
@@ -474,7 +479,12 @@ class RunService:
         async with live.save_lock:
             if live.run_id not in self.live:
                 return  # another lane ended it meanwhile
+            for lane in live.lanes:  # every episode still going is in ``results``
+                lane.state.episode_active, lane.state.deadline = False, None
             state = live.run_state()
+            # over for every lane from now on, while the database is written
+            self.live.pop(live.run_id, None)
+            self.ended[live.run_id] = live
             await self._db(
                 lambda s: finish_run(
                     s,
@@ -490,8 +500,6 @@ class RunService:
                 )
             )
             live.version = state.version
-            self.live.pop(live.run_id, None)
-        self.ended[live.run_id] = live
         while len(self.ended) > ENDED_KEPT:
             self.ended.popitem(last=False)
         for lane in live.lanes:
