@@ -12,3 +12,11 @@ def test_the_simulator_bench_runs_every_part(capsys):
     for key in ("env_sps_tiny_256", "raw_sps_tiny_256", "plain_rps_256", "textured_rps_256"):
         assert results[key] > 0, key
     assert results["generate_s"] > 0
+
+
+def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_two() -> None:
+    from multion.leaderboard.bench_lanes import run_lanes_bench
+
+    figures = run_lanes_bench(size=16, episodes=4, max_steps=5, rooms=1, verbose=False)
+    assert figures["steps"] == 4 * 5  # every episode to its step limit, nothing lost
+    assert figures["one_lane_s"] > 0 and figures["two_lanes_s"] > 0 and figures["ratio"] > 0

@@ -7,6 +7,7 @@ Examples::
     multion submit --server URL --track 1-on --phase test-standard --agent oracle-map \\
         --checkpoint runs/om/checkpoint.pt --method "OracleMap (ours)" --paper-url https://…
     multion submit --server URL --resume RUN_ID --agent explorer   # after a crash
+    multion submit --server URL --track 3-on --phase test-standard --agent explorer --envs 2
 
 Any agent of ``multion eval`` runs: baselines, import paths and learned agents with their
 checkpoint. The server picks the hidden episodes and scores them; the agent sees the sensors it
@@ -38,6 +39,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--code-url", default=None)
     parser.add_argument("--seed", type=int, default=0, help="agent seed (default 0)")
     parser.add_argument("--resume", default=None, metavar="RUN_ID", help="continue this run")
+    parser.add_argument(
+        "--envs",
+        type=int,
+        default=1,
+        metavar="K",
+        help="play K episodes at once (one agent each, in threads; up to the challenge's "
+        "max_envs_per_run); the server still chooses every episode (default 1)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -92,20 +101,54 @@ def submit(args: argparse.Namespace, cls: type) -> Any:
         with Client(args.server, token=token) as client:
             track = _track(client.challenge(), args.track)
         _check_overrides(cls, track)
-        env = RunEnv(
+        envs = RunEnv.lanes(
             args.server, args.track, args.phase, args.method or args.agent, token=token,
-            sensors=list(cls.sensors), maps=oracle_maps(cls),
-            paper_url=args.paper_url, code_url=args.code_url,
+            sensors=list(cls.sensors), maps=oracle_maps(cls), paper_url=args.paper_url,
+            code_url=args.code_url, num_envs=args.envs,
         )  # fmt: skip
-        print(f"run {env.run_id}: {env.num_episodes} episodes (resume with --resume {env.run_id})")
+        env = envs[0]
+        print(
+            f"run {env.run_id}: {env.num_episodes} episodes, {len(envs)} at once "
+            f"(resume with --resume {env.run_id})"
+        )
     else:
         env = RunEnv(args.server, token=token, run_id=args.resume)
+        envs = [env] + [
+            RunEnv(args.server, token=token, run_id=args.resume, lane=k)
+            for k in range(1, env.num_envs)
+        ]
         with Client(args.server, token=token) as client:
             track = _track(client.challenge(), env.status().track)
-    play_run(env, cls, args.seed, _target_size(camera, track), progress=not args.quiet)
+    play_lanes(envs, cls, args.seed, _target_size(camera, track), progress=not args.quiet)
     status = env.status()
-    env.close()
+    for lane in envs:
+        lane.close()
     return status
+
+
+def play_lanes(
+    envs: list[Any],
+    cls: type,
+    seed: int = 0,
+    image_size: tuple[int, int] | None = None,
+    progress: bool = True,
+) -> None:
+    """Play the lanes of one run at once, a thread and a fresh agent each (agents are seeded
+    per episode number, so the lanes change no decision)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from tqdm import tqdm
+
+    total, started = envs[0].num_episodes, sum(env.episodes_started for env in envs)
+    with tqdm(total=total, initial=started, unit="ep", disable=not progress) as bar:
+        if len(envs) == 1:
+            play_run(envs[0], cls, seed, image_size, bar=bar)
+            return
+        with ThreadPoolExecutor(len(envs), thread_name_prefix="lane") as pool:
+            for future in [
+                pool.submit(play_run, env, cls, seed, image_size, bar=bar) for env in envs
+            ]:
+                future.result()
 
 
 def play_run(
@@ -114,9 +157,11 @@ def play_run(
     seed: int = 0,
     image_size: tuple[int, int] | None = None,
     progress: bool = True,
+    bar: Any = None,
 ) -> None:
-    """Play the remaining episodes of a ``RunEnv`` with a fresh agent of class ``cls``; the
-    agent is re-seeded per episode from ``(seed, episode number)``, as ``multion eval`` does."""
+    """Play the remaining episodes of a ``RunEnv`` (one lane) with a fresh agent of class
+    ``cls``; the agent is re-seeded per episode from ``(seed, episode number)``, as
+    ``multion eval`` does. ``bar``: a shared progress bar (else one of its own)."""
     from tqdm import tqdm
 
     from multion_agents.evaluate import episode_seed
@@ -124,9 +169,11 @@ def play_run(
 
     agent = cls(seed=seed)
     visible = set(cls.sensors)
-    bar = tqdm(
-        total=env.num_episodes, initial=env.episodes_started, unit="ep", disable=not progress
-    )
+    own_bar = bar is None
+    if own_bar:
+        bar = tqdm(
+            total=env.num_episodes, initial=env.episodes_started, unit="ep", disable=not progress
+        )
     try:
         while not env.run_done:
             observation, info = env.reset()
@@ -142,7 +189,8 @@ def play_run(
     except RunOver:
         pass  # the server ended the run (time budget, timeouts): its status says why
     finally:
-        bar.close()
+        if own_bar:
+            bar.close()
 
 
 def _track(challenge: dict[str, Any], name: str) -> dict[str, Any]:

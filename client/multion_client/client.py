@@ -146,10 +146,10 @@ class Client:
         data = self._call("POST", run_path(run_id, "step"), body, idempotent=True)
         return RunObservation.from_wire(data)
 
-    def run_observe(self, run_id: str) -> RunObservation:
-        return RunObservation.from_wire(
-            self._call("GET", run_path(run_id, "observe"), idempotent=True)
-        )
+    def run_observe(self, run_id: str, lane: int = 0) -> RunObservation:
+        """Where a lane of the run stands (its last answer), to resume after a crash."""
+        path = run_path(run_id, "observe") + (f"?lane={int(lane)}" if lane else "")
+        return RunObservation.from_wire(self._call("GET", path, idempotent=True))
 
     def run_status(self, run_id: str) -> RunStatus:
         return RunStatus.from_wire(self._call("GET", run_path(run_id), idempotent=True))

@@ -464,7 +464,9 @@ class CreateRun:
     """``POST /v1/runs``: start a run of ``track`` / ``phase`` (debits the team's quota).
 
     ``sensors`` (default: every sensor the track allows) must be allowed by the track; ``maps``
-    (MapConfig fields for the oracle maps) only on tracks that allow them.
+    (MapConfig fields for the oracle maps) only on tracks that allow them. ``num_envs``
+    episodes are played at once (lanes: lane k plays the run's episodes k, k + K …), up to the
+    challenge's ``max_envs_per_run``.
     """
 
     track: str
@@ -474,13 +476,16 @@ class CreateRun:
     maps: dict[str, Any] | None = None
     paper_url: str | None = None
     code_url: str | None = None
+    num_envs: int = field(default=1, metadata=schema("episodes played at once", minimum=1))
 
     FIELDS = ("track", "phase", "method")
-    OPTIONAL = ("sensors", "maps", "paper_url", "code_url")
+    OPTIONAL = ("sensors", "maps", "paper_url", "code_url", "num_envs")
 
     def to_wire(self) -> dict[str, Any]:
         wire = {name: getattr(self, name) for name in self.FIELDS}
         wire.update({k: getattr(self, k) for k in self.OPTIONAL if getattr(self, k) is not None})
+        if self.num_envs == 1:
+            del wire["num_envs"]  # the default: what servers before lanes understood
         return wire
 
     @classmethod
@@ -503,6 +508,7 @@ class CreateRun:
             maps=None if maps is None else dict(maps),
             paper_url=_url(d.get("paper_url"), "CreateRun", "paper_url"),
             code_url=_url(d.get("code_url"), "CreateRun", "code_url"),
+            num_envs=_count(d.get("num_envs", 1), "CreateRun", "num_envs", 1),
         )
 
 
@@ -518,19 +524,21 @@ class RunInfo:
     observation_space: spaces.Space[Any]
     action_space: spaces.Space[Any]
     limits: dict[str, Any]
+    num_envs: int = field(default=1, metadata=schema("lanes: episodes played at once", minimum=1))
 
     FIELDS = ("run_id", "track", "phase", "num_episodes", "sensors", "observation_space",
               "action_space", "limits")  # fmt: skip
+    OPTIONAL = ("num_envs",)
 
     def to_wire(self) -> dict[str, Any]:
-        wire = {name: getattr(self, name) for name in self.FIELDS}
+        wire = {name: getattr(self, name) for name in (*self.FIELDS, *self.OPTIONAL)}
         wire["observation_space"] = space_to_wire(self.observation_space)
         wire["action_space"] = space_to_wire(self.action_space)
         return wire
 
     @classmethod
     def from_wire(cls, data: Any) -> RunInfo:
-        d = _fields(data, "RunInfo", cls.FIELDS)
+        d = _fields(data, "RunInfo", cls.FIELDS, cls.OPTIONAL)
         return cls(
             run_id=str(d["run_id"]),
             track=str(d["track"]),
@@ -540,6 +548,7 @@ class RunInfo:
             observation_space=space_from_wire(d["observation_space"]),
             action_space=space_from_wire(d["action_space"]),
             limits=dict(d["limits"]) if isinstance(d["limits"], Mapping) else {},
+            num_envs=_count(d.get("num_envs", 1), "RunInfo", "num_envs", 1),
         )
 
 
@@ -671,11 +680,16 @@ class RunStatus:
     baseline: bool
     results: dict[str, Any] | None = None
     episodes: list[dict[str, Any]] | None = None
+    num_envs: int = 1
+    lanes: list[dict[str, Any]] | None = field(
+        default=None,
+        metadata=schema("per lane: episode (current or last), episode_active, seq"),
+    )
 
     FIELDS = ("run_id", "track", "phase", "method", "state", "end_reason", "num_episodes",
               "episodes_done", "episode", "episode_active", "seq", "created_at", "finished_at",
               "refunded", "baseline")  # fmt: skip
-    OPTIONAL = ("results", "episodes")
+    OPTIONAL = ("results", "episodes", "num_envs", "lanes")
 
     def to_wire(self) -> dict[str, Any]:
         return {name: getattr(self, name) for name in (*self.FIELDS, *self.OPTIONAL)}
@@ -683,7 +697,9 @@ class RunStatus:
     @classmethod
     def from_wire(cls, data: Any) -> RunStatus:
         d = _fields(data, "RunStatus", cls.FIELDS, cls.OPTIONAL)
-        return cls(**{name: d.get(name) for name in (*cls.FIELDS, *cls.OPTIONAL)})
+        values = {name: d.get(name) for name in (*cls.FIELDS, *cls.OPTIONAL)}
+        values["num_envs"] = d.get("num_envs", 1)
+        return cls(**values)
 
 
 @dataclass(frozen=True)

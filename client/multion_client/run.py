@@ -14,6 +14,10 @@
             done = terminated or truncated
     print(env.status().results)                           # what the phase shows
 
+Several episodes at once (up to the challenge's ``max_envs_per_run``): ``RunEnv.lanes(url,
+track, phase, method, num_envs=K)`` creates one run and returns K environments, one per lane,
+to play from K threads (lane k plays the run's episodes k, k + K …; each its own agent).
+
 The server picks the episodes and their order: ``reset`` takes no seed or options. Rewards are
 always 0 (they would leak the geodesic distance); the metrics of an episode come in ``info``
 at its end only on phases with per-episode feedback. A dropped connection is retried with the
@@ -69,29 +73,67 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
         run_id: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
         retries: int = 30,
+        num_envs: int = 1,
+        lane: int = 0,
     ) -> None:
         self.client = Client(
             base_url, timeout=timeout, retries=retries, token=token_from_env(token)
         )
+        self.lane = lane
         if run_id is None:
             if not (track and phase and method):
                 raise ValueError("a new run needs track, phase and method (or give run_id)")
             message = CreateRun(
                 track, phase, method, list(sensors) if sensors else None,
-                dict(maps) if maps else None, paper_url, code_url,
+                dict(maps) if maps else None, paper_url, code_url, num_envs,
             )  # fmt: skip
             self.info: RunInfo | None = self.client.create_run(message)
             self.run_id = self.info.run_id
             self.observation_space = self.info.observation_space
             self.num_episodes = self.info.num_episodes
+            self.num_envs = self.info.num_envs
             self._current: RunObservation | None = None
         else:
             self.info, self.run_id = None, run_id
             status = self.client.run_status(run_id)
             self.num_episodes = status.num_episodes
-            self._current = self.client.run_observe(run_id) if status.state == "running" else None
+            self.num_envs = status.num_envs
+            running = status.state == "running"
+            self._current = self.client.run_observe(run_id, lane) if running else None
+        if not 0 <= lane < self.num_envs:
+            raise ValueError(f"lane must be in 0..{self.num_envs - 1}, got {lane}")
         self.action_space = gym.spaces.Discrete(4)
         self._run_done = run_id is not None and status.state != "running"
+
+    @classmethod
+    def lanes(
+        cls,
+        base_url: str,
+        track: str,
+        phase: str,
+        method: str,
+        *,
+        num_envs: int,
+        token: str | None = None,
+        sensors: Sequence[str] | None = None,
+        maps: Mapping[str, Any] | None = None,
+        paper_url: str | None = None,
+        code_url: str | None = None,
+        timeout: float = DEFAULT_TIMEOUT_S,
+    ) -> list[RunEnv]:
+        """One new run playing ``num_envs`` episodes at once: an environment per lane (give
+        each its own thread and agent; their connections are their own)."""
+        first = cls(
+            base_url, track, phase, method, token=token, sensors=sensors, maps=maps,
+            paper_url=paper_url, code_url=code_url, timeout=timeout, num_envs=num_envs,
+        )  # fmt: skip
+        others = [
+            cls(base_url, token=token, run_id=first.run_id, timeout=timeout, lane=k)
+            for k in range(1, first.num_envs)
+        ]
+        for env in others:
+            env.info, env.observation_space = first.info, first.observation_space
+        return [first, *others]
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -103,13 +145,13 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
         current = self._current
         if current is not None and not current.done:
             return current.observation, self._info(current)  # resuming mid-episode
-        next_episode = 0 if current is None else current.episode + 1
+        next_episode = self._next_episode()
         if next_episode >= self.num_episodes:
             raise RuntimeError("the run has no episode left")
         try:
             self._current = self.client.start_episode(self.run_id, next_episode)
-        except SequenceMismatch:  # episodes expired meanwhile: ask where the run stands
-            self._current = self.client.run_observe(self.run_id)
+        except SequenceMismatch:  # episodes expired meanwhile: ask where the lane stands
+            self._current = self.client.run_observe(self.run_id, self.lane)
             return self.reset()
         return self._current.observation, self._info(self._current)
 
@@ -141,12 +183,22 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
         if self._run_done:
             return True
         current = self._current
-        last = current is not None and current.done and current.episode + 1 >= self.num_episodes
+        last = current is not None and current.done and self._next_episode() >= self.num_episodes
         return last or (current is not None and current.run_done)
 
     @property
     def episodes_started(self) -> int:
-        return 0 if self._current is None else self._current.episode + 1
+        """Episodes this lane has started (all the run's, with one lane)."""
+        if self._current is None or self._current.episode < 0:
+            return 0
+        return self._current.episode // self.num_envs + 1
+
+    def _next_episode(self) -> int:
+        """The run-order number of this lane's next episode (lane k: k, k + K …)."""
+        current = self._current
+        if current is None or current.episode < 0:
+            return self.lane
+        return current.episode + self.num_envs
 
     def status(self) -> RunStatus:
         return self.client.run_status(self.run_id)

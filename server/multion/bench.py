@@ -32,7 +32,7 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "pages"],
+        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -80,6 +80,10 @@ def run(args: argparse.Namespace) -> int:
         from multion.api.bench_http import run_http_bench
 
         run_http_bench(server_options=["--http", args.http, "--loop", args.loop])
+    if "lanes" in parts:
+        from multion.leaderboard.bench_lanes import run_lanes_bench
+
+        run_lanes_bench()
     if "leaderboard" in parts:
         from multion.leaderboard.bench import run_leaderboard_bench
 

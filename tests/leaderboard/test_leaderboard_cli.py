@@ -34,7 +34,7 @@ def test_admin_submit_baselines_export_replay(
 ) -> None:
     db = ["--database", database]
     code, out, _ = run_cli(capsys, "leaderboard", "init", *db)
-    assert code == 0 and "schema 0004" in out
+    assert code == 0 and "schema 0005" in out
     code, out, _ = run_cli(capsys, "leaderboard", "tracks", "--challenge", str(challenge_file))
     assert code == 0 and "minival: 3 episodes" in out and "1 total" in out
     code, out, _ = run_cli(capsys, "leaderboard", "team", "add", "Lab One", *db)

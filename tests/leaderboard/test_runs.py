@@ -302,7 +302,8 @@ def test_a_server_restart_loses_nothing(
     db = Database.open(database)
     with db.sessions.begin() as session:
         row = session.get(Run, crashed.run_id)
-        row.actions, row.seq = row.actions + "0", row.seq + 1
+        lane = row.lanes[0]
+        row.lanes = [{**lane, "actions": lane["actions"] + "0", "seq": lane["seq"] + 1}]
     db.close()
     second = launch(challenge_file, database)
     try:

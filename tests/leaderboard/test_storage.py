@@ -13,6 +13,7 @@ from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.models import EpisodeRecord, Run, Token, utcnow
 from multion.leaderboard.run_store import (
     EpisodeResult,
+    LaneState,
     RunMoved,
     RunState,
     create_run,
@@ -49,7 +50,7 @@ def db(
 
 
 def test_migrations_make_the_schema(db: Database) -> None:
-    assert current_revision(db.engine) == "0004"
+    assert current_revision(db.engine) == "0005"
     tables = set(inspect(db.engine).get_table_names())
     assert {"teams", "tokens", "runs", "episodes", "secret_fingerprint", "episode_pictures", "alembic_version"} <= tables
     Database.open(str(db.engine.url.render_as_string(hide_password=False))).close()  # idempotent
@@ -92,7 +93,8 @@ def test_quota_state_and_results(db: Database, challenge: Challenge) -> None:
         create_run(session, _run(team.id, "r1", [1, 0]), track, phase, utcnow())
     with db.sessions.begin() as session, pytest.raises(errors.QuotaExceeded, match="total quota"):
         create_run(session, _run(team.id, "r2", [0, 1]), track, phase, utcnow())
-    state = RunState(position=0, episode_active=True, seq=2, actions=[1, 2], deadline=utcnow())
+    lane = LaneState(position=0, episode_active=True, seq=2, actions=[1, 2], deadline=utcnow())
+    state = RunState(lanes=[lane])
     with db.sessions.begin() as session:
         save_state(session, "r1", state, [])
     stale = RunState(version=0)

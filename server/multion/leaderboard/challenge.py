@@ -10,6 +10,7 @@ An organiser writes one file (see ``docs/leaderboard.md``)::
     step_timeout_s = 60          # an episode whose next action is this late ends as it stands
     max_consecutive_timeouts = 3 # that many expired episodes in a row end the run
     run_timeout_s = 86400        # a run still going after this long ends
+    max_envs_per_run = 4         # episodes a run may play at once (lanes)
 
     [hidden]                     # optional; default: the packaged houses' generator (8–16 rooms)
     rooms = [8, 12]              # narrow the room count range, within [1, 16]
@@ -83,11 +84,15 @@ class Limits:
     """[1, 1000]: that many expired episodes in a row end the run."""
     run_timeout_s: float = 86400.0
     """(0, 30 days]: a run still going after this long ends; its missing episodes fail."""
+    max_envs_per_run: int = 4
+    """[1, 64]: the most episodes a run may play at once (``CreateRun.num_envs``); each takes
+    a simulator environment while it plays."""
 
     def __post_init__(self) -> None:
         _check_range("limits.step_timeout_s", self.step_timeout_s, 0.0, 86400.0, low_open=True)
         _check_range("limits.max_consecutive_timeouts", self.max_consecutive_timeouts, 1, 1000)
         _check_range("limits.run_timeout_s", self.run_timeout_s, 0.0, 30 * 86400.0, low_open=True)
+        _check_range("limits.max_envs_per_run", self.max_envs_per_run, 1, 64)
 
 
 @dataclass(frozen=True)
@@ -270,6 +275,7 @@ class Challenge:
                 "step_timeout_s": self.limits.step_timeout_s,
                 "max_consecutive_timeouts": self.limits.max_consecutive_timeouts,
                 "run_timeout_s": self.limits.run_timeout_s,
+                "max_envs_per_run": self.limits.max_envs_per_run,
             },
             "tracks": [
                 {
@@ -324,7 +330,7 @@ def challenge_from_dict(data: Mapping[str, Any], environ: Mapping[str, str]) -> 
         **_section(
             top.get("limits", {}),
             "limits",
-            ("step_timeout_s", "max_consecutive_timeouts", "run_timeout_s"),
+            ("step_timeout_s", "max_consecutive_timeouts", "run_timeout_s", "max_envs_per_run"),
         )
     )
     hidden_raw = _section(top.get("hidden", {}), "hidden", ("rooms",))

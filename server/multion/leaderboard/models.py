@@ -112,6 +112,10 @@ class Run(Base):
     deadline: Mapped[dt.datetime | None] = mapped_column(UTCDateTime(), nullable=True)
     """When the current episode expires if no action (or next episode start) comes."""
     consecutive_timeouts: Mapped[int] = mapped_column(Integer, default=0)
+    num_envs: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    """Lanes: episodes played at once (lane k plays episodes k, k + K …)."""
+    lanes: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON, nullable=True)
+    """Every lane's state (the columns above hold lane 0's; None: runs stored before lanes)."""
     summary: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
     """Aggregates with 95% bootstrap intervals, once the run is over."""
     episodes: Mapped[list[EpisodeRecord]] = relationship(

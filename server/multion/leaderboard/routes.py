@@ -215,13 +215,14 @@ async def step(run_id: str, request: Request) -> MsgpackResponse:
 @router.get(
     RUNS_PATH + "/{run_id}/observe",
     summary="Where the run stands",
-    description="The answer to the last start or step of the current episode (to resume after "
-    "a client crash); `done` with an empty observation between episodes.",
-    responses=answers(200, RunObservation, *RUN_ERRORS, e.RunOver, e.WorkerFailed),
+    description="The answer to the last start or step of a lane's current episode (to resume "
+    "after a client crash); `done` with an empty observation between episodes. `lane` "
+    "(default 0) for runs that play several episodes at once.",
+    responses=answers(200, RunObservation, *RUN_ERRORS, e.BadRequest, e.RunOver, e.WorkerFailed),
 )
-async def observe(run_id: str, request: Request) -> MsgpackResponse:
+async def observe(run_id: str, request: Request, lane: int = 0) -> MsgpackResponse:
     team_id = await team_of(request)
-    return MsgpackResponse(await _service(request).observe(team_id, run_id))
+    return MsgpackResponse(await _service(request).observe(team_id, run_id, lane))
 
 
 @router.delete(

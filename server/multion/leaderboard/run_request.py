@@ -21,6 +21,8 @@ class RunRequest:
     sensors: tuple[str, ...]
     config: dict[str, Any]
     """The run's environment config (no episodes yet)."""
+    num_envs: int
+    """Lanes: episodes played at once."""
 
 
 def track_phase(challenge: Challenge, track_name: str, phase_name: str) -> tuple[Track, Phase]:
@@ -42,6 +44,13 @@ def checked_request(challenge: Challenge, message: CreateRun) -> RunRequest:
     """``message`` checked: 404 for an unknown track or phase, 403 for a sensor or maps the
     track does not allow, 422 for a config the environment refuses."""
     track, phase = track_phase(challenge, message.track, message.phase)
+    most = min(challenge.limits.max_envs_per_run, phase.episodes)
+    if not 1 <= message.num_envs <= most:
+        raise errors.InvalidConfig(
+            f"num_envs = {message.num_envs} is out of range: allowed an integer in [1, {most}] "
+            f"(the challenge's max_envs_per_run is {challenge.limits.max_envs_per_run}, the "
+            f"phase has {phase.episodes} episodes)"
+        )
     sensors = tuple(message.sensors or track.allowed_sensors)
     refused = [s for s in sensors if s not in track.allowed_sensors]
     if refused:
@@ -56,4 +65,4 @@ def checked_request(challenge: Challenge, message: CreateRun) -> RunRequest:
         session_config_from_dict(config)
     except ConfigError as error:
         raise errors.InvalidConfig(str(error)) from None
-    return RunRequest(track, phase, sensors, config)
+    return RunRequest(track, phase, sensors, config, message.num_envs)

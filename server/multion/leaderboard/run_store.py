@@ -10,7 +10,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from typing import Any
 
-from sqlalchemy import Connection, select, update
+from sqlalchemy import Connection, func, select, update
 from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
@@ -25,11 +25,15 @@ BASELINE_TEAM = "baselines"
 
 
 @dataclass
-class RunState:
-    """The resumable state of a running run, as saved in its row at every step."""
+class LaneState:
+    """One lane of a run: the episode it plays now (or last), as saved at every step.
 
-    version: int = 0
+    A run with K environments plays K episodes at once, one per lane; lane k plays the run's
+    episodes k, k + K, k + 2K … (the server's choice, not the client's).
+    """
+
     position: int = -1
+    """The run-order number of the lane's current (or last) episode; -1 before its first."""
     episode_active: bool = False
     seq: int = 0
     actions: list[int] = field(default_factory=list)
@@ -37,28 +41,71 @@ class RunState:
     deadline: dt.datetime | None = None
     consecutive_timeouts: int = 0
 
-    @classmethod
-    def of(cls, run: Run) -> RunState:
-        return cls(
-            version=run.version,
-            position=run.position,
-            episode_active=run.episode_active,
-            seq=run.seq,
-            actions=[int(c) for c in run.actions],
-            last_metrics=run.last_metrics,
-            deadline=run.deadline,
-            consecutive_timeouts=run.consecutive_timeouts,
-        )
-
-    def columns(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         return {
             "position": self.position,
             "episode_active": self.episode_active,
             "seq": self.seq,
             "actions": "".join(str(a) for a in self.actions),
             "last_metrics": self.last_metrics,
-            "deadline": self.deadline,
+            "deadline": None if self.deadline is None else self.deadline.isoformat(),
             "consecutive_timeouts": self.consecutive_timeouts,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> LaneState:
+        deadline = data.get("deadline")
+        return cls(
+            position=int(data["position"]),
+            episode_active=bool(data["episode_active"]),
+            seq=int(data["seq"]),
+            actions=[int(c) for c in data["actions"]],
+            last_metrics=data.get("last_metrics"),
+            deadline=None if deadline is None else dt.datetime.fromisoformat(deadline),
+            consecutive_timeouts=int(data["consecutive_timeouts"]),
+        )
+
+
+@dataclass
+class RunState:
+    """The resumable state of a running run, as saved in its row at every step: a version
+    number (compare-and-set) and its lanes."""
+
+    version: int = 0
+    lanes: list[LaneState] = field(default_factory=lambda: [LaneState()])
+
+    @classmethod
+    def of(cls, run: Run) -> RunState:
+        if run.lanes:
+            lanes = [LaneState.from_json(lane) for lane in run.lanes]
+        else:  # one lane, in the row's own columns (runs stored before lanes existed)
+            lanes = [
+                LaneState(
+                    position=run.position,
+                    episode_active=run.episode_active,
+                    seq=run.seq,
+                    actions=[int(c) for c in run.actions],
+                    last_metrics=run.last_metrics,
+                    deadline=run.deadline,
+                    consecutive_timeouts=run.consecutive_timeouts,
+                )
+            ]
+        return cls(version=run.version, lanes=lanes)
+
+    def columns(self) -> dict[str, Any]:
+        """The row's columns: every lane, the earliest deadline (what the expiry loop looks
+        for), and lane 0 in the single-lane columns (what older readers know)."""
+        first = self.lanes[0]
+        deadlines = [lane.deadline for lane in self.lanes if lane.deadline is not None]
+        return {
+            "lanes": [lane.to_json() for lane in self.lanes],
+            "position": first.position,
+            "episode_active": first.episode_active,
+            "seq": first.seq,
+            "actions": "".join(str(a) for a in first.actions),
+            "last_metrics": first.last_metrics,
+            "deadline": min(deadlines) if deadlines else None,
+            "consecutive_timeouts": first.consecutive_timeouts,
         }
 
 
@@ -195,11 +242,12 @@ def describe_run(
     # evaluation for anyone who can make a worker die.
     visible = phase is not None and phase.results_visible(utcnow()) and not run.refunded
     done = session.scalar(
-        select(EpisodeRecord.position)
-        .where(EpisodeRecord.run_id == run.id)
-        .order_by(EpisodeRecord.position.desc())
-        .limit(1)
+        select(func.count()).select_from(EpisodeRecord).where(EpisodeRecord.run_id == run.id)
     )
+    lanes = [
+        {"episode": lane.position, "episode_active": lane.episode_active, "seq": lane.seq}
+        for lane in RunState.of(run).lanes
+    ]
     per_episode = None
     if episodes and visible and phase is not None and phase.feedback == "episodes":
         per_episode = [
@@ -218,7 +266,7 @@ def describe_run(
         state=run.state,
         end_reason=run.end_reason,
         num_episodes=len(run.order),
-        episodes_done=0 if done is None else done + 1,
+        episodes_done=int(done or 0),
         episode=run.position,
         episode_active=run.episode_active,
         seq=run.seq,
@@ -228,6 +276,8 @@ def describe_run(
         baseline=run.baseline,
         results=run.summary if visible else None,
         episodes=per_episode,
+        num_envs=run.num_envs,
+        lanes=lanes,
     )
 
 

@@ -1,18 +1,19 @@
-"""The run service: a team's run of hidden episodes, played through a one-environment session.
+"""The run service: a team's run of hidden episodes, played through one-environment sessions.
 
-A run holds a session of the server's ordinary :class:`SessionRegistry` whose episodes are the
-phase's hidden ones in the run's own shuffled order; the service alone resets and steps it,
-strips everything the track does not allow from the answers (episode and scene ids, rewards,
-per-step metrics), and saves the run's state in the database at every step (its actions so
-far, the last metrics, the deadline). So:
+A run plays its phase's hidden episodes (its own fresh ones, or the phase's fixed set in its
+own order) in ``num_envs`` lanes at once (lane k: episodes k, k + K …; one lane: one after the
+other). Each lane holds a session of the server's ordinary :class:`SessionRegistry` that the
+service alone resets and steps (:mod:`lane_sessions`); answers are stripped of everything the
+track does not allow (episode and scene ids, rewards, per-step metrics), and the run's state
+is saved in the database at every step (each lane's actions so far, last metrics, deadline).
+So:
 
 * a repeated ``(episode, seq)`` returns the stored answer without acting twice;
-* a run whose session is gone (server restart, idle reaper, another replica) is rebuilt by
-  replaying the current episode's saved actions, which is exact (the simulator is
-  deterministic), and resumes at the same step;
-* a late action or episode start expires the episode as it stands (``step_timeout_s``);
-  ``max_consecutive_timeouts`` in a row, or ``run_timeout_s`` in all, end the run, and its
-  missing episodes count as failures;
+* a lane whose session is gone (server restart, idle reaper, another replica) is rebuilt by
+  replaying its episode's saved actions, which is exact, and resumes at the same step;
+* a late action or episode start expires the lane's episode as it stands
+  (``step_timeout_s``); ``max_consecutive_timeouts`` in a row in a lane, or ``run_timeout_s``
+  in all, end the run, and its missing episodes count as failures;
 * a simulator worker that dies fails the run and refunds it.
 """
 
@@ -31,12 +32,15 @@ from sqlalchemy import select
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
-from multion.leaderboard.live_run import LiveRun, draw_of
+from multion.leaderboard.lane_sessions import LaneSessions, ServerFault
+from multion.leaderboard.live_run import Lane, LiveRun, draw_of
 from multion.leaderboard.models import Run, utcnow
 from multion.leaderboard.run_request import checked_request, track_phase
 from multion.leaderboard.run_store import (
     EpisodeResult,
+    LaneState,
     RunMoved,
+    RunState,
     create_run,
     describe_run,
     finish_run,
@@ -47,16 +51,11 @@ from multion.task.episode import Episode
 from multion_client import errors
 from multion_client.protocol import (
     CreateRun,
-    CreateSession,
-    Reset,
     RunInfo,
     RunObservation,
     RunStatus,
     StartEpisode,
-    Step,
-    decode,
     encode,
-    space_from_wire,
 )
 
 log = logging.getLogger("multion.leaderboard")
@@ -74,6 +73,7 @@ class RunService:
         self.db = db
         self.registry = registry
         self.hidden = HiddenEpisodes(challenge)
+        self.sessions = LaneSessions(registry, self.hidden)
         self.live: dict[str, LiveRun] = {}
         self._creating = asyncio.Lock()  # one quota check at a time in this process
         self.ended: OrderedDict[str, LiveRun] = OrderedDict()
@@ -93,7 +93,12 @@ class RunService:
             order = list(range(phase.episodes))
         draw = RunDraw(run_id, phase.episode_set, tuple(order))
         episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
-        first = await asyncio.to_thread(self.hidden.episode, track, phase, draw, 0)
+        firsts = [
+            await asyncio.to_thread(self.hidden.episode, track, phase, draw, k)
+            for k in range(request.num_envs)
+        ]
+        deadline = utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
+        state = RunState(0, [LaneState(deadline=deadline) for _ in firsts])
         row = Run(
             id=run_id,
             team_id=team_id,
@@ -106,19 +111,20 @@ class RunService:
             maps=dict(message.maps or {}),
             episode_set=phase.episode_set,
             order=order,
+            num_envs=request.num_envs,
             created_at=utcnow(),
-            deadline=utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s),
+            **state.columns(),
         )
         async with self._creating:
             await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
         live = LiveRun.of(row, track, phase, episode_ids)
-        live.episode = first
+        for lane, first in zip(live.lanes, firsts, strict=True):
+            lane.episode = first
         self.live[run_id] = live
-        async with live.lock:
-            info = await self._open_session(live)
-            # the first step budget starts now, with the run ready (opening took a while)
-            live.state.deadline = self._deadline()
-            await self._save(live, [])
+        spaces = [await self._open(live, lane) for lane in live.lanes]
+        for lane in live.lanes:  # the first step budgets start now, with every lane ready
+            lane.state.deadline = self._deadline()
+        await self._save(live, [])
         limits = self.challenge.describe()["limits"]
         return RunInfo(
             run_id=run_id,
@@ -126,66 +132,71 @@ class RunService:
             phase=phase.name,
             num_episodes=len(order),
             sensors=list(sensors),
-            observation_space=info["observation_space"],
-            action_space=info["action_space"],
+            observation_space=spaces[0]["observation_space"],
+            action_space=spaces[0]["action_space"],
             limits=limits,
+            num_envs=request.num_envs,
         )
 
     # ------------------------------------------------------------------ play
     async def start_episode(self, team_id: int, run_id: str, message: StartEpisode) -> bytes:
         live = await self._get_live(team_id, run_id)
-        async with live.lock:
-            await self._expire_due(live)
-            st = live.state
-            if message.episode == st.position and st.episode_active and live.last_answer:
-                return live.last_answer  # a retry: the episode has started already
+        lane = self._lane(live, message.episode)
+        async with lane.lock:
+            await self._expire_due(live, lane)
+            st = lane.state
+            if message.episode == st.position and st.episode_active and lane.last_answer:
+                return lane.last_answer  # a retry: the episode has started already
             await self._check_running(live)
+            where = f" of lane {lane.index}" if len(live.lanes) > 1 else ""
             if st.episode_active:
                 raise errors.EpisodeInProgress(
-                    f"episode {st.position} is still going (step {st.seq}); a run plays its "
-                    "episodes one after the other, each to its end"
+                    f"episode {st.position}{where} is still going (step {st.seq}); a run plays "
+                    "its episodes one after the other in each lane, each to its end"
                 )
-            if message.episode != st.position + 1:
+            if message.episode != live.next_position(lane):
                 raise errors.SequenceMismatch(
-                    f"the next episode of this run is {st.position + 1}, not {message.episode}"
+                    f"the next episode{where} is {live.next_position(lane)}, not "
+                    f"{message.episode} (the server chooses the episodes)"
                 )
-            episode = await self._draw(live, st.position + 1)
-            reply = await self._session_call(live, "reset", episode)
+            episode = await self.sessions.draw(live, message.episode)
+            reply = await self._session_call(live, lane, episode)
             observation, info = reply["observations"][0], reply["infos"][0]
-            live.episode = episode
-            st.position += 1
+            lane.episode = episode
+            st.position = message.episode
             st.episode_active, st.seq, st.actions = True, 0, []
             st.last_metrics = info["metrics"]
             st.deadline = self._deadline()
             st.consecutive_timeouts = 0
-            live.episode_clock = time.monotonic()
+            lane.episode_clock = time.monotonic()
             await self._save(live, [])
             answer = RunObservation(st.position, 0, observation, done=False)
-            live.last_answer = encode(answer.to_wire())
-            return live.last_answer
+            lane.last_answer = encode(answer.to_wire())
+            return lane.last_answer
 
     async def step(self, team_id: int, run_id: str, episode: int, seq: int, action: int) -> bytes:
         live = await self._get_live(team_id, run_id)
-        async with live.lock:
-            st = live.state
+        lane = self._lane(live, episode)
+        async with lane.lock:
+            st = lane.state
             if (episode, seq) == (st.position, st.seq) and seq > 0:
-                if live.last_answer is None and st.episode_active:
-                    await self._rebuild(live)  # after a restart: replay to the same step
-                if live.last_answer is not None:
-                    return live.last_answer  # a retry of the last step: do not act twice
-            await self._expire_due(live)
+                if lane.last_answer is None and st.episode_active:
+                    await self._rebuild(live, lane)  # after a restart: replay to the same step
+                if lane.last_answer is not None:
+                    return lane.last_answer  # a retry of the last step: do not act twice
+            await self._expire_due(live, lane)
             await self._check_running(live)
             if not st.episode_active and episode == st.position:
-                why = self._shown_reason(live, live.last_end_reason)
+                why = self._shown_reason(live, lane.last_end_reason)
                 raise errors.EpisodeOver(
                     f"episode {episode} has ended{f' ({why})' if why else ''}; start episode "
-                    f"{episode + 1} (POST episodes)"
+                    f"{live.next_position(lane)} (POST episodes)"
                 )
             if not st.episode_active or episode != st.position or seq != st.seq + 1:
                 expected = (
                     f"episode {st.position}, seq {st.seq + 1}"
                     if st.episode_active
-                    else f"no step: start episode {st.position + 1} first"
+                    else f"no step: start episode {live.next_position(lane)} first"
                 )
                 raise errors.SequenceMismatch(
                     f"got episode {episode}, seq {seq}; expected {expected}"
@@ -194,25 +205,30 @@ class RunService:
                 raise errors.InvalidAction(f"illegal action {action!r}; actions are 0..3")
             # Saved after the step, before the answer (saving while the simulator steps was
             # measured slower: the threads contend for the GIL and the cores).
-            reply = await self._session_call(live, "step", action)
+            reply = await self._session_call(live, lane, action)
             observation, info = reply["observations"][0], reply["infos"][0]
             done = bool(reply["terminated"][0] or reply["truncated"][0])
             st.seq += 1
             st.actions.append(action)
             st.last_metrics = info["metrics"]
             st.deadline = self._deadline()
-            return await self._conclude(live, observation, done)
+            return await self._conclude(live, lane, observation, done)
 
-    async def observe(self, team_id: int, run_id: str) -> bytes:
-        """Where the run stands: the last answer (for a client resuming after a crash)."""
+    async def observe(self, team_id: int, run_id: str, lane_index: int = 0) -> bytes:
+        """Where a lane stands: its last answer (for a client resuming after a crash)."""
         live = await self._get_live(team_id, run_id)
-        async with live.lock:
-            await self._expire_due(live)
-            if live.last_answer is None and live.state.episode_active:
-                await self._rebuild(live)  # after a restart: replay to the same step
-            if live.last_answer is not None and live.state.episode_active:
-                return live.last_answer
-            st = live.state
+        if not 0 <= lane_index < len(live.lanes):
+            raise errors.BadRequest(
+                f"lane {lane_index} is out of range: this run has lanes 0..{len(live.lanes) - 1}"
+            )
+        lane = live.lanes[lane_index]
+        async with lane.lock:
+            await self._expire_due(live, lane)
+            if lane.last_answer is None and lane.state.episode_active:
+                await self._rebuild(live, lane)  # after a restart: replay to the same step
+            if lane.last_answer is not None and lane.state.episode_active:
+                return lane.last_answer
+            st = lane.state
             answer = RunObservation(
                 st.position, st.seq, {}, done=True, run_done=live.run_id not in self.live
             )
@@ -221,18 +237,27 @@ class RunService:
     async def abandon(self, team_id: int, run_id: str) -> RunStatus:
         """End a run now: its missing episodes count as failures (the quota stays used)."""
         live = await self._get_live(team_id, run_id)
-        async with live.lock:
+        for lane in live.lanes:  # in lane order, as everywhere: no deadlock
+            await lane.lock.acquire()
+        try:
             await self._check_running(live)
-            results = [live.result("abandoned")] if live.state.episode_active else []
+            results = [
+                live.result(lane, "abandoned") for lane in live.lanes if lane.state.episode_active
+            ]
             await self._finish(live, results, "ended", "abandoned")
+        finally:
+            for lane in live.lanes:
+                lane.lock.release()
         return await self.status(team_id, run_id)
 
     # ------------------------------------------------------------------ status
     async def status(self, team_id: int | None, run_id: str) -> RunStatus:
         live = self.live.get(run_id)
         if live is not None and (team_id is None or live.team_id == team_id):
-            async with live.lock:
-                await self._expire_due(live)
+            for lane in live.lanes:
+                async with lane.lock:
+                    with contextlib.suppress(errors.RunOver):  # another lane ended it
+                        await self._expire_due(live, lane)
 
         def read(session: Any) -> RunStatus:
             run = session.get(Run, run_id)
@@ -273,44 +298,60 @@ class RunService:
         for run_id, team_id in await self._db(due):
             try:
                 live = await self._get_live(team_id, run_id)
-                async with live.lock:
-                    await self._expire_due(live)
+                for lane in live.lanes:
+                    async with lane.lock:
+                        await self._expire_due(live, lane)
             except errors.MultiONError:
                 continue
 
-    async def _expire_due(self, live: LiveRun) -> None:
-        """Score late episodes as they stand; end the run on too many or on its time budget."""
+    async def _expire_due(self, live: LiveRun, lane: Lane) -> None:
+        """Score a lane's late episodes as they stand; end the run on too many in a row or
+        on its time budget."""
         if live.run_id not in self.live:
             return
-        limits, st = self.challenge.limits, live.state
+        limits, st = self.challenge.limits, lane.state
         now = utcnow()
         results: list[EpisodeResult] = []
         if now > live.created_at + dt.timedelta(seconds=limits.run_timeout_s):
-            if st.episode_active:
-                results.append(live.result("timeout"))
+            results = [live.result(x, "timeout") for x in live.lanes if x.state.episode_active]
             await self._finish(live, results, "ended", "run_timeout")
             return
         while st.deadline is not None and now > st.deadline:
             if st.episode_active:
-                results.append(live.result("timeout"))
+                results.append(live.result(lane, "timeout"))
                 st.episode_active = False
-            elif st.position + 1 < len(live.draw.order):  # the next episode was never started
-                st.position += 1
+            elif live.next_position(lane) < live.num_episodes:  # never started in time
+                st.position = live.next_position(lane)
                 st.seq, st.actions, st.last_metrics = 0, [], None
-                results.append(live.result("timeout"))
+                results.append(live.result(lane, "timeout"))
             st.consecutive_timeouts += 1
             st.deadline += dt.timedelta(seconds=limits.step_timeout_s)
-            if st.position == len(live.draw.order) - 1 and not st.episode_active:
+            if live.all_done:
                 await self._finish(live, results, "finished", None)
                 return
             if st.consecutive_timeouts >= limits.max_consecutive_timeouts:
+                results += [
+                    live.result(x, "run_ended")
+                    for x in live.lanes
+                    if x is not lane and x.state.episode_active
+                ]
                 await self._finish(live, results, "ended", "timeouts")
                 return
+            if live.lane_done(lane):
+                st.deadline = None  # this lane is through; the others go on
         if results:
-            live.last_answer = None
+            lane.last_answer = None
             await self._save(live, results)
 
     # ------------------------------------------------------------------ internals
+    def _lane(self, live: LiveRun, episode: int) -> Lane:
+        if not 0 <= episode < live.num_episodes:
+            raise errors.SequenceMismatch(
+                f"episode {episode} is out of range: this run has episodes "
+                f"0..{live.num_episodes - 1}"
+            )
+        return live.lane_of(episode)
+
     async def _get_live(self, team_id: int, run_id: str) -> LiveRun:
         live = self.live.get(run_id) or self.ended.get(run_id)
         if live is not None:
@@ -330,80 +371,45 @@ class RunService:
     async def _check_running(self, live: LiveRun) -> None:
         if live.run_id not in self.live:
             row = await self._db(lambda s: s.get(Run, live.run_id))
-            raise errors.RunOver(_over(row.state, row.end_reason) if row else "the run is over")
+            if row is None or row.state == "running":  # its end is being written
+                raise errors.RunOver("the run is over")
+            raise errors.RunOver(_over(row.state, row.end_reason))
 
-    async def _draw(self, live: LiveRun, position: int) -> Episode:
-        """The episode the run plays at ``position`` (a fresh one is drawn now)."""
-        return await asyncio.to_thread(
-            self.hidden.episode, live.track, live.phase, live.draw, position
-        )
-
-    async def _open_session(self, live: LiveRun) -> dict[str, Any]:
-        """Create the run's session; on a server fault the run fails and is refunded."""
-        if live.episode is None:  # the config needs an episode; each reset names its own
-            live.episode = await self._draw(live, max(live.state.position, 0))
-        config = {**live.config, "episodes": [live.episode.to_dict()]}
+    async def _open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
+        """Open a lane's session; on a server fault the run fails and is refunded."""
         try:
-            answer = await self.registry.create(CreateSession(config, 1, False), for_run=True)
-        except (errors.WorkerFailed, errors.LimitExceeded, errors.InternalError) as error:
-            log.error("run %s: no session: %s", live.run_id, error.message)
+            return await self.sessions.open(live, lane)
+        except ServerFault as fault:
             await self._finish(live, [], "failed", "server_error", refunded=True)
-            why = "has no room for" if isinstance(error, errors.LimitExceeded) else "failed in"
-            raise type(error)(
-                f"the server {why} this run's simulator; the run is over and refunded (it does "
-                "not count against your quota): retry later"
-            ) from None
-        info = decode(answer)
-        live.session_id = info["session_id"]
-        return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
+            raise fault.error from None
 
-    async def _session_call(self, live: LiveRun, verb: str, argument: Episode | int) -> Any:
-        """Reset (argument: the episode) or step (argument: the action) the run's environment,
-        rebuilding the session first if it is gone (restart, idle reaper, another replica)."""
+    async def _session_call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> Any:
+        """Reset (argument: the episode) or step (argument: the action) a lane's environment,
+        rebuilding its session first if it is gone (restart, idle reaper, another replica)."""
         for attempt in range(2):
             try:
-                if live.session_id is None:
-                    await self._rebuild(live)
-                assert live.session_id is not None
-                if isinstance(argument, Episode):
-                    options = [{"episode": argument.to_dict()}]
-                    reply = await self.registry.reset(live.session_id, Reset([None], options))
-                else:
-                    reply = await self.registry.step(live.session_id, Step([argument]))
-                return decode(reply)
+                if lane.session_id is None:
+                    await self._rebuild(live, lane)
+                return await self.sessions.call(live, lane, argument)
             except errors.SessionNotFound:
-                live.session_id = None
+                lane.session_id = None
                 if attempt == 1:
                     raise
-            except (errors.WorkerFailed, errors.InternalError) as error:
-                log.error("run %s: the simulator failed: %s", live.run_id, error.message)
-                await self._close_session(live)
+            except ServerFault as fault:
                 await self._finish(live, [], "failed", "server_error", refunded=True)
-                raise errors.WorkerFailed(
-                    "the simulator failed during this run; the run is over and refunded: it "
-                    "does not count against your quota, and shows no results"
-                ) from None
+                raise fault.error from None
         raise AssertionError("unreachable")
 
-    async def _rebuild(self, live: LiveRun) -> None:
-        """A new session in the run's state: the current episode reset and its actions replayed."""
-        await self._close_session(live)
-        st = live.state
-        if st.episode_active and live.episode is None:
-            live.episode = await self._draw(live, st.position)
-        await self._open_session(live)
-        if not st.episode_active or live.session_id is None:
-            return
-        assert live.episode is not None
-        options = [{"episode": live.episode.to_dict()}]
-        reply = decode(await self.registry.reset(live.session_id, Reset([None], options)))
-        done = False
-        for action in st.actions:
-            reply = decode(await self.registry.step(live.session_id, Step([action])))
-            done = bool(reply["terminated"][0] or reply["truncated"][0])
-        st.last_metrics = reply["infos"][0]["metrics"]
-        # the state is as saved, unless (defensively) its last action ended the episode unrecorded
-        await self._conclude(live, reply["observations"][0], done, save_unfinished=False)
+    async def _rebuild(self, live: LiveRun, lane: Lane) -> None:
+        """A new session in the lane's state, its episode replayed to the saved step."""
+        try:
+            replayed = await self.sessions.replay(live, lane)
+        except ServerFault as fault:
+            await self._finish(live, [], "failed", "server_error", refunded=True)
+            raise fault.error from None
+        if replayed is not None:
+            # the state is as saved, unless (defensively) its last action ended the episode
+            await self._conclude(live, lane, *replayed, save_unfinished=False)
 
     def _shown_reason(self, live: LiveRun, end_reason: str | None) -> str | None:
         """What the participant may learn of why an episode ended (see KNOWN_END_REASONS)."""
@@ -412,17 +418,19 @@ class RunService:
         return None
 
     async def _conclude(
-        self, live: LiveRun, observation: Any, done: bool, save_unfinished: bool = True
+        self, live: LiveRun, lane: Lane, observation: Any, done: bool, save_unfinished: bool = True
     ) -> bytes:
         """After a step (or a replay up to it): record the episode if it ended, finish the run
-        if that was its last episode, else save the state; keep the answer for retries."""
-        st = live.state
+        if that was its last, else save the state; keep the answer for retries."""
+        st = lane.state
         end_reason = st.last_metrics.get("end_reason") if done and st.last_metrics else None
         results = []
         if done:
             st.episode_active = False
-            results.append(live.result(str(end_reason)))
-        run_done = done and st.position == len(live.draw.order) - 1
+            results.append(live.result(lane, str(end_reason)))
+            if live.lane_done(lane):
+                st.deadline = None  # this lane is through; the others go on
+        run_done = done and live.all_done
         if run_done:
             await self._finish(live, results, "finished", None)
         elif done or save_unfinished:
@@ -432,27 +440,33 @@ class RunService:
             st.position, st.seq, observation, done=done,
             end_reason=self._shown_reason(live, end_reason), metrics=metrics, run_done=run_done,
         )  # fmt: skip
-        live.last_answer = encode(answer.to_wire())
-        return live.last_answer
+        lane.last_answer = encode(answer.to_wire())
+        return lane.last_answer
 
     async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
-        def save() -> None:
-            if results:
-                with self.db.sessions.begin() as session:
-                    save_state(session, live.run_id, live.state, results)
-            else:  # the per-step save: one UPDATE on a bare connection, no ORM session
-                with self.db.engine.begin() as connection:
-                    save_state(connection, live.run_id, live.state, results)
+        async with live.save_lock:  # lanes act at once; their saves take turns
+            await self._check_running(live)  # another lane may have ended the run meanwhile
+            state = live.run_state()
 
-        try:
-            await asyncio.to_thread(save)
-        except RunMoved:
-            self.live.pop(live.run_id, None)
-            await self._close_session(live)
-            raise errors.SequenceMismatch(
-                "this run was changed elsewhere (another server replica or an organiser); "
-                "GET its observe route and continue from there"
-            ) from None
+            def save() -> None:
+                if results:
+                    with self.db.sessions.begin() as session:
+                        save_state(session, live.run_id, state, results)
+                else:  # the per-step save: one UPDATE on a bare connection, no ORM session
+                    with self.db.engine.begin() as connection:
+                        save_state(connection, live.run_id, state, results)
+
+            try:
+                await asyncio.to_thread(save)
+            except RunMoved:
+                self.live.pop(live.run_id, None)
+                for lane in live.lanes:
+                    await self.sessions.close(lane)
+                raise errors.SequenceMismatch(
+                    "this run was changed elsewhere (another server replica or an organiser); "
+                    "GET its observe route and continue from there"
+                ) from None
+            live.version = state.version
 
     async def _finish(
         self,
@@ -462,31 +476,34 @@ class RunService:
         reason: str | None,
         refunded: bool = False,
     ) -> None:
-        await self._db(
-            lambda s: finish_run(
-                s,
-                live.run_id,
-                live.state,
-                results,
-                outcome,
-                reason,
-                live.track,
-                live.episode_ids,
-                list(live.draw.order),
-                refunded,
+        async with live.save_lock:
+            if live.run_id not in self.live:
+                return  # another lane ended it meanwhile
+            for lane in live.lanes:  # every episode still going is in ``results``
+                lane.state.episode_active, lane.state.deadline = False, None
+            state = live.run_state()
+            # over for every lane from now on, while the database is written
+            self.live.pop(live.run_id, None)
+            self.ended[live.run_id] = live
+            await self._db(
+                lambda s: finish_run(
+                    s,
+                    live.run_id,
+                    state,
+                    results,
+                    outcome,
+                    reason,
+                    live.track,
+                    live.episode_ids,
+                    list(live.draw.order),
+                    refunded,
+                )
             )
-        )
-        self.live.pop(live.run_id, None)
-        self.ended[live.run_id] = live
+            live.version = state.version
         while len(self.ended) > ENDED_KEPT:
             self.ended.popitem(last=False)
-        await self._close_session(live)
-
-    async def _close_session(self, live: LiveRun) -> None:
-        if live.session_id is not None:
-            with contextlib.suppress(errors.MultiONError):
-                await self.registry.close(live.session_id)
-            live.session_id = None
+        for lane in live.lanes:
+            await self.sessions.close(lane)
 
     def _deadline(self) -> dt.datetime:
         return utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
@@ -502,7 +519,8 @@ class RunService:
 
     async def close(self) -> None:
         for live in list(self.live.values()):
-            await self._close_session(live)
+            for lane in live.lanes:
+                await self.sessions.close(lane)
         self.hidden.close()
 
 

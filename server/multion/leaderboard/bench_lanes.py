@@ -1,0 +1,118 @@
+"""``multion bench --only lanes``: a phase played with one lane and with two, on a server with
+two simulator workers: the wall time of the whole run, and their ratio (target ≥ 1.6).
+
+The client only sends random moves (never FOUND, so every episode lasts ``max_steps``): the
+bench measures what the server can do in parallel, not an agent's thinking time.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from multion.api.local_server import LocalServer
+from multion.leaderboard.storage import Database, add_team
+from multion_client.run import RunEnv
+
+TARGET = 1.6
+CHALLENGE = """
+[challenge]
+name = "bench-lanes"
+secret = "{secret}"
+
+[limits]
+step_timeout_s = 600
+max_envs_per_run = 2
+
+[hidden]
+rooms = [{rooms}, {rooms}]
+
+[[tracks]]
+name = "3-on"
+num_goals = 3
+camera = {{ width = {size}, height = {size} }}
+max_steps = {max_steps}
+
+[[tracks.phases]]
+name = "test"
+episodes = {episodes}
+houses = 2
+feedback = "aggregate"
+"""
+
+
+def play_lane(env: RunEnv, seed: int) -> int:
+    """Play a lane to its end with random moves; returns its steps."""
+    rng = np.random.default_rng(seed)
+    steps = 0
+    while not env.run_done:
+        env.reset()
+        done = False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(int(rng.choice([1, 1, 2, 3])))
+            done, steps = terminated or truncated, steps + 1
+    return steps
+
+
+def timed_run(url: str, token: str, lanes: int) -> tuple[float, int]:
+    """Wall seconds and steps of one whole run played with ``lanes`` lanes."""
+    begin = time.perf_counter()
+    envs = RunEnv.lanes(url, "3-on", "test", f"bench x{lanes}", token=token,
+                        sensors=["rgb", "depth", "goal"], num_envs=lanes)  # fmt: skip
+    counts = [0] * lanes
+
+    def play(k: int) -> None:
+        counts[k] = play_lane(envs[k], seed=k)
+
+    threads = [threading.Thread(target=play, args=(k,)) for k in range(lanes)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    seconds = time.perf_counter() - begin
+    status = envs[0].status()
+    assert status.state == "finished", status
+    for env in envs:
+        env.close()
+    return seconds, sum(counts)
+
+
+def run_lanes_bench(
+    size: int = 256, episodes: int = 40, max_steps: int = 50, rooms: int = 3, verbose: bool = True
+) -> dict[str, Any]:
+    """Print and return the wall time of a run with one lane and with two, and their ratio."""
+    with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
+        path = Path(directory) / "challenge.toml"
+        path.write_text(
+            CHALLENGE.format(
+                secret=secrets.token_urlsafe(24), size=size, rooms=rooms, episodes=episodes,
+                max_steps=max_steps,
+            )
+        )  # fmt: skip
+        database = f"sqlite:///{Path(directory) / 'bench.db'}"
+        db = Database.open(database)
+        with db.sessions.begin() as session:
+            token = add_team(session, "baselines")[1]  # no quota
+        db.close()
+        options = ["--challenge", str(path), "--database", database]
+        with LocalServer(workers=2, options=options) as server:
+            timed_run(server.url, token, 2)  # warm up: houses built, workers' scenes loaded
+            one, steps_one = timed_run(server.url, token, 1)
+            two, steps_two = timed_run(server.url, token, 2)
+    ratio = one / two
+    if verbose:
+        load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+        print(f"\nA {episodes}-episode run ({max_steps} steps each, {size}² RGB-D) on 2 simulator "
+              f"workers (load average {load})")  # fmt: skip
+        print(f"{'lanes':>6} {'seconds':>9} {'steps/s':>9}")
+        print(f"{1:>6} {one:>9.1f} {steps_one / one:>9.1f}")
+        print(f"{2:>6} {two:>9.1f} {steps_two / two:>9.1f}")
+        print(f"1 lane / 2 lanes wall time: {ratio:.2f} (target ≥ {TARGET})")
+    return {"one_lane_s": one, "two_lanes_s": two, "ratio": ratio, "steps": steps_one}

@@ -1,0 +1,110 @@
+"""The simulator side of a run's lanes: each lane's one-environment session in the server's
+ordinary :class:`SessionRegistry`, its episodes drawn from the hidden ones and given inline at
+each reset, and its rebuild (a new session, the episode reset and its saved actions replayed:
+exact, the simulator is deterministic) after a restart, the idle reaper or another replica."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from typing import Any
+
+from multion.api.sessions import SessionRegistry
+from multion.leaderboard.hidden import HiddenEpisodes
+from multion.leaderboard.live_run import Lane, LiveRun
+from multion.task.episode import Episode
+from multion_client import errors
+from multion_client.protocol import CreateSession, Reset, Step, decode, space_from_wire
+
+log = logging.getLogger("multion.leaderboard")
+
+
+class ServerFault(Exception):
+    """The simulator failed (or had no room) for a lane: the run must fail and be refunded.
+    ``error`` is what the participant is told (no internal ids)."""
+
+    def __init__(self, error: errors.MultiONError) -> None:
+        super().__init__(error.message)
+        self.error = error
+
+
+class LaneSessions:
+    """Opening, stepping, replaying and closing lane sessions; raises :class:`ServerFault`."""
+
+    def __init__(self, registry: SessionRegistry, hidden: HiddenEpisodes) -> None:
+        self.registry = registry
+        self.hidden = hidden
+
+    async def draw(self, live: LiveRun, position: int) -> Episode:
+        """The episode the run plays at ``position`` (a fresh one is drawn now)."""
+        return await asyncio.to_thread(
+            self.hidden.episode, live.track, live.phase, live.draw, position
+        )
+
+    async def open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
+        """Create the lane's session; returns the observation and action spaces."""
+        if lane.episode is None:  # the config needs an episode; each reset names its own
+            lane.episode = await self.draw(live, max(lane.state.position, lane.index))
+        config = {**live.config, "episodes": [lane.episode.to_dict()]}
+        try:
+            answer = await self.registry.create(CreateSession(config, 1, False), for_run=True)
+        except (errors.WorkerFailed, errors.LimitExceeded, errors.InternalError) as error:
+            log.error("run %s lane %d: no session: %s", live.run_id, lane.index, error.message)
+            why = "has no room for" if isinstance(error, errors.LimitExceeded) else "failed in"
+            raise ServerFault(
+                type(error)(
+                    f"the server {why} this run's simulator; the run is over and refunded (it "
+                    "does not count against your quota): retry later"
+                )
+            ) from None
+        info = decode(answer)
+        lane.session_id = info["session_id"]
+        return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
+
+    async def call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> dict[str, Any]:
+        """Reset the lane's environment into ``argument`` (an episode) or step it (an action).
+        The session must exist; ``errors.SessionNotFound`` says it is gone."""
+        assert lane.session_id is not None
+        try:
+            if isinstance(argument, Episode):
+                options = [{"episode": argument.to_dict()}]
+                reply = await self.registry.reset(lane.session_id, Reset([None], options))
+            else:
+                reply = await self.registry.step(lane.session_id, Step([argument]))
+        except (errors.WorkerFailed, errors.InternalError) as error:
+            log.error("run %s lane %d: the simulator failed: %s", live.run_id, lane.index,
+                      error.message)  # fmt: skip
+            await self.close(lane)
+            raise ServerFault(
+                errors.WorkerFailed(
+                    "the simulator failed during this run; the run is over and refunded: it "
+                    "does not count against your quota, and shows no results"
+                )
+            ) from None
+        return decode(reply)
+
+    async def replay(self, live: LiveRun, lane: Lane) -> tuple[Any, bool] | None:
+        """A new session in the lane's state: its episode reset and its actions replayed.
+        Returns the last (observation, done), or None when no episode is going."""
+        await self.close(lane)
+        st = lane.state
+        if st.episode_active and lane.episode is None:
+            lane.episode = await self.draw(live, st.position)
+        await self.open(live, lane)
+        if not st.episode_active:
+            return None
+        assert lane.episode is not None
+        reply = await self.call(live, lane, lane.episode)
+        done = False
+        for action in st.actions:
+            reply = await self.call(live, lane, action)
+            done = bool(reply["terminated"][0] or reply["truncated"][0])
+        st.last_metrics = reply["infos"][0]["metrics"]
+        return reply["observations"][0], done
+
+    async def close(self, lane: Lane) -> None:
+        if lane.session_id is not None:
+            with contextlib.suppress(errors.MultiONError):
+                await self.registry.close(lane.session_id)
+            lane.session_id = None
