@@ -142,16 +142,17 @@ def test_a_changed_secret_is_refused_by_serve_and_replay(
     import subprocess
     import sys
 
-    from conftest import SECRET
+    from multion.leaderboard.challenge import load_challenge
 
     database = f"sqlite:///{tmp_path / 'results.db'}"
     first = make_challenge(tmp_path)
+    secret = load_challenge(first).secret
     server = launch(first, database)  # stores the secret's fingerprint
     server.stop()
     other_dir = tmp_path / "other"
     other_dir.mkdir()
     other = make_challenge(other_dir)
-    other.write_text(other.read_text().replace(SECRET, "another-secret-0123456789abcdef"))
+    other.write_text(other.read_text().replace(secret, "another-secret-0123456789abcdef"))
     done = subprocess.run(
         [sys.executable, "-m", "multion.cli", "serve", "--challenge", str(other),
          "--database", database, "--port", "9"],
@@ -168,6 +169,6 @@ def test_a_changed_secret_is_refused_by_serve_and_replay(
         stored = connection.execute("SELECT fingerprint FROM secret_fingerprint").fetchall()
         dump = "\n".join(connection.iterdump())
     assert len(stored) == 1 and len(stored[0][0]) == 64
-    assert SECRET not in dump
+    assert secret not in dump
     # the original secret still starts
     launch(first, database).stop()
