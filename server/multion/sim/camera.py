@@ -14,6 +14,7 @@ connection when bodies are created after a reset (PyBullet 3.2.7).
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import math
 import os
@@ -121,19 +122,22 @@ class Camera:
         target = (x + math.cos(yaw), y + math.sin(yaw), eye[2])
         view = p.computeViewMatrix(eye, target, (0.0, 0.0, 1.0))
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
-        _, _, rgba, zbuffer, seg = p.getCameraImage(
-            c.width,
-            c.height,
-            view,
-            self.projection,
-            shadow=0,
-            lightAmbientCoeff=self.ambient,
-            lightDiffuseCoeff=self.diffuse,
-            lightSpecularCoeff=0.0,
-            renderer=self._flag,
-            flags=flags,
-            physicsClientId=self.client,
-        )
+        # the EGL plugin prints its OpenGL vendor ("ven = …") when it uploads new bodies
+        quiet = c_output_silenced() if self.renderer == "egl" else contextlib.nullcontext()
+        with quiet:
+            _, _, rgba, zbuffer, seg = p.getCameraImage(
+                c.width,
+                c.height,
+                view,
+                self.projection,
+                shadow=0,
+                lightAmbientCoeff=self.ambient,
+                lightDiffuseCoeff=self.diffuse,
+                lightSpecularCoeff=0.0,
+                renderer=self._flag,
+                flags=flags,
+                physicsClientId=self.client,
+            )
         rgb = np.ascontiguousarray(np.reshape(rgba, (c.height, c.width, 4))[:, :, :3])
         depth = self.process_depth(np.reshape(zbuffer, (c.height, c.width)))
         seg_array = np.reshape(seg, (c.height, c.width)).astype(np.int32) if segmentation else None
