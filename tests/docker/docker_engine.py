@@ -108,8 +108,9 @@ def start_daemon() -> Daemon:
         stderr=subprocess.STDOUT,
         start_new_session=True,
     )
+    # The classic builder: Debian's docker.io has no buildx, which BuildKit needs.
     env = dict(os.environ, DOCKER_HOST=f"unix://{socket}", DOCKER_BUILDKIT="0")
-    # Compose v1 names networks and containers after the project; keep its output plain.
+    # compose v1's `exec` and `run` through the Docker API, not by calling the docker CLI
     env["COMPOSE_INTERACTIVE_NO_CLI"] = "1"
     daemon = Daemon(root=root, process=process, env=env)
     deadline = time.monotonic() + 60
