@@ -24,7 +24,7 @@ RUN apt-get update \
     && rm -rf /var/lib/apt/lists/*
 COPY --from=build /wheels /wheels
 # The same packages as `pip install ./client ".[postgres]"`, from the wheels built above.
-RUN pip install --no-cache-dir --no-index --find-links /wheels "multion[postgres]" multion-client \
+RUN pip install --no-cache-dir --no-index --find-links /wheels "multion-pybullet[postgres]" multion-client \
     && rm -rf /wheels \
     && useradd --create-home multion
 USER multion

@@ -1,9 +1,11 @@
-"""The Dockerfiles cannot be built here (no Docker engine), so check what can go stale in them:
-every COPY source exists and is not hidden by .dockerignore, and the agent image stays light."""
+"""What can go stale in the Dockerfiles, checked everywhere without a Docker engine: every COPY
+source exists and is not hidden by .dockerignore, and the agent image stays light. The images
+are built and run by tests/docker/ (where Docker is installed; required in CI)."""
 
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
@@ -57,3 +59,22 @@ def test_the_agent_image_holds_only_the_client() -> None:
         for alias in node.names
     }
     assert imported <= LIGHT_MODULES, f"the example agent imports {imported - LIGHT_MODULES}"
+
+
+def test_the_server_image_installs_the_distributions_by_their_names() -> None:
+    """The runtime stage installs the built wheels by distribution name: a stale name (the
+    distribution was renamed to multion-pybullet) fails the build with "No matching
+    distribution" only when the image is built."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:
+        import tomli as tomllib
+    names = {
+        tomllib.loads((ROOT / path).read_text())["project"]["name"]
+        for path in ("pyproject.toml", "client/pyproject.toml")
+    }
+    text = (ROOT / "docker" / "server.Dockerfile").read_text().replace("\\\n", " ")
+    line = next(line for line in text.splitlines() if "--find-links /wheels" in line)
+    args = line.split("--find-links /wheels", 1)[1].split("&&", 1)[0].split()
+    installed = {arg.strip('"').split("[")[0] for arg in args}
+    assert installed == names, f"server.Dockerfile installs {installed}, the project has {names}"

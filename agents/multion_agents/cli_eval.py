@@ -76,7 +76,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="SECTION.FIELD=VALUE",
         help="change the environment config, e.g. --set task.found_budget=3 "
-        "--set maps.ego_size=25 --set camera.hfov=90 (repeatable; values are JSON or strings; "
+        "--set maps.ego_size=25 --set camera.hfov_deg=90 (repeatable; values are JSON or strings; "
         "recorded in metrics.json)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -137,7 +137,12 @@ def run(args: argparse.Namespace) -> int:
         where = args.server or "the local server"
         return _fail(f"cannot reach {where}: {error}")
     except DatasetError as error:
-        return _fail(f"no episodes to evaluate: {error}")
+        hint = "" if args.dataset else (
+            f"; only val and test are packaged: make {args.split} episodes with `multion dataset "
+            f"generate --task {args.task} --split {args.split} --episodes N --out FILE` and pass "
+            "--dataset FILE"
+        )  # fmt: skip
+        return _fail(f"no episodes to evaluate: {error}{hint}")
     except MultiONError as error:
         return _fail(f"the server refused the evaluation: {error}")
     except (AgentError, ValueError) as error:  # a bad checkpoint (CheckpointError is a ValueError)

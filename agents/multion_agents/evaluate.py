@@ -32,7 +32,7 @@ from multion.pictures import gps_to_world
 from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
-from multion_agents.registry import agent_class
+from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
 
 EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
@@ -169,6 +169,8 @@ def resolve_agent(settings: EvalSettings) -> type[Agent]:
     """The agent class: a registered or import-path agent, or a learned one from a checkpoint."""
     if settings.checkpoint is None:
         return agent_class(settings.agent)
+    if not torch_installed():
+        raise AgentError(f"--checkpoint {settings.checkpoint}: {SETUP_TORCH}")
     return _learned_class(settings.agent, settings.checkpoint, settings.deterministic)
 
 

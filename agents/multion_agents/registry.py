@@ -8,6 +8,7 @@ baselines; :mod:`multion_agents.agent` (the interface they implement) imports no
 from __future__ import annotations
 
 import importlib
+import importlib.util
 
 from multion_agents.agent import Agent, AgentError
 from multion_agents.baselines.explorer import ExplorerAgent
@@ -24,10 +25,38 @@ REGISTRY: dict[str, type[Agent]] = {
 AGENT_NAMES: tuple[str, ...] = tuple(REGISTRY)
 """Names accepted by :func:`agent_class` besides import paths."""
 
+LEARNED_AGENT_NAMES: tuple[str, ...] = (
+    "no-map", "oracle-map", "oracle-map-occ", "oracle-map-obj", "oracle-ego-map",
+    "dynamic-oracle-map", "only-oracle-map", "oracle-map-hidden-objects",
+    "dynamic-oracle-ego-map", "frmqn", "smt", "obj-recog-map", "proj-neural-map", "ego-map",
+    "dynamic-obj-recog-map",
+)  # fmt: skip
+"""The learned agents (``multion_agents.learned.models.MODELS``, which needs torch; a test keeps
+the two equal), named here so that a mistake can be explained without torch."""
+
+SETUP_TORCH = (
+    "learned agents need torch: `bash scripts/setup.sh --dev` installs it (the CPU build), or "
+    "`pip install torch --index-url https://download.pytorch.org/whl/cpu` then "
+    "`pip install -e '.[train]'`"
+)
+
+
+def torch_installed() -> bool:
+    try:
+        return importlib.util.find_spec("torch") is not None
+    except ValueError:  # sys.modules["torch"] is None: its import is blocked
+        return False
+
 
 def agent_class(name: str) -> type[Agent]:
     """The class registered as ``name``, or loaded from an import path ``pkg.module:Class``."""
     if ":" not in name:
+        if name in LEARNED_AGENT_NAMES:
+            needs = f"; {SETUP_TORCH}" if not torch_installed() else ""
+            raise AgentError(
+                f"{name!r} is a learned agent: give its trained checkpoint with --checkpoint "
+                f"(made by `multion train --agent {name}`){needs}"
+            )
         if name not in REGISTRY:
             raise AgentError(
                 f"unknown agent {name!r}; known agents: {', '.join(AGENT_NAMES)} "

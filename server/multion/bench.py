@@ -18,10 +18,10 @@ import tempfile
 import time
 
 import numpy as np
-import pybullet as p
 
 from multion.api.cli_serve import add_http_stack_arguments
 from multion.sim import grid_cache, simulator
+from multion.sim.bullet import pybullet as p
 from multion.sim.camera import CameraConfig, resolve_renderer
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.generate import generate_episodes

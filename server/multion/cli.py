@@ -54,7 +54,14 @@ def build_parser() -> argparse.ArgumentParser:
             add = getattr(module, f"add_{name}_arguments", None) or module.add_arguments
             add(command)
         except ModuleNotFoundError as error:
-            command.set_defaults(_unavailable=f"`multion {name}` is unavailable: {error}")
+            reason = f"`multion {name}` is unavailable: {error}"
+            if error.name == "torch":
+                from multion_agents.registry import SETUP_TORCH
+
+                reason += f"; {SETUP_TORCH}"
+            # --help says why; any other option is accepted so that main() can say it too
+            command.description = f"{help_text}. {reason}"
+            command.set_defaults(_unavailable=reason)
             continue
         command.set_defaults(_run=getattr(module, f"run_{name}", None) or module.run)
     return parser
@@ -63,7 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     exit_on_sigterm()  # so that servers and workers a command started are stopped with it
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown and not getattr(args, "_unavailable", None):
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")  # as parse_args does
     if args.command is None:
         parser.print_help()
         return 2

@@ -18,14 +18,13 @@ import contextlib
 import importlib.util
 import math
 import os
-import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 
 from multion.ranges import bounded, check_fields, one_of, require
+from multion.sim.bullet import c_output_silenced
+from multion.sim.bullet import pybullet as p
 
 RENDERERS = ("tiny", "egl", "auto")
 EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
@@ -123,19 +122,22 @@ class Camera:
         target = (x + math.cos(yaw), y + math.sin(yaw), eye[2])
         view = p.computeViewMatrix(eye, target, (0.0, 0.0, 1.0))
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
-        _, _, rgba, zbuffer, seg = p.getCameraImage(
-            c.width,
-            c.height,
-            view,
-            self.projection,
-            shadow=0,
-            lightAmbientCoeff=self.ambient,
-            lightDiffuseCoeff=self.diffuse,
-            lightSpecularCoeff=0.0,
-            renderer=self._flag,
-            flags=flags,
-            physicsClientId=self.client,
-        )
+        # the EGL plugin prints its OpenGL vendor ("ven = …") when it uploads new bodies
+        quiet = c_output_silenced() if self.renderer == "egl" else contextlib.nullcontext()
+        with quiet:
+            _, _, rgba, zbuffer, seg = p.getCameraImage(
+                c.width,
+                c.height,
+                view,
+                self.projection,
+                shadow=0,
+                lightAmbientCoeff=self.ambient,
+                lightDiffuseCoeff=self.diffuse,
+                lightSpecularCoeff=0.0,
+                renderer=self._flag,
+                flags=flags,
+                physicsClientId=self.client,
+            )
         rgb = np.ascontiguousarray(np.reshape(rgba, (c.height, c.width, 4))[:, :, :3])
         depth = self.process_depth(np.reshape(zbuffer, (c.height, c.width)))
         seg_array = np.reshape(seg, (c.height, c.width)).astype(np.int32) if segmentation else None
@@ -203,7 +205,8 @@ def resolve_renderer(requested: str) -> str:
     try:
         return attach_renderer(client, "auto")
     finally:
-        p.disconnect(physicsClientId=client)
+        with c_output_silenced():  # the EGL plugin says goodbye
+            p.disconnect(physicsClientId=client)
 
 
 def egl_plugin_path() -> str | None:
@@ -222,28 +225,10 @@ def _load_egl(client: int) -> bool:
     # already share the cores, so each renders on one thread (set LP_NUM_THREADS to override)
     os.environ.setdefault("LP_NUM_THREADS", "1")
     if path is not None:
-        with _quiet_stdout():  # the plugin prints its OpenGL vendor and version on every load
+        with c_output_silenced():  # the plugin prints its device, OpenGL vendor and version
             plugin = p.loadPlugin(path, "_eglRendererPlugin", physicsClientId=client)
     if plugin < 0:
         _egl_failed = True
         return False
     _egl_loaded = True
     return True
-
-
-@contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Silence C-level writes to stdout (file descriptor 1) for the duration."""
-    try:
-        sys.stdout.flush()
-        saved = os.dup(1)
-    except (OSError, ValueError):  # no real stdout (e.g. captured): nothing to silence
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 1)
-            yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)

@@ -10,10 +10,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-import pybullet as p
 
 from multion.scenes.layout import Box, SceneLayout
 from multion.scenes.textures import SIZE_STEP, texture_file
+from multion.sim.bullet import c_output_silenced
+from multion.sim.bullet import pybullet as p
 from multion.sim.camera import attach_renderer
 
 # pybullet refuses ray batches above this size
@@ -121,7 +122,8 @@ class PyBulletWorld:
 
     def close(self) -> None:
         if self.client >= 0:
-            p.disconnect(physicsClientId=self.client)
+            with c_output_silenced():  # the EGL plugin, if loaded, says goodbye
+                p.disconnect(physicsClientId=self.client)
             self.client = -1
 
     def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit

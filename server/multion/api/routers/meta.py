@@ -59,6 +59,13 @@ async def health(registry: Registry) -> MsgpackResponse:
     return MsgpackResponse(report.to_wire())
 
 
+def env_metadata() -> dict[str, object]:
+    """The env class's metadata, as declared. Gymnasium's vector envs before 1.4 write their
+    ``autoreset_mode`` (an enum msgpack cannot encode) into the class's shared ``metadata`` dict
+    when one is built in this process; the spec states the server's own autoreset mode apart."""
+    return {key: value for key, value in MultiONEnv.metadata.items() if key != "autoreset_mode"}
+
+
 @router.get(
     SPEC_PATH,
     summary="Task and API description",
@@ -78,7 +85,7 @@ async def spec(settings: Settings) -> MsgpackResponse:
         ranges=config_ranges(),
         observation_space=build_observation_space(default),
         action_space=spaces.Discrete(NUM_ACTIONS),
-        metadata=dict(MultiONEnv.metadata),
+        metadata=env_metadata(),
         autoreset_mode="same_step",
         # what camera.renderer "auto" renders with here (probed once in this process)
         renderer={
