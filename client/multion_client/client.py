@@ -12,31 +12,33 @@ import numpy as np
 
 from multion_client.errors import MalformedMessage, MultiONError, ServerUnavailable, error_from_code
 from multion_client.protocol import (
-    CHALLENGE_PATH,
     CONTENT_TYPE,
     HEALTH_PATH,
-    RUNS_PATH,
     SESSIONS_PATH,
     SPEC_PATH,
-    CreateRun,
     CreateSession,
     Error,
     Observations,
     Reset,
+    SessionInfo,
+    Step,
+    StepResult,
+    decode,
+    encode,
+    session_path,
+    space_from_wire,
+)
+from multion_client.run_protocol import (
+    CHALLENGE_PATH,
+    RUNS_PATH,
+    CreateRun,
     RunInfo,
     RunList,
     RunObservation,
     RunStatus,
     RunStep,
-    SessionInfo,
     StartEpisode,
-    Step,
-    StepResult,
-    decode,
-    encode,
     run_path,
-    session_path,
-    space_from_wire,
 )
 
 DEFAULT_TIMEOUT_S = 120.0

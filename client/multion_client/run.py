@@ -37,7 +37,7 @@ import numpy as np
 
 from multion_client.client import DEFAULT_TIMEOUT_S, Client
 from multion_client.errors import EpisodeOver, SequenceMismatch
-from multion_client.protocol import CreateRun, RunInfo, RunObservation, RunStatus
+from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunStatus
 
 TOKEN_ENV = "MULTION_TOKEN"
 """The environment variable a token is read from when none is given (keeps it out of shell

@@ -13,8 +13,8 @@ import pytest
 
 from multion_client import errors
 from multion_client.client import Client
-from multion_client.protocol import CreateRun
 from multion_client.run import RunEnv
+from multion_client.run_protocol import CreateRun
 
 STEP_TIMEOUT_S = 1.0
 

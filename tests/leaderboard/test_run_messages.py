@@ -7,14 +7,13 @@ import pytest
 from gymnasium import spaces
 
 from multion_client import errors
-from multion_client.protocol import (
+from multion_client.protocol import decode, encode
+from multion_client.run_protocol import (
     CreateRun,
     RunInfo,
     RunObservation,
     RunStep,
     StartEpisode,
-    decode,
-    encode,
     run_path,
 )
 

@@ -27,8 +27,9 @@ from multion_agents.cli_submit import play_run
 from multion_agents.registry import agent_class
 from multion_client import errors
 from multion_client.client import Client
-from multion_client.protocol import CONTENT_TYPE, CreateRun, decode, encode, run_path
+from multion_client.protocol import CONTENT_TYPE, decode, encode
 from multion_client.run import RunEnv
+from multion_client.run_protocol import CreateRun, run_path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "api"))
 from wire_schema import operation, problems, raw_decode  # noqa: E402  (the API tests' schema checker)

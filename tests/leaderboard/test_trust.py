@@ -25,7 +25,7 @@ from multion.leaderboard.storage import Database
 from multion.scenes.registry import HOUSE_CONFIG, scene_split
 from multion_client import errors
 from multion_client.client import Client
-from multion_client.protocol import CreateRun
+from multion_client.run_protocol import CreateRun
 
 SECRET = "trust-secret-0123456789abcdef"
 

@@ -19,7 +19,7 @@ from multion.leaderboard.runs import RunService
 from multion.leaderboard.storage import team_for_token
 from multion_client import errors
 from multion_client import errors as e
-from multion_client.protocol import (
+from multion_client.run_protocol import (
     CHALLENGE_PATH,
     RUNS_PATH,
     ChallengeInfo,

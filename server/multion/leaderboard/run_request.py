@@ -9,7 +9,7 @@ from typing import Any
 from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion_client import errors
-from multion_client.protocol import CreateRun
+from multion_client.run_protocol import CreateRun
 
 
 @dataclass(frozen=True)

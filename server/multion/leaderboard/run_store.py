@@ -18,7 +18,7 @@ from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.results import missed_metrics, summarize
 from multion.leaderboard.storage import runs_counted
 from multion_client import errors
-from multion_client.protocol import RunStatus
+from multion_client.run_protocol import RunStatus
 
 BASELINE_TEAM = "baselines"
 """The organisers' team whose runs are the leaderboard's baselines."""

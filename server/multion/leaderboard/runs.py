@@ -49,14 +49,8 @@ from multion.leaderboard.run_store import (
 from multion.leaderboard.storage import Database
 from multion.task.episode import Episode
 from multion_client import errors
-from multion_client.protocol import (
-    CreateRun,
-    RunInfo,
-    RunObservation,
-    RunStatus,
-    StartEpisode,
-    encode,
-)
+from multion_client.protocol import encode
+from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunStatus, StartEpisode
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
@@ -485,20 +479,25 @@ class RunService:
             # over for every lane from now on, while the database is written
             self.live.pop(live.run_id, None)
             self.ended[live.run_id] = live
-            await self._db(
-                lambda s: finish_run(
-                    s,
-                    live.run_id,
-                    state,
-                    results,
-                    outcome,
-                    reason,
-                    live.track,
-                    live.episode_ids,
-                    list(live.draw.order),
-                    refunded,
+            try:
+                await self._db(
+                    lambda s: finish_run(
+                        s,
+                        live.run_id,
+                        state,
+                        results,
+                        outcome,
+                        reason,
+                        live.track,
+                        live.episode_ids,
+                        list(live.draw.order),
+                        refunded,
+                    )
                 )
-            )
+            except RunMoved:  # another replica ended it first: its record stands
+                for lane in live.lanes:
+                    await self.sessions.close(lane)
+                raise errors.RunOver("the run is over (ended by another server replica)") from None
             live.version = state.version
         while len(self.ended) > ENDED_KEPT:
             self.ended.popitem(last=False)
