@@ -65,6 +65,8 @@ OFF_LEVEL = 3
 WHITE_SPREAD = 0  # a white goal renders its three channels exactly equal; greys rarely do
 
 
+_EIGHT = np.ones((3, 3), dtype=bool)
+
 Detections = dict[int, tuple[np.ndarray, np.ndarray]]
 """Goal category → (rows, cols) of its pixels."""
 
@@ -102,10 +104,12 @@ def goal_shaped(
     focal = camera.focal(depth.shape[1])
     kept: Detections = {}
     for category, (rows, cols) in detections.items():
-        mask = np.zeros(depth.shape[:2], dtype=bool)
-        mask[rows, cols] = True
-        labels, count = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
-        blob = labels[rows, cols]
+        # blobs lie inside the box round their pixels: label that box, not the whole image
+        r0, c0 = int(rows.min()), int(cols.min())
+        mask = np.zeros((int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1), dtype=bool)
+        mask[rows - r0, cols - c0] = True
+        labels, count = ndimage.label(mask, structure=_EIGHT)
+        blob = labels[rows - r0, cols - c0]
         keep = np.zeros(len(rows), dtype=bool)
         for label in range(1, count + 1):
             inside = blob == label
@@ -140,7 +144,8 @@ class DepthProjector:
         ``depth`` is the normalised sensor image (H, W, 1) in [0, 1].
         """
         cam = self.camera
-        sampled = depth[self.rows][:, self.cols, 0].astype(np.float64)
+        start = self.stride // 2  # the rows and columns of __init__, as a strided view
+        sampled = depth[start :: self.stride, start :: self.stride, 0].astype(np.float64)
         z = cam.metres(sampled)
         forward, left = z, -self.right * z
         c, s = math.cos(heading), math.sin(heading)
@@ -172,6 +177,11 @@ class SemanticMap:
         self._goal_sum = np.zeros((NUM_CATEGORIES, 2))
         self._goal_count = np.zeros(NUM_CATEGORIES, dtype=np.int64)
         self.changed = False
+        # cells are only ever added to both layers, so their boxes only grow: kept as cells are
+        # set, they spare a scan of the whole map for every plan
+        self.obstacle_extent = Extent()
+        self.explored_extent = Extent()
+        self._free_disc: dict[float, np.ndarray] = {}  # radius → cell offsets in metres
 
     # ------------------------------------------------------------------ queries
     def goal_position(self, category: int) -> np.ndarray | None:
@@ -186,15 +196,22 @@ class SemanticMap:
     def explored(self) -> np.ndarray:
         return self.free | self.obstacle
 
+    def explored_within(self, box: tuple[int, int, int, int]) -> np.ndarray:
+        """:meth:`explored` inside ``box`` = (row0, row1, col0, col1) only."""
+        r0, r1, c0, c1 = box
+        return self.free[r0:r1, c0:c1] | self.obstacle[r0:r1, c0:c1]
+
     # ------------------------------------------------------------------ updates
     def mark_free_disc(self, position: np.ndarray, radius: float) -> None:
         """Where the agent stands is free (the camera never sees the floor under its feet)."""
-        cells = int(math.ceil(radius / self.grid.cell_size))
-        offsets = np.arange(-cells, cells + 1) * self.grid.cell_size
-        ox, oy = np.meshgrid(offsets, offsets)
-        keep = np.hypot(ox, oy) <= radius
-        points = position[None, :] + np.stack([ox[keep], oy[keep]], axis=-1)
-        self._set(points, self.free, True)
+        offsets = self._free_disc.get(radius)
+        if offsets is None:
+            cells = int(math.ceil(radius / self.grid.cell_size))
+            steps = np.arange(-cells, cells + 1) * self.grid.cell_size
+            ox, oy = np.meshgrid(steps, steps)
+            keep = np.hypot(ox, oy) <= radius
+            offsets = self._free_disc[radius] = np.stack([ox[keep], oy[keep]], axis=-1)
+        self._set(position[None, :] + offsets, self.free, True)
 
     def integrate(
         self,
@@ -207,10 +224,12 @@ class SemanticMap:
         """Add one RGB-D frame; returns the goal categories placed from it."""
         cfg, cam = self.settings, projector.camera
         xy, height, z = projector.points(depth, position, heading)
-        goal_pixels = np.zeros(depth.shape[:2], dtype=bool)
-        for rows, cols in detections.values():
-            goal_pixels[rows, cols] = True
-        is_goal = goal_pixels[projector.rows][:, projector.cols]
+        is_goal = np.zeros(z.shape, dtype=bool)
+        if detections:
+            goal_pixels = np.zeros(depth.shape[:2], dtype=bool)
+            for rows, cols in detections.values():
+                goal_pixels[rows, cols] = True
+            is_goal = goal_pixels[projector.rows][:, projector.cols]
         saturated = z >= cam.max_depth - 1e-3
         # clipped at the near limit: the surface is somewhere closer than 0.5 m, not at 0.5 m;
         # taken at face value it draws a false wall in an arc around the agent (in doorways)
@@ -223,11 +242,11 @@ class SemanticMap:
             & ~near
         )
         floor = (height < cfg.floor_height) & ~saturated
-        before = int(self.obstacle.sum()), int(self.free.sum())
-        self._set(xy[obstacle], self.obstacle, True)
-        self._set(xy[floor], self.free, True)
-        self._carve(projector, xy, obstacle, near, floor | saturated, position, heading)
-        self.changed = (int(self.obstacle.sum()), int(self.free.sum())) != before
+        # cells are only ever added: the map changed if some cell set was not set before
+        added = self._set(xy[obstacle], self.obstacle, True)
+        added |= self._set(xy[floor], self.free, True)
+        added |= self._carve(projector, xy, obstacle, near, floor | saturated, position, heading)
+        self.changed = added
         return self._remember_goals(projector, depth, detections, position, heading)
 
     def _carve(
@@ -239,9 +258,9 @@ class SemanticMap:
         open_: np.ndarray,
         position: np.ndarray,
         heading: float,
-    ) -> None:
+    ) -> bool:
         """Free space along each image column, from the agent to the first obstacle it sees
-        (nothing in a column with a surface nearer than the depth range)."""
+        (nothing in a column with a surface nearer than the depth range); True if new."""
         reach = np.hypot(*(xy - position).transpose(2, 0, 1))
         obstacle_reach = np.where(obstacle, reach, np.inf).min(axis=0)
         obstacle_reach[near.any(axis=0)] = 0.0
@@ -250,11 +269,11 @@ class SemanticMap:
         step = self.settings.carve_step
         distances = np.arange(step, float(limit.max(initial=0.0)), step)
         if len(distances) == 0:
-            return
+            return False
         bearings = heading - np.arctan(projector.right[0])  # left of the heading is positive
         directions = np.stack([np.cos(bearings), np.sin(bearings)], axis=-1)
         points = position + distances[:, None, None] * directions[None, :, :]
-        self._set(points[distances[:, None] < limit[None, :]], self.free, True)
+        return self._set(points[distances[:, None] < limit[None, :]], self.free, True)
 
     def _remember_goals(
         self,
@@ -285,7 +304,51 @@ class SemanticMap:
             placed.append(category)
         return placed
 
-    def _set(self, points: np.ndarray, layer: np.ndarray, value: bool) -> None:
+    def _set(self, points: np.ndarray, layer: np.ndarray, value: bool) -> bool:
+        """Set the cells of ``points`` (those on the map) in ``layer``, one of the two layers;
+        True if a cell was not already ``value``."""
         rows, cols = self.grid.to_cell(points)
         ok = (rows >= 0) & (rows < self.grid.size) & (cols >= 0) & (cols < self.grid.size)
-        layer[rows[ok], cols[ok]] = value
+        rows, cols = rows[ok], cols[ok]
+        if len(rows) == 0:
+            return False
+        new = bool((layer[rows, cols] != value).any())
+        layer[rows, cols] = value
+        if value:
+            self.explored_extent.add(rows, cols)
+            if layer is self.obstacle:
+                self.obstacle_extent.add(rows, cols)
+        return new
+
+
+@dataclass
+class Extent:
+    """The smallest box round the cells added so far (cells are never removed)."""
+
+    row0: int = 0
+    row1: int = -1  # inclusive; row1 < row0: no cell yet
+    col0: int = 0
+    col1: int = -1
+
+    @property
+    def empty(self) -> bool:
+        return self.row1 < self.row0
+
+    def add(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        r0, r1, c0, c1 = int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())
+        if self.empty:
+            self.row0, self.row1, self.col0, self.col1 = r0, r1, c0, c1
+            return
+        self.row0, self.row1 = min(self.row0, r0), max(self.row1, r1)
+        self.col0, self.col1 = min(self.col0, c0), max(self.col1, c1)
+
+    def box(self, margin: int, size: int) -> tuple[int, int, int, int]:
+        """As :func:`~.navigation.bounding_box` gives it (the whole map when empty)."""
+        if self.empty:
+            return 0, size, 0, size
+        return (
+            max(0, self.row0 - margin),
+            min(size, self.row1 + margin + 1),
+            max(0, self.col0 - margin),
+            min(size, self.col1 + margin + 1),
+        )
