@@ -32,7 +32,7 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "pages"],
+        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "pages", "explorer"],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -51,6 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=100,
         help="3-ON val episodes of the timed oracle-planner evaluations (default 100)",
+    )
+    explorer = parser.add_argument_group("explorer bench (--only explorer; --steps per episode)")
+    explorer.add_argument("--explorer-image", type=int, default=256, help="camera size (256)")
+    explorer.add_argument(
+        "--explorer-episodes", type=int, default=2, help="3-ON val episodes (default 2)"
     )
     train = parser.add_argument_group("training bench (--only train, needs torch)")
     train.add_argument(
@@ -88,6 +93,10 @@ def run(args: argparse.Namespace) -> int:
         from multion.leaderboard.web.bench import run_pages_bench
 
         run_pages_bench()
+    if "explorer" in parts:
+        from multion_agents.bench_explorer import run_explorer_bench
+
+        run_explorer_bench(args.explorer_image, args.explorer_episodes, args.steps)
     if "train" in parts:
         from multion_agents.bench_train import run_train_bench
 

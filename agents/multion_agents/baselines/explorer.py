@@ -243,11 +243,10 @@ class ExplorerAgent(Agent):
         """
         # outside the box round the obstacles nothing is inflated: passable = not refused
         r0, r1, c0, c1 = self.map.obstacle_extent.box(2, self.map_size)
-        obstacle = self.map.obstacle[r0:r1, c0:c1]
         if self._tight > 0:  # walled in by the margin: only the obstacles themselves block
-            inflated = obstacle
-        else:
-            inflated = ndimage.binary_dilation(obstacle)
+            inflated = self.map.obstacle[r0:r1, c0:c1]
+        else:  # one cell round each obstacle
+            inflated = self.map.obstacle_grown[r0:r1, c0:c1]
         passable = ~self._blocked
         # where the agent has been is passable, whatever the dilation says
         passable[r0:r1, c0:c1] &= ~inflated | self._visited[r0:r1, c0:c1]

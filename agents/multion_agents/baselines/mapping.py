@@ -62,7 +62,7 @@ for (_r, _g, _b), _category in _PATTERN_TO_CATEGORY.items():
 # the threshold on off channels is what tells a goal from a goal-coloured object.
 ON_LEVEL = 105
 OFF_LEVEL = 3
-WHITE_SPREAD = 0  # a white goal renders its three channels exactly equal; greys rarely do
+# a white goal renders its three channels exactly equal (r = g = b); greys rarely do
 
 
 _EIGHT = np.ones((3, 3), dtype=bool)
@@ -73,12 +73,7 @@ Detections = dict[int, tuple[np.ndarray, np.ndarray]]
 
 def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     """The pixels of each goal colour in an (H, W, 3) uint8 image (categories with enough)."""
-    red, green, blue = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    # channel by channel: much faster than reducing over a last axis of length 3
-    low = np.minimum(np.minimum(red, green), blue)
-    high = np.maximum(np.maximum(red, green), blue)
-    # cheap pre-filter: some channel is off (no scene colour has one), or bright balanced grey
-    rows, cols = np.nonzero((low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= WHITE_SPREAD)))
+    rows, cols = _candidates(rgb)
     if len(rows) == 0:
         return {}
     pixels = rgb[rows, cols]
@@ -90,6 +85,25 @@ def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     return {
         int(c): (rows[labels == c], cols[labels == c]) for c in np.flatnonzero(counts >= min_pixels)
     }
+
+
+def _candidates(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cheap pre-filter: ``(rows, cols)``, in raster order, of the pixels with a channel off (no
+    scene colour has one) or bright and balanced (r = g = b ≥ ``ON_LEVEL``).
+
+    Computed on the image's bytes in memory order, where numpy is fast, rather than channel by
+    channel (strided) or reduced over the colour axis: byte ``i`` is channel ``i % 3`` of pixel
+    ``i // 3``. Candidates are few, so the work on them is small.
+    """
+    height, width = rgb.shape[:2]
+    flat = np.ascontiguousarray(rgb).reshape(-1)
+    off = np.flatnonzero(flat <= OFF_LEVEL) // 3
+    # a bright byte equal to the next two: at a pixel's first byte, a balanced bright pixel
+    first, second, third = flat[:-2], flat[1:-1], flat[2:]
+    balanced = np.flatnonzero((first >= ON_LEVEL) & (first == second) & (second == third))
+    bright = balanced[balanced % 3 == 0] // 3
+    pixels = np.union1d(off, bright) if len(bright) else np.unique(off)
+    return pixels // width, pixels % width
 
 
 def goal_shaped(
@@ -172,6 +186,9 @@ class SemanticMap:
         self.grid = grid
         self.settings = settings
         self.obstacle = np.zeros((grid.size, grid.size), dtype=bool)
+        # the obstacles and their 4 neighbours (a binary dilation with a cross), kept as they
+        # are added: the explorer's margin round obstacles, without dilating every step
+        self.obstacle_grown = np.zeros_like(self.obstacle)
         self.free = np.zeros((grid.size, grid.size), dtype=bool)
         # goal memory: per category, the sum and number of sighted positions (a running mean)
         self._goal_sum = np.zeros((NUM_CATEGORIES, 2))
@@ -318,7 +335,15 @@ class SemanticMap:
             self.explored_extent.add(rows, cols)
             if layer is self.obstacle:
                 self.obstacle_extent.add(rows, cols)
+                self._grow(rows, cols)
         return new
+
+    def _grow(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        size = self.grid.size
+        for dr, dc in ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)):
+            r, c = rows + dr, cols + dc
+            ok = (r >= 0) & (r < size) & (c >= 0) & (c < size)
+            self.obstacle_grown[r[ok], c[ok]] = True
 
 
 @dataclass
