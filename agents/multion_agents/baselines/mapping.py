@@ -148,6 +148,7 @@ class DepthProjector:
         self.rows, self.cols = rows, cols
         # per pixel: rightward and upward offsets per metre of depth
         self.right = ((cols + 0.5 - width / 2) / focal)[None, :].repeat(len(rows), axis=0)
+        self.column_angles = np.arctan(self.right[0])  # each column's bearing right of ahead
         self.up = ((height / 2 - rows - 0.5) / focal)[:, None].repeat(len(cols), axis=1)
 
     def points(
@@ -228,7 +229,7 @@ class SemanticMap:
             ox, oy = np.meshgrid(steps, steps)
             keep = np.hypot(ox, oy) <= radius
             offsets = self._free_disc[radius] = np.stack([ox[keep], oy[keep]], axis=-1)
-        self._set(position[None, :] + offsets, self.free, True)
+        self._add(position[None, :] + offsets, self.free)
 
     def integrate(
         self,
@@ -260,13 +261,15 @@ class SemanticMap:
         )
         floor = (height < cfg.floor_height) & ~saturated
         # cells are only ever added: the map changed if some cell set was not set before
-        added = self._set(xy[obstacle], self.obstacle, True)
-        added |= self._set(xy[floor], self.free, True)
-        added |= self._carve(projector, xy, obstacle, near, floor | saturated, position, heading)
+        added = self._add(xy[obstacle], self.obstacle)
+        added |= self._add(xy[floor], self.free)
+        added |= self._carve_free(
+            projector, xy, obstacle, near, floor | saturated, position, heading
+        )
         self.changed = added
         return self._remember_goals(projector, depth, detections, position, heading)
 
-    def _carve(
+    def _carve_free(
         self,
         projector: DepthProjector,
         xy: np.ndarray,
@@ -287,10 +290,12 @@ class SemanticMap:
         distances = np.arange(step, float(limit.max(initial=0.0)), step)
         if len(distances) == 0:
             return False
-        bearings = heading - np.arctan(projector.right[0])  # left of the heading is positive
+        bearings = heading - projector.column_angles  # left of the heading is positive
         directions = np.stack([np.cos(bearings), np.sin(bearings)], axis=-1)
-        points = position + distances[:, None, None] * directions[None, :, :]
-        return self._set(points[distances[:, None] < limit[None, :]], self.free, True)
+        # only the points short of each column's limit (the same numbers as computing all)
+        along, column = np.nonzero(distances[:, None] < limit[None, :])
+        points = position + distances[along, None] * directions[column]
+        return self._add(points, self.free)
 
     def _remember_goals(
         self,
@@ -321,22 +326,22 @@ class SemanticMap:
             placed.append(category)
         return placed
 
-    def _set(self, points: np.ndarray, layer: np.ndarray, value: bool) -> bool:
-        """Set the cells of ``points`` (those on the map) in ``layer``, one of the two layers;
-        True if a cell was not already ``value``."""
+    def _add(self, points: np.ndarray, layer: np.ndarray) -> bool:
+        """Set the cells of ``points`` (those on the map) in ``layer``, ``free`` or ``obstacle``;
+        True if one was not set yet. Only those new cells grow the boxes and the margin."""
         rows, cols = self.grid.to_cell(points)
         ok = (rows >= 0) & (rows < self.grid.size) & (cols >= 0) & (cols < self.grid.size)
         rows, cols = rows[ok], cols[ok]
-        if len(rows) == 0:
+        new = ~layer[rows, cols]
+        if not new.any():
             return False
-        new = bool((layer[rows, cols] != value).any())
-        layer[rows, cols] = value
-        if value:
-            self.explored_extent.add(rows, cols)
-            if layer is self.obstacle:
-                self.obstacle_extent.add(rows, cols)
-                self._grow(rows, cols)
-        return new
+        rows, cols = rows[new], cols[new]
+        layer[rows, cols] = True
+        self.explored_extent.add(rows, cols)
+        if layer is self.obstacle:
+            self.obstacle_extent.add(rows, cols)
+            self._grow(rows, cols)
+        return True
 
     def _grow(self, rows: np.ndarray, cols: np.ndarray) -> None:
         size = self.grid.size
