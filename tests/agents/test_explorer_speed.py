@@ -112,14 +112,18 @@ def test_map_updates_match_the_old_code(seed: int) -> None:
     size = int(rng.choice([16, 32]))
     projector = DepthProjector((size, size), camera, int(rng.choice([1, 2])))
     old_projector = ref.ReferenceDepthProjector((size, size), camera, projector.stride)
-    for _ in range(int(rng.integers(1, 6))):
+    pose: tuple[np.ndarray, float] | None = None
+    for _ in range(int(rng.integers(1, 8))):
         depth = rng.choice([0.0, 0.02, rng.uniform(), 1.0], (size, size, 1)).astype(np.float32)
         depth = np.where(rng.random((size, size, 1)) < 0.5, depth, rng.uniform(size=(1, size, 1)))
         depth = depth.astype(np.float32)
         rows, cols = np.nonzero(rng.random((size, size)) < 0.05)
         detections = {int(rng.integers(0, 8)): (rows, cols)} if len(rows) else {}
-        position = rng.uniform(-3.0, 3.0, 2)
-        heading = float(rng.uniform(-math.pi, math.pi))
+        if rng.random() < 0.3:  # a surface nearer than 0.5 m in every column: nothing carved
+            depth[0, :, 0] = 0.0
+        if pose is None or rng.random() < 0.6:  # or the same pose again: fewer new cells
+            pose = rng.uniform(-3.0, 3.0, 2), float(rng.uniform(-math.pi, math.pi))
+        position, heading = pose
         for a, b in zip(
             projector.points(depth, position, heading),
             old_projector.points(depth, position, heading),
@@ -136,6 +140,29 @@ def test_map_updates_match_the_old_code(seed: int) -> None:
     assert new_map.obstacle_extent.box(3, grid.size) == bounding_box(new_map.obstacle, 3)
     assert new_map.explored_extent.box(0, grid.size) == bounding_box(new_map.explored(), 0)
     assert np.array_equal(new_map.obstacle_grown, ndimage.binary_dilation(new_map.obstacle))
+
+
+@pytest.mark.parametrize("map_type", [SemanticMap, ref.ReferenceSemanticMap])
+def test_the_map_changes_when_floor_alone_is_new_and_not_when_a_frame_repeats(
+    map_type: type[SemanticMap],
+) -> None:
+    camera, size = CameraModel(), 32
+    projector = DepthProjector((size, size), camera, 1)
+    # flat floor below the horizon, nothing above it, and a surface nearer than 0.5 m at the
+    # top of every column, so nothing is carved: only floor cells are new
+    depth = np.ones((size, size, 1), dtype=np.float32)
+    below = projector.up[:, 0] < -0.3
+    floor_z = -camera.height / projector.up[below, 0]
+    depth[below, :, 0] = ((floor_z - camera.min_depth) / (camera.max_depth - camera.min_depth))[
+        :, None
+    ]
+    depth[0, :, 0] = 0.0
+    layers = map_type(StartFrameGrid(81, 0.1))
+    position = np.zeros(2)
+    layers.integrate(projector, depth, {}, position, 0.0)
+    assert layers.changed and layers.free.any() and not layers.obstacle.any()
+    layers.integrate(projector, depth, {}, position, 0.0)
+    assert not layers.changed
 
 
 def _twins(rng: np.random.Generator) -> tuple[ExplorerAgent, ref.ReferenceExplorerAgent]:
