@@ -176,7 +176,7 @@ def _twins(rng: np.random.Generator) -> tuple[ExplorerAgent, ref.ReferenceExplor
     for layer, mask in ((fast.map.free, blobs & ~walls), (fast.map.obstacle, walls & blobs)):
         mask[: int(rng.integers(0, 30))] = False  # often not touching the edges
         if mask.any():
-            fast.map._add(fast.grid.to_xy(*np.nonzero(mask)), layer)
+            fast.map._add(*fast.grid.to_xy(*np.nonzero(mask)).T, layer)
     old.map.free[:], old.map.obstacle[:] = fast.map.free, fast.map.obstacle
     for name in ("_blocked", "_visited", "_given_up", "_around_path"):
         mask = rng.random((61, 61)) < rng.choice([0.0, 0.01, 0.1])

@@ -158,16 +158,22 @@ class DepthProjector:
 
         ``depth`` is the normalised sensor image (H, W, 1) in [0, 1].
         """
+        x, y, height, z = self.project(depth, position, heading)
+        return np.stack([x, y], axis=-1), height, z
+
+    def project(
+        self, depth: np.ndarray, position: np.ndarray, heading: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`points` as ``(x, y, height, metres)``, each (h, w)."""
         cam = self.camera
         start = self.stride // 2  # the rows and columns of __init__, as a strided view
         sampled = depth[start :: self.stride, start :: self.stride, 0].astype(np.float64)
         z = cam.metres(sampled)
         forward, left = z, -self.right * z
         c, s = math.cos(heading), math.sin(heading)
-        xy = np.stack(
-            [position[0] + c * forward - s * left, position[1] + s * forward + c * left], axis=-1
-        )
-        return xy, cam.height + self.up * z, z
+        x = position[0] + c * forward - s * left
+        y = position[1] + s * forward + c * left
+        return x, y, cam.height + self.up * z, z
 
 
 @dataclass(frozen=True)
@@ -229,7 +235,7 @@ class SemanticMap:
             ox, oy = np.meshgrid(steps, steps)
             keep = np.hypot(ox, oy) <= radius
             offsets = self._free_disc[radius] = np.stack([ox[keep], oy[keep]], axis=-1)
-        self._add(position[None, :] + offsets, self.free)
+        self._add(position[0] + offsets[:, 0], position[1] + offsets[:, 1], self.free)
 
     def integrate(
         self,
@@ -241,7 +247,7 @@ class SemanticMap:
     ) -> list[int]:
         """Add one RGB-D frame; returns the goal categories placed from it."""
         cfg, cam = self.settings, projector.camera
-        xy, height, z = projector.points(depth, position, heading)
+        x, y, height, z = projector.project(depth, position, heading)
         is_goal = np.zeros(z.shape, dtype=bool)
         if detections:
             goal_pixels = np.zeros(depth.shape[:2], dtype=bool)
@@ -261,10 +267,11 @@ class SemanticMap:
         )
         floor = (height < cfg.floor_height) & ~saturated
         # cells are only ever added: the map changed if some cell set was not set before
-        added = self._add(xy[obstacle], self.obstacle)
-        added |= self._add(xy[floor], self.free)
+        added = self._add(x[obstacle], y[obstacle], self.obstacle)
+        added |= self._add(x[floor], y[floor], self.free)
+        reach = np.hypot(x - position[0], y - position[1])
         added |= self._carve_free(
-            projector, xy, obstacle, near, floor | saturated, position, heading
+            projector, reach, obstacle, near, floor | saturated, position, heading
         )
         self.changed = added
         return self._remember_goals(projector, depth, detections, position, heading)
@@ -272,7 +279,7 @@ class SemanticMap:
     def _carve_free(
         self,
         projector: DepthProjector,
-        xy: np.ndarray,
+        reach: np.ndarray,
         obstacle: np.ndarray,
         near: np.ndarray,
         open_: np.ndarray,
@@ -280,8 +287,8 @@ class SemanticMap:
         heading: float,
     ) -> bool:
         """Free space along each image column, from the agent to the first obstacle it sees
-        (nothing in a column with a surface nearer than the depth range); True if new."""
-        reach = np.hypot(*(xy - position).transpose(2, 0, 1))
+        (nothing in a column with a surface nearer than the depth range); True if new.
+        ``reach``: each sampled pixel's distance from the agent."""
         obstacle_reach = np.where(obstacle, reach, np.inf).min(axis=0)
         obstacle_reach[near.any(axis=0)] = 0.0
         open_reach = np.where(open_, reach, 0.0).max(axis=0)
@@ -291,11 +298,12 @@ class SemanticMap:
         if len(distances) == 0:
             return False
         bearings = heading - projector.column_angles  # left of the heading is positive
-        directions = np.stack([np.cos(bearings), np.sin(bearings)], axis=-1)
         # only the points short of each column's limit (the same numbers as computing all)
         along, column = np.nonzero(distances[:, None] < limit[None, :])
-        points = position + distances[along, None] * directions[column]
-        return self._add(points, self.free)
+        ahead = distances[along]
+        x = position[0] + ahead * np.cos(bearings)[column]
+        y = position[1] + ahead * np.sin(bearings)[column]
+        return self._add(x, y, self.free)
 
     def _remember_goals(
         self,
@@ -326,17 +334,22 @@ class SemanticMap:
             placed.append(category)
         return placed
 
-    def _add(self, points: np.ndarray, layer: np.ndarray) -> bool:
-        """Set the cells of ``points`` (those on the map) in ``layer``, ``free`` or ``obstacle``;
-        True if one was not set yet. Only those new cells grow the boxes and the margin."""
-        rows, cols = self.grid.to_cell(points)
-        ok = (rows >= 0) & (rows < self.grid.size) & (cols >= 0) & (cols < self.grid.size)
-        rows, cols = rows[ok], cols[ok]
-        new = ~layer[rows, cols]
-        if not new.any():
+    def _add(self, x: np.ndarray, y: np.ndarray, layer: np.ndarray) -> bool:
+        """Set the cells of the points ``(x, y)`` (those on the map) in ``layer``, ``free`` or
+        ``obstacle``; True if one was not set yet. Only new cells grow the boxes and margin."""
+        grid, size = self.grid, self.grid.size
+        # the cells of StartFrameGrid.to_cell, on flat indices
+        rows = np.rint(grid.half - x / grid.cell_size).astype(np.int64)
+        cols = np.rint(grid.half - y / grid.cell_size).astype(np.int64)
+        # as unsigned, a negative index is huge: one comparison checks both ends
+        ok = (rows.view(np.uint64) < size) & (cols.view(np.uint64) < size)
+        cells = (rows * size + cols)[ok]
+        flat = layer.reshape(-1)  # a view: layers are contiguous
+        cells = cells[~flat[cells]]
+        if len(cells) == 0:
             return False
-        rows, cols = rows[new], cols[new]
-        layer[rows, cols] = True
+        flat[cells] = True
+        rows, cols = np.divmod(cells, size)
         self.explored_extent.add(rows, cols)
         if layer is self.obstacle:
             self.obstacle_extent.add(rows, cols)
