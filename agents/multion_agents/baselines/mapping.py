@@ -99,8 +99,8 @@ def _candidates(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     flat = np.ascontiguousarray(rgb).reshape(-1)
     off = np.flatnonzero(flat <= OFF_LEVEL) // 3
     # a bright byte equal to the next two: at a pixel's first byte, a balanced bright pixel
-    first, second, third = flat[:-2], flat[1:-1], flat[2:]
-    balanced = np.flatnonzero((first >= ON_LEVEL) & (first == second) & (second == third))
+    same = flat[:-1] == flat[1:]  # byte i equals byte i + 1
+    balanced = np.flatnonzero((flat[:-2] >= ON_LEVEL) & same[:-1] & same[1:])
     bright = balanced[balanced % 3 == 0] // 3
     pixels = np.union1d(off, bright) if len(bright) else np.unique(off)
     return pixels // width, pixels % width

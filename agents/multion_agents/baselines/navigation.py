@@ -14,6 +14,7 @@ path-following controller.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -231,9 +232,13 @@ def choose_action(
     n = motion.headings
     angle, index = snap_heading(heading, motion)
     best_value, best_turns = here - 1e-6, None
-    turns = [k if k <= n // 2 else k - n for k in range(n)]  # positive: turn left
+    turns = _turn_order(n)
     # the points of all n steps at once, each exactly as step_points computes it
-    points = all_step_points(position, [_turned(angle, index, t, motion) for t in turns], motion)
+    if index is None:
+        offsets = _step_offsets([_turned(angle, index, t, motion) for t in turns], motion)
+    else:  # a snapped heading: the same n steps every time
+        offsets = _snapped_step_offsets(motion, index)
+    points = position[None, None, :] + offsets
     clear = np.flatnonzero(grid.lookup(passable, points, outside=False).all(axis=1))
     values = interpolate_many(grid, field, points[clear, -1])
     values += turn_cost * np.abs(np.asarray(turns)[clear])
@@ -246,11 +251,25 @@ def choose_action(
 _STEP_FRACTIONS = np.linspace(0.0, 1.0, 6)[1:]
 
 
-def all_step_points(position: np.ndarray, angles: list[float], motion: Motion) -> np.ndarray:
-    """:func:`step_points` for several directions: (directions, 5, 2), the same numbers."""
+@functools.cache
+def _turn_order(n: int) -> list[int]:
+    """Turns (positive: left) in the order :func:`choose_action` tries them."""
+    return [k if k <= n // 2 else k - n for k in range(n)]
+
+
+def _step_offsets(angles: list[float], motion: Motion) -> np.ndarray:
+    """What :func:`step_points` adds to the position, for several directions: (n, 5, 2)."""
     unit = np.array([[math.cos(a), math.sin(a)] for a in angles])
     step = motion.forward_step * unit
-    return position[None, None, :] + _STEP_FRACTIONS[None, :, None] * step[:, None, :]
+    return _STEP_FRACTIONS[None, :, None] * step[:, None, :]
+
+
+@functools.cache
+def _snapped_step_offsets(motion: Motion, index: int) -> np.ndarray:
+    turns = _turn_order(motion.headings)
+    offsets = _step_offsets([_turned(0.0, index, t, motion) for t in turns], motion)
+    offsets.flags.writeable = False
+    return offsets
 
 
 def _starting(turns: int | None) -> int | None:
