@@ -17,6 +17,7 @@ import time
 from multion.sim.camera import CameraConfig
 from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.episode import Episode
 from multion_agents.baselines.explorer import ExplorerAgent, StepTimes
 from multion_agents.baselines.explorer_reference import ReferenceExplorerAgent
 
@@ -26,10 +27,14 @@ TARGET = 2.0
 PARTS = ("mapping", "planning", "rest")
 
 
-def run_explorer_bench(image: int = 256, episodes: int = 2, steps: int = 300) -> dict[str, float]:
-    """Print and return ms per step of each part for both agents, and the ratios."""
+def run_explorer_bench(image: int = 256, houses: int = 3, steps: int = 500) -> dict[str, float]:
+    """Print and return ms per step of each part for both agents, and the ratios: the first
+    3-ON val episode of each of the first ``houses`` val houses, at most ``steps`` steps each."""
     load_before = os.getloadavg()
-    played = load_dataset(packaged_dataset_path(3, "val"), 3)[:episodes]
+    first: dict[str, Episode] = {}
+    for episode in load_dataset(packaged_dataset_path(3, "val"), 3):
+        first.setdefault(episode.scene_id, episode)
+    played = list(first.values())[:houses]
     reference, fast = ReferenceExplorerAgent(seed=0), ExplorerAgent(seed=0)
     config = EnvConfig(
         task=TaskConfig(num_goals=3, max_steps=steps),
@@ -59,7 +64,8 @@ def run_explorer_bench(image: int = 256, episodes: int = 2, steps: int = 300) ->
     finally:
         env.close()
     wall = time.perf_counter() - started
-    results = _report(reference.times, fast.times, image, played[0].scene_id, wall)
+    scenes = ", ".join(e.scene_id for e in played)
+    results = _report(reference.times, fast.times, image, scenes, wall)
     load_after = os.getloadavg()
     print(
         f"load average (1, 5, 15 min) before {_load(load_before)}, after {_load(load_after)}, "
@@ -69,11 +75,11 @@ def run_explorer_bench(image: int = 256, episodes: int = 2, steps: int = 300) ->
 
 
 def _report(
-    reference: StepTimes, fast: StepTimes, image: int, scene: str, wall: float
+    reference: StepTimes, fast: StepTimes, image: int, scenes: str, wall: float
 ) -> dict[str, float]:
     steps = fast.steps
     print(
-        f"explorer at {image}², {steps} steps of 3-ON val episodes ({scene}), "
+        f"explorer at {image}², {steps} steps of 3-ON val episodes ({scenes}), "
         f"both agents on the same observations, same actions; {wall:.0f} s in all"
     )
     print(f"{'ms per step':>12} {'reference':>10} {'fast':>8} {'ratio':>7}")

@@ -253,3 +253,22 @@ def test_fast_and_reference_explorers_act_alike_on_a_val_episode() -> None:
     assert np.array_equal(fast.map.obstacle, old.map.obstacle)
     assert np.array_equal(fast.map.free, old.map.free)
     assert fast.times.steps == step and fast.times.mapping > 0 and fast.times.planning > 0
+
+
+def test_the_explorer_bench_times_both_agents_and_stops_on_a_different_action(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from multion_agents.bench_explorer import run_explorer_bench
+
+    results = run_explorer_bench(image=64, houses=1, steps=30)
+    assert results["steps"] == 30
+    for part in ("mapping", "planning", "rest", "total"):
+        assert results[f"reference_{part}_ms"] > 0 and results[f"fast_{part}_ms"] > 0
+    total = results["reference_total_ms"] / results["fast_total_ms"]
+    assert results["ratio_total"] == pytest.approx(total)
+    printed = capsys.readouterr().out
+    assert "reference" in printed and "load average" in printed
+    # a fast path that changed a decision makes the figures worthless: the bench says so
+    monkeypatch.setattr(ref.ReferenceExplorerAgent, "act", lambda self, observation: 1)
+    with pytest.raises(RuntimeError, match="changed a decision"):
+        run_explorer_bench(image=64, houses=1, steps=30)
