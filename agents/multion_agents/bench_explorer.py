@@ -42,7 +42,7 @@ def run_explorer_bench(image: int = 256, houses: int = 3, steps: int = 500) -> d
         sensors=tuple(dict.fromkeys([*fast.sensors, "gps"])),
     )
     env = MultiONEnv(config, episodes=played)
-    started = time.perf_counter()
+    started, env_seconds = time.perf_counter(), 0.0
     try:
         for index, episode in enumerate(played):
             observation, _ = env.reset(options={"episode_id": episode.episode_id})
@@ -59,13 +59,21 @@ def run_explorer_bench(image: int = 256, houses: int = 3, steps: int = 500) -> d
                         f"{episode.episode_id} step {step}: the explorer chose {first} and "
                         f"{second} on the same observation; the fast path changed a decision"
                     )
+                tick = time.perf_counter()
                 observation, _, terminated, truncated, _ = env.step(first)
+                env_seconds += time.perf_counter() - tick
                 done, step = terminated or truncated, step + 1
     finally:
         env.close()
     wall = time.perf_counter() - started
     scenes = ", ".join(e.scene_id for e in played)
     results = _report(reference.times, fast.times, image, scenes, wall)
+    env_ms = results["env_step_ms"] = 1000.0 * env_seconds / max(1, fast.times.steps)
+    print(
+        f"{'env step':>12} {env_ms:>10.2f} ms (render + task, not in the figures above): thinking "
+        f"was {_share(results['reference_total_ms'], env_ms)} of a step, now "
+        f"{_share(results['fast_total_ms'], env_ms)}"
+    )
     load_after = os.getloadavg()
     print(
         f"load average (1, 5, 15 min) before {_load(load_before)}, after {_load(load_after)}, "
@@ -97,6 +105,10 @@ def _report(
 def _ms(times: StepTimes, part: str) -> float:
     seconds = sum(getattr(times, p) for p in PARTS) if part == "total" else getattr(times, part)
     return 1000.0 * seconds / max(1, times.steps)
+
+
+def _share(thinking_ms: float, env_ms: float) -> str:
+    return f"{100.0 * thinking_ms / (thinking_ms + env_ms):.0f}%"
 
 
 def _load(load: tuple[float, float, float]) -> str:
