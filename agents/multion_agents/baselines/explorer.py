@@ -239,7 +239,8 @@ class ExplorerAgent(Agent):
         """Passable = not within one cell of a seen obstacle, and not refused by the simulator.
 
         Optimistic: unknown cells count as passable, since the camera looks where the agent goes.
-        The dilation runs only over the box around the obstacles, to stay cheap every step.
+        The margin round obstacles (kept by the map as they are added) is applied only in the
+        box round them, to stay cheap every step.
         """
         # outside the box round the obstacles nothing is inflated: passable = not refused
         r0, r1, c0, c1 = self.map.obstacle_extent.box(2, self.map_size)
@@ -254,9 +255,7 @@ class ExplorerAgent(Agent):
 
     def _plan(self, position: np.ndarray) -> None:
         # the box round what is known and the discs round the agent and its target
-        known = self.map.explored_extent.box(0, self.map_size)
-        if self.map.explored_extent.empty:
-            known = (self.map_size, 0, self.map_size, 0)
+        known = self.map.explored_extent.bounds()
         for centre in (position, self._target_point):
             if centre is not None:
                 known = _union(known, self._disc_box(centre, 1.0))

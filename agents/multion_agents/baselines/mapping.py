@@ -385,6 +385,10 @@ class Extent:
         self.row0, self.row1 = min(self.row0, r0), max(self.row1, r1)
         self.col0, self.col1 = min(self.col0, c0), max(self.col1, c1)
 
+    def bounds(self) -> tuple[int, int, int, int]:
+        """(row0, row1, col0, col1) with exclusive ends; row0 ≥ row1 when empty."""
+        return self.row0, self.row1 + 1, self.col0, self.col1 + 1
+
     def box(self, margin: int, size: int) -> tuple[int, int, int, int]:
         """As :func:`~.navigation.bounding_box` gives it (the whole map when empty)."""
         if self.empty:
