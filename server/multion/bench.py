@@ -5,7 +5,8 @@ process are not. ``sim`` measures the task's frames per second with each availab
 (TinyRenderer, EGL) at 256² and 128² on the same poses, and compares each with PyBullet's bare
 ``getCameraImage``; ``cache`` times house builds with a cold and a warm navigable-grid cache
 and a 100-episode oracle-planner evaluation without and with the cache; ``http`` compares the
-server with the in-process env.
+server with the in-process env. ``explorer`` (in ``multion_agents.bench_explorer``) times the
+explorer baseline's thinking before and after issue 23 on the same observations.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"],
+        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages",
+                 "explorer"],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -52,6 +54,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=100,
         help="3-ON val episodes of the timed oracle-planner evaluations (default 100)",
     )
+    explorer = parser.add_argument_group("explorer bench (--only explorer)")
+    explorer.add_argument("--explorer-image", type=int, default=256, help="camera size (256)")
+    explorer.add_argument(
+        "--explorer-houses", type=int, default=3, help="val houses, one episode each (3)"
+    )
+    explorer.add_argument("--explorer-steps", type=int, default=500, help="steps per episode (500)")
     train = parser.add_argument_group("training bench (--only train, needs torch)")
     train.add_argument(
         "--train-agent", default="oracle-map", help="learned agent (default oracle-map)"
@@ -92,6 +100,10 @@ def run(args: argparse.Namespace) -> int:
         from multion.leaderboard.web.bench import run_pages_bench
 
         run_pages_bench()
+    if "explorer" in parts:
+        from multion_agents.bench_explorer import run_explorer_bench
+
+        run_explorer_bench(args.explorer_image, args.explorer_houses, args.explorer_steps)
     if "train" in parts:
         from multion_agents.bench_train import run_train_bench
 

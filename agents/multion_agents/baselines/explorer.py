@@ -30,6 +30,8 @@ the agent's thinking stays a small fraction of the simulator's rendering time.
 from __future__ import annotations
 
 import math
+import time
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -46,7 +48,6 @@ from multion_agents.baselines.mapping import (
 from multion_agents.baselines.navigation import (
     Motion,
     StartFrameGrid,
-    bounding_box,
     cells_ahead,
     choose_action,
     cropped_distance_field,
@@ -55,9 +56,20 @@ from multion_agents.baselines.navigation import (
 from multion_client.constants import Action
 
 _CROSS = ndimage.generate_binary_structure(2, 1)
+_EIGHT = np.ones((3, 3), dtype=bool)
 GOAL_RADII = (0.2, 0.5, 0.8)
 """How close to a goal the agent aims, in metres: wider when the nearer cells are unreachable in
 the map (a goal tucked between furniture), still close enough for FOUND."""
+
+
+@dataclass
+class StepTimes:
+    """Seconds spent in each part of :meth:`ExplorerAgent.act`, summed over ``steps`` steps."""
+
+    steps: int = 0
+    mapping: float = 0.0  # goal colours, their shape test, depth into the map
+    planning: float = 0.0  # passable cells, fast-marching plans, the step chosen
+    rest: float = 0.0  # learning from the last action, bookkeeping
 
 
 class ExplorerAgent(Agent):
@@ -80,6 +92,7 @@ class ExplorerAgent(Agent):
 
     def __init__(self, seed: int = 0) -> None:
         super().__init__(seed)
+        self.times = StepTimes()  # over the agent's life, for `multion bench --only explorer`
         self.reset()
 
     def reset(self) -> None:
@@ -104,28 +117,36 @@ class ExplorerAgent(Agent):
         self._detour = 0  # steps left exploring elsewhere after getting stuck on the way to a goal
         self._arrivals: list[np.ndarray] = []  # where frontier plans ended
         self._tight = 0  # steps left planning without the margin round obstacles
+        self._disc_masks: dict[float, np.ndarray] = {}  # radius → disc of cells round (0, 0)
 
     # ------------------------------------------------------------------ the policy
     def act(self, observation: Observation) -> int:
+        start = time.perf_counter()
         position = np.asarray(observation["gps"], dtype=np.float64)
         heading = float(observation["compass"][0])
         goal = int(observation["goal"])
         seen_now = self._perceive(observation, position, heading)
+        mapped = time.perf_counter()
         self._track_motion(position, heading)
         if self._tight > 0:
             self._tight -= 1
             self.map.changed |= self._tight == 0  # the margin comes back
+        tracked = time.perf_counter()
         if self.map.changed:
             self._refresh_passable()
         action = self._decide(goal, goal in seen_now, position, heading)
         self._last_position, self._last_action = position, action
+        end = time.perf_counter()
+        times = self.times
+        times.steps += 1
+        times.mapping += mapped - start
+        times.rest += tracked - mapped
+        times.planning += end - tracked
         return action
 
     def _track_motion(self, position: np.ndarray, heading: float) -> None:
         """Learn from the last action: refused steps, cells stood in, turning without end."""
-        moved = self._last_position is None or not np.allclose(
-            position, self._last_position, atol=1e-4
-        )
+        moved = self._last_position is None or not _close(position, self._last_position)
         if self._last_action == Action.MOVE_FORWARD and not moved:
             self._blocked[cells_ahead(self.grid, position, heading, self.motion)] = True
             self._field = None
@@ -133,7 +154,7 @@ class ExplorerAgent(Agent):
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
-            self._around_path |= self._disc(position, self.close_range)
+            self._paint_disc(self._around_path, position, self.close_range, True)
             self.map.changed = True
         self._still = 0 if moved else self._still + 1
         if self._still > 2 * self.motion.headings and self._spin == 0:
@@ -141,7 +162,7 @@ class ExplorerAgent(Agent):
             # the refusals around here (the simulator will refuse again if it must)
             self._still = 0
             self._field = None
-            self._blocked &= ~self._disc(position, 0.5)
+            self._paint_disc(self._blocked, position, 0.5, False)
             self.map.changed = True
             if self._target == ("frontier", -1):
                 self._give_up_near(position)
@@ -218,22 +239,27 @@ class ExplorerAgent(Agent):
         """Passable = not within one cell of a seen obstacle, and not refused by the simulator.
 
         Optimistic: unknown cells count as passable, since the camera looks where the agent goes.
-        The dilation runs only over the box around the obstacles, to stay cheap every step.
+        The margin round obstacles (kept by the map as they are added) is applied only in the
+        box round them, to stay cheap every step.
         """
+        # outside the box round the obstacles nothing is inflated: passable = not refused
+        r0, r1, c0, c1 = self.map.obstacle_extent.box(2, self.map_size)
         if self._tight > 0:  # walled in by the margin: only the obstacles themselves block
-            inflated = self.map.obstacle
-        else:
-            r0, r1, c0, c1 = bounding_box(self.map.obstacle, margin=2)
-            inflated = np.zeros_like(self._blocked)
-            inflated[r0:r1, c0:c1] = ndimage.binary_dilation(self.map.obstacle[r0:r1, c0:c1])
+            inflated = self.map.obstacle[r0:r1, c0:c1]
+        else:  # one cell round each obstacle
+            inflated = self.map.obstacle_grown[r0:r1, c0:c1]
+        passable = ~self._blocked
         # where the agent has been is passable, whatever the dilation says
-        self._passable = ~(inflated | self._blocked) | (self._visited & ~self._blocked)
+        passable[r0:r1, c0:c1] &= ~inflated | self._visited[r0:r1, c0:c1]
+        self._passable = passable
 
     def _plan(self, position: np.ndarray) -> None:
-        known = self.map.explored() | self._disc(position, 1.0)
-        if self._target_point is not None:
-            known |= self._disc(self._target_point, 1.0)
-        box = bounding_box(known, margin=8)
+        # the box round what is known and the discs round the agent and its target
+        known = self.map.explored_extent.bounds()
+        for centre in (position, self._target_point):
+            if centre is not None:
+                known = _union(known, self._disc_box(centre, 1.0))
+        box = _grown(known, 8, self.map_size)
         self._since_plan = 0
         if self._target is None or self._target[0] != "goal":
             self._field = self._field_to(self._frontier(self._passable), box)
@@ -264,18 +290,25 @@ class ExplorerAgent(Agent):
         )
 
     def _frontier(self, passable: np.ndarray) -> np.ndarray:
-        free = self.map.free & passable
-        unknown = ~self.map.explored()
+        # free cells lie in the box round explored ones; one more cell holds their neighbours
+        out = np.zeros_like(passable)
+        if self.map.explored_extent.empty:
+            return out
+        r0, r1, c0, c1 = self.map.explored_extent.box(1, self.map_size)
+        window = np.s_[r0:r1, c0:c1]
+        free = self.map.free[window] & passable[window]
+        unknown = ~self.map.explored_within((r0, r1, c0, c1))
         frontier = free & ndimage.binary_dilation(unknown, structure=_CROSS)
         # unknown cells right next to the path stay unknown (the camera cannot see the floor at
         # its feet, nor surfaces nearer than 0.5 m): going there again would show nothing new
-        frontier &= ~self._given_up & ~self._around_path
-        labels, count = ndimage.label(frontier, structure=np.ones((3, 3), dtype=bool))
+        frontier &= ~self._given_up[window] & ~self._around_path[window]
+        labels, count = ndimage.label(frontier, structure=_EIGHT)
         if count == 0:
-            return frontier
+            return out
         sizes = np.bincount(labels.ravel())
         sizes[0] = 0
-        return sizes[labels] >= self.min_frontier_cells
+        out[window] = sizes[labels] >= self.min_frontier_cells
+        return out
 
     def _needs_frontier_replan(self, position: np.ndarray) -> bool:
         if self._field is None or self._since_plan >= self.replan_every:
@@ -291,7 +324,7 @@ class ExplorerAgent(Agent):
 
     def _give_up_near(self, position: np.ndarray) -> None:
         """Stop aiming at frontier cells around a spot the agent keeps failing to reach."""
-        self._given_up |= self._disc(position, 1.0)
+        self._paint_disc(self._given_up, position, 1.0, True)
         self._stuck = 0
 
     def _moved(self, goal_at: np.ndarray) -> bool:
@@ -335,8 +368,11 @@ class ExplorerAgent(Agent):
 
     def _straight_and_free(self, start: np.ndarray, end: np.ndarray) -> bool:
         """Every cell on the segment is seen free floor, up to the goal's own cell."""
-        free = (self.map.free | self._visited) & ~self.map.obstacle
-        return bool(self.grid.lookup(free, self._segment(start, end), outside=False).all())
+        points = self._segment(start, end)
+        free = self.grid.lookup(self.map.free, points, outside=False)
+        free |= self.grid.lookup(self._visited, points, outside=False)
+        free &= ~self.grid.lookup(self.map.obstacle, points, outside=False)
+        return bool(free.all())
 
     def _segment(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Points from ``start`` towards ``end``, stopping a cell short of ``end``."""
@@ -346,10 +382,68 @@ class ExplorerAgent(Agent):
 
     def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
         mask = np.zeros((self.map_size, self.map_size), dtype=bool)
+        r0, r1, c0, c1, inside = self._disc_window(centre, radius)
+        mask[r0:r1, c0:c1] = inside
+        return mask
+
+    def _disc_window(
+        self, centre: np.ndarray, radius: float
+    ) -> tuple[int, int, int, int, np.ndarray]:
+        """The cells within ``radius`` of ``centre``'s cell, as a box (row0, row1, col0, col1)
+        on the map and the disc's mask inside it (clipped at the map's edges)."""
         cells = int(math.ceil(radius / self.cell_size))
+        whole = self._disc_masks.get(radius)
+        if whole is None:
+            rr, cc = np.mgrid[-cells : cells + 1, -cells : cells + 1]
+            whole = self._disc_masks[radius] = np.hypot(rr, cc) * self.cell_size <= radius
         row, col = (int(v) for v in self.grid.to_cell(centre))
         r0, r1 = max(0, row - cells), min(self.map_size, row + cells + 1)
         c0, c1 = max(0, col - cells), min(self.map_size, col + cells + 1)
-        rr, cc = np.mgrid[r0:r1, c0:c1]
-        mask[r0:r1, c0:c1] = np.hypot(rr - row, cc - col) * self.cell_size <= radius
-        return mask
+        r1, c1 = max(r0, r1), max(c0, c1)
+        mask = whole[r0 - row + cells : r1 - row + cells, c0 - col + cells : c1 - col + cells]
+        return r0, r1, c0, c1, mask
+
+    def _paint_disc(
+        self, layer: np.ndarray, centre: np.ndarray, radius: float, value: bool
+    ) -> None:
+        """Set the cells of a disc to ``value`` in ``layer``, touching only the disc's box."""
+        r0, r1, c0, c1, inside = self._disc_window(centre, radius)
+        layer[r0:r1, c0:c1][inside] = value
+
+    def _disc_box(self, centre: np.ndarray, radius: float) -> tuple[int, int, int, int]:
+        """The box (row0, row1, col0, col1) round the disc's cells; empty: row0 ≥ row1."""
+        r0, _, c0, _, inside = self._disc_window(centre, radius)
+        rows, cols = np.nonzero(inside)
+        if len(rows) == 0:
+            return self.map_size, 0, self.map_size, 0
+        return (
+            r0 + int(rows.min()),
+            r0 + int(rows.max()) + 1,
+            c0 + int(cols.min()),
+            c0 + int(cols.max()) + 1,
+        )
+
+
+def _close(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.allclose(a, b, atol=1e-4)`` for two points, without its overhead per call."""
+    return all(
+        abs(x - y) <= 1e-4 + 1e-5 * abs(y) for x, y in zip(a.tolist(), b.tolist(), strict=True)
+    )
+
+
+def _union(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """The box round two boxes (row0, row1, col0, col1) with exclusive ends; empty ones ignored."""
+    if a[0] >= a[1]:
+        return b
+    if b[0] >= b[1]:
+        return a
+    return min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3])
+
+
+def _grown(box: tuple[int, int, int, int], margin: int, size: int) -> tuple[int, int, int, int]:
+    """``box`` grown by ``margin`` cells and clipped to the map, as
+    :func:`~.navigation.bounding_box` does (the whole map for an empty box)."""
+    r0, r1, c0, c1 = box
+    if r0 >= r1:
+        return 0, size, 0, size
+    return max(0, r0 - margin), min(size, r1 + margin), max(0, c0 - margin), min(size, c1 + margin)

@@ -62,8 +62,10 @@ for (_r, _g, _b), _category in _PATTERN_TO_CATEGORY.items():
 # the threshold on off channels is what tells a goal from a goal-coloured object.
 ON_LEVEL = 105
 OFF_LEVEL = 3
-WHITE_SPREAD = 0  # a white goal renders its three channels exactly equal; greys rarely do
+# a white goal renders its three channels exactly equal (r = g = b); greys rarely do
 
+
+_EIGHT = np.ones((3, 3), dtype=bool)
 
 Detections = dict[int, tuple[np.ndarray, np.ndarray]]
 """Goal category → (rows, cols) of its pixels."""
@@ -71,12 +73,7 @@ Detections = dict[int, tuple[np.ndarray, np.ndarray]]
 
 def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     """The pixels of each goal colour in an (H, W, 3) uint8 image (categories with enough)."""
-    red, green, blue = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    # channel by channel: much faster than reducing over a last axis of length 3
-    low = np.minimum(np.minimum(red, green), blue)
-    high = np.maximum(np.maximum(red, green), blue)
-    # cheap pre-filter: some channel is off (no scene colour has one), or bright balanced grey
-    rows, cols = np.nonzero((low <= OFF_LEVEL) | ((low >= ON_LEVEL) & (high - low <= WHITE_SPREAD)))
+    rows, cols = _candidates(rgb)
     if len(rows) == 0:
         return {}
     pixels = rgb[rows, cols]
@@ -88,6 +85,25 @@ def detect_goals(rgb: np.ndarray, min_pixels: int = 3) -> Detections:
     return {
         int(c): (rows[labels == c], cols[labels == c]) for c in np.flatnonzero(counts >= min_pixels)
     }
+
+
+def _candidates(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cheap pre-filter: ``(rows, cols)``, in raster order, of the pixels with a channel off (no
+    scene colour has one) or bright and balanced (r = g = b ≥ ``ON_LEVEL``).
+
+    Computed on the image's bytes in memory order, where numpy is fast, rather than channel by
+    channel (strided) or reduced over the colour axis: byte ``i`` is channel ``i % 3`` of pixel
+    ``i // 3``. Candidates are few, so the work on them is small.
+    """
+    height, width = rgb.shape[:2]
+    flat = np.ascontiguousarray(rgb).reshape(-1)
+    off = np.flatnonzero(flat <= OFF_LEVEL) // 3
+    # a bright byte equal to the next two: at a pixel's first byte, a balanced bright pixel
+    same = flat[:-1] == flat[1:]  # byte i equals byte i + 1
+    balanced = np.flatnonzero((flat[:-2] >= ON_LEVEL) & same[:-1] & same[1:])
+    bright = balanced[balanced % 3 == 0] // 3
+    pixels = np.union1d(off, bright) if len(bright) else np.unique(off)
+    return pixels // width, pixels % width
 
 
 def goal_shaped(
@@ -102,10 +118,12 @@ def goal_shaped(
     focal = camera.focal(depth.shape[1])
     kept: Detections = {}
     for category, (rows, cols) in detections.items():
-        mask = np.zeros(depth.shape[:2], dtype=bool)
-        mask[rows, cols] = True
-        labels, count = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
-        blob = labels[rows, cols]
+        # blobs lie inside the box round their pixels: label that box, not the whole image
+        r0, c0 = int(rows.min()), int(cols.min())
+        mask = np.zeros((int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1), dtype=bool)
+        mask[rows - r0, cols - c0] = True
+        labels, count = ndimage.label(mask, structure=_EIGHT)
+        blob = labels[rows - r0, cols - c0]
         keep = np.zeros(len(rows), dtype=bool)
         for label in range(1, count + 1):
             inside = blob == label
@@ -130,6 +148,7 @@ class DepthProjector:
         self.rows, self.cols = rows, cols
         # per pixel: rightward and upward offsets per metre of depth
         self.right = ((cols + 0.5 - width / 2) / focal)[None, :].repeat(len(rows), axis=0)
+        self.column_angles = np.arctan(self.right[0])  # each column's bearing right of ahead
         self.up = ((height / 2 - rows - 0.5) / focal)[:, None].repeat(len(cols), axis=1)
 
     def points(
@@ -139,15 +158,22 @@ class DepthProjector:
 
         ``depth`` is the normalised sensor image (H, W, 1) in [0, 1].
         """
+        x, y, height, z = self.project(depth, position, heading)
+        return np.stack([x, y], axis=-1), height, z
+
+    def project(
+        self, depth: np.ndarray, position: np.ndarray, heading: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`points` as ``(x, y, height, metres)``, each (h, w)."""
         cam = self.camera
-        sampled = depth[self.rows][:, self.cols, 0].astype(np.float64)
+        start = self.stride // 2  # the rows and columns of __init__, as a strided view
+        sampled = depth[start :: self.stride, start :: self.stride, 0].astype(np.float64)
         z = cam.metres(sampled)
         forward, left = z, -self.right * z
         c, s = math.cos(heading), math.sin(heading)
-        xy = np.stack(
-            [position[0] + c * forward - s * left, position[1] + s * forward + c * left], axis=-1
-        )
-        return xy, cam.height + self.up * z, z
+        x = position[0] + c * forward - s * left
+        y = position[1] + s * forward + c * left
+        return x, y, cam.height + self.up * z, z
 
 
 @dataclass(frozen=True)
@@ -167,11 +193,19 @@ class SemanticMap:
         self.grid = grid
         self.settings = settings
         self.obstacle = np.zeros((grid.size, grid.size), dtype=bool)
+        # the obstacles and their 4 neighbours (a binary dilation with a cross), kept as they
+        # are added: the explorer's margin round obstacles, without dilating every step
+        self.obstacle_grown = np.zeros_like(self.obstacle)
         self.free = np.zeros((grid.size, grid.size), dtype=bool)
         # goal memory: per category, the sum and number of sighted positions (a running mean)
         self._goal_sum = np.zeros((NUM_CATEGORIES, 2))
         self._goal_count = np.zeros(NUM_CATEGORIES, dtype=np.int64)
         self.changed = False
+        # cells are only ever added to both layers, so their boxes only grow: kept as cells are
+        # set, they spare a scan of the whole map for every plan
+        self.obstacle_extent = Extent()
+        self.explored_extent = Extent()
+        self._free_disc: dict[float, np.ndarray] = {}  # radius → cell offsets in metres
 
     # ------------------------------------------------------------------ queries
     def goal_position(self, category: int) -> np.ndarray | None:
@@ -186,15 +220,22 @@ class SemanticMap:
     def explored(self) -> np.ndarray:
         return self.free | self.obstacle
 
+    def explored_within(self, box: tuple[int, int, int, int]) -> np.ndarray:
+        """:meth:`explored` inside ``box`` = (row0, row1, col0, col1) only."""
+        r0, r1, c0, c1 = box
+        return self.free[r0:r1, c0:c1] | self.obstacle[r0:r1, c0:c1]
+
     # ------------------------------------------------------------------ updates
     def mark_free_disc(self, position: np.ndarray, radius: float) -> None:
         """Where the agent stands is free (the camera never sees the floor under its feet)."""
-        cells = int(math.ceil(radius / self.grid.cell_size))
-        offsets = np.arange(-cells, cells + 1) * self.grid.cell_size
-        ox, oy = np.meshgrid(offsets, offsets)
-        keep = np.hypot(ox, oy) <= radius
-        points = position[None, :] + np.stack([ox[keep], oy[keep]], axis=-1)
-        self._set(points, self.free, True)
+        offsets = self._free_disc.get(radius)
+        if offsets is None:
+            cells = int(math.ceil(radius / self.grid.cell_size))
+            steps = np.arange(-cells, cells + 1) * self.grid.cell_size
+            ox, oy = np.meshgrid(steps, steps)
+            keep = np.hypot(ox, oy) <= radius
+            offsets = self._free_disc[radius] = np.stack([ox[keep], oy[keep]], axis=-1)
+        self._add(position[0] + offsets[:, 0], position[1] + offsets[:, 1], self.free)
 
     def integrate(
         self,
@@ -206,11 +247,13 @@ class SemanticMap:
     ) -> list[int]:
         """Add one RGB-D frame; returns the goal categories placed from it."""
         cfg, cam = self.settings, projector.camera
-        xy, height, z = projector.points(depth, position, heading)
-        goal_pixels = np.zeros(depth.shape[:2], dtype=bool)
-        for rows, cols in detections.values():
-            goal_pixels[rows, cols] = True
-        is_goal = goal_pixels[projector.rows][:, projector.cols]
+        x, y, height, z = projector.project(depth, position, heading)
+        is_goal = np.zeros(z.shape, dtype=bool)
+        if detections:
+            goal_pixels = np.zeros(depth.shape[:2], dtype=bool)
+            for rows, cols in detections.values():
+                goal_pixels[rows, cols] = True
+            is_goal = goal_pixels[projector.rows][:, projector.cols]
         saturated = z >= cam.max_depth - 1e-3
         # clipped at the near limit: the surface is somewhere closer than 0.5 m, not at 0.5 m;
         # taken at face value it draws a false wall in an arc around the agent (in doorways)
@@ -223,26 +266,29 @@ class SemanticMap:
             & ~near
         )
         floor = (height < cfg.floor_height) & ~saturated
-        before = int(self.obstacle.sum()), int(self.free.sum())
-        self._set(xy[obstacle], self.obstacle, True)
-        self._set(xy[floor], self.free, True)
-        self._carve(projector, xy, obstacle, near, floor | saturated, position, heading)
-        self.changed = (int(self.obstacle.sum()), int(self.free.sum())) != before
+        # cells are only ever added: the map changed if some cell set was not set before
+        added = self._add(x[obstacle], y[obstacle], self.obstacle)
+        added |= self._add(x[floor], y[floor], self.free)
+        reach = np.hypot(x - position[0], y - position[1])
+        added |= self._carve_free(
+            projector, reach, obstacle, near, floor | saturated, position, heading
+        )
+        self.changed = added
         return self._remember_goals(projector, depth, detections, position, heading)
 
-    def _carve(
+    def _carve_free(
         self,
         projector: DepthProjector,
-        xy: np.ndarray,
+        reach: np.ndarray,
         obstacle: np.ndarray,
         near: np.ndarray,
         open_: np.ndarray,
         position: np.ndarray,
         heading: float,
-    ) -> None:
+    ) -> bool:
         """Free space along each image column, from the agent to the first obstacle it sees
-        (nothing in a column with a surface nearer than the depth range)."""
-        reach = np.hypot(*(xy - position).transpose(2, 0, 1))
+        (nothing in a column with a surface nearer than the depth range); True if new.
+        ``reach``: each sampled pixel's distance from the agent."""
         obstacle_reach = np.where(obstacle, reach, np.inf).min(axis=0)
         obstacle_reach[near.any(axis=0)] = 0.0
         open_reach = np.where(open_, reach, 0.0).max(axis=0)
@@ -250,11 +296,14 @@ class SemanticMap:
         step = self.settings.carve_step
         distances = np.arange(step, float(limit.max(initial=0.0)), step)
         if len(distances) == 0:
-            return
-        bearings = heading - np.arctan(projector.right[0])  # left of the heading is positive
-        directions = np.stack([np.cos(bearings), np.sin(bearings)], axis=-1)
-        points = position + distances[:, None, None] * directions[None, :, :]
-        self._set(points[distances[:, None] < limit[None, :]], self.free, True)
+            return False
+        bearings = heading - projector.column_angles  # left of the heading is positive
+        # only the points short of each column's limit (the same numbers as computing all)
+        along, column = np.nonzero(distances[:, None] < limit[None, :])
+        ahead = distances[along]
+        x = position[0] + ahead * np.cos(bearings)[column]
+        y = position[1] + ahead * np.sin(bearings)[column]
+        return self._add(x, y, self.free)
 
     def _remember_goals(
         self,
@@ -285,7 +334,68 @@ class SemanticMap:
             placed.append(category)
         return placed
 
-    def _set(self, points: np.ndarray, layer: np.ndarray, value: bool) -> None:
-        rows, cols = self.grid.to_cell(points)
-        ok = (rows >= 0) & (rows < self.grid.size) & (cols >= 0) & (cols < self.grid.size)
-        layer[rows[ok], cols[ok]] = value
+    def _add(self, x: np.ndarray, y: np.ndarray, layer: np.ndarray) -> bool:
+        """Set the cells of the points ``(x, y)`` (those on the map) in ``layer``, ``free`` or
+        ``obstacle``; True if one was not set yet. Only new cells grow the boxes and margin."""
+        grid, size = self.grid, self.grid.size
+        # the cells of StartFrameGrid.to_cell, on flat indices
+        rows = np.rint(grid.half - x / grid.cell_size).astype(np.int64)
+        cols = np.rint(grid.half - y / grid.cell_size).astype(np.int64)
+        # as unsigned, a negative index is huge: one comparison checks both ends
+        ok = (rows.view(np.uint64) < size) & (cols.view(np.uint64) < size)
+        cells = (rows * size + cols)[ok]
+        flat = layer.reshape(-1)  # a view: layers are contiguous
+        cells = cells[~flat[cells]]
+        if len(cells) == 0:
+            return False
+        flat[cells] = True
+        rows, cols = np.divmod(cells, size)
+        self.explored_extent.add(rows, cols)
+        if layer is self.obstacle:
+            self.obstacle_extent.add(rows, cols)
+            self._grow(rows, cols)
+        return True
+
+    def _grow(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        size = self.grid.size
+        for dr, dc in ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)):
+            r, c = rows + dr, cols + dc
+            ok = (r >= 0) & (r < size) & (c >= 0) & (c < size)
+            self.obstacle_grown[r[ok], c[ok]] = True
+
+
+@dataclass
+class Extent:
+    """The smallest box round the cells added so far (cells are never removed)."""
+
+    row0: int = 0
+    row1: int = -1  # inclusive; row1 < row0: no cell yet
+    col0: int = 0
+    col1: int = -1
+
+    @property
+    def empty(self) -> bool:
+        return self.row1 < self.row0
+
+    def add(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        r0, r1, c0, c1 = int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())
+        if self.empty:
+            self.row0, self.row1, self.col0, self.col1 = r0, r1, c0, c1
+            return
+        self.row0, self.row1 = min(self.row0, r0), max(self.row1, r1)
+        self.col0, self.col1 = min(self.col0, c0), max(self.col1, c1)
+
+    def bounds(self) -> tuple[int, int, int, int]:
+        """(row0, row1, col0, col1) with exclusive ends; row0 ≥ row1 when empty."""
+        return self.row0, self.row1 + 1, self.col0, self.col1 + 1
+
+    def box(self, margin: int, size: int) -> tuple[int, int, int, int]:
+        """As :func:`~.navigation.bounding_box` gives it (the whole map when empty)."""
+        if self.empty:
+            return 0, size, 0, size
+        return (
+            max(0, self.row0 - margin),
+            min(size, self.row1 + margin + 1),
+            max(0, self.col0 - margin),
+            min(size, self.col1 + margin + 1),
+        )

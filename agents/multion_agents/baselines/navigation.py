@@ -14,6 +14,7 @@ path-following controller.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -75,6 +76,26 @@ def interpolate(grid: StartFrameGrid, field: np.ndarray, xy: np.ndarray) -> floa
     top = corners[0, 0] * (1 - fc) + corners[0, 1] * fc
     bottom = corners[1, 0] * (1 - fc) + corners[1, 1] * fc
     return float(top * (1 - fr) + bottom * fr)
+
+
+def interpolate_many(grid: StartFrameGrid, field: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """:func:`interpolate` at each of the points ``xy`` (n, 2): the same numbers, at once."""
+    row = grid.half - xy[:, 0] / grid.cell_size
+    col = grid.half - xy[:, 1] / grid.cell_size
+    r0, c0 = np.floor(row).astype(np.int64), np.floor(col).astype(np.int64)
+    out = np.full(len(xy), np.inf)
+    inside = np.flatnonzero((r0 >= 0) & (r0 < grid.size - 1) & (c0 >= 0) & (c0 < grid.size - 1))
+    r, c = r0[inside], c0[inside]
+    corners = np.stack([field[r, c], field[r, c + 1], field[r + 1, c], field[r + 1, c + 1]])
+    finite = np.isfinite(corners).all(axis=0)
+    # a corner at inf: the nearest cell's value, as interpolate does
+    out[inside[~finite]] = grid.lookup(field, xy[inside[~finite]], outside=np.inf)
+    c00, c01, c10, c11 = corners[:, finite]
+    fr, fc = row[inside[finite]] - r[finite], col[inside[finite]] - c[finite]
+    top = c00 * (1 - fc) + c01 * fc
+    bottom = c10 * (1 - fc) + c11 * fc
+    out[inside[finite]] = top * (1 - fr) + bottom * fr
+    return out
 
 
 def distance_field(
@@ -211,15 +232,44 @@ def choose_action(
     n = motion.headings
     angle, index = snap_heading(heading, motion)
     best_value, best_turns = here - 1e-6, None
-    for k in range(n):
-        turns = k if k <= n // 2 else k - n  # positive: turn left (counter-clockwise)
-        points = step_points(position, _turned(angle, index, turns, motion), motion)
-        if not grid.lookup(passable, points, outside=False).all():
-            continue
-        value = interpolate(grid, field, points[-1]) + turn_cost * abs(turns)
+    turns = _turn_order(n)
+    # the points of all n steps at once, each exactly as step_points computes it
+    if index is None:
+        offsets = _step_offsets([_turned(angle, index, t, motion) for t in turns], motion)
+    else:  # a snapped heading: the same n steps every time
+        offsets = _snapped_step_offsets(motion, index)
+    points = position[None, None, :] + offsets
+    clear = np.flatnonzero(grid.lookup(passable, points, outside=False).all(axis=1))
+    values = interpolate_many(grid, field, points[clear, -1])
+    values += turn_cost * np.abs(np.asarray(turns)[clear])
+    for k, value in zip(clear.tolist(), values.tolist(), strict=True):
         if value < best_value:
-            best_value, best_turns = value, turns
+            best_value, best_turns = value, turns[k]
     return _starting(best_turns)
+
+
+_STEP_FRACTIONS = np.linspace(0.0, 1.0, 6)[1:]
+
+
+@functools.cache
+def _turn_order(n: int) -> list[int]:
+    """Turns (positive: left) in the order :func:`choose_action` tries them."""
+    return [k if k <= n // 2 else k - n for k in range(n)]
+
+
+def _step_offsets(angles: list[float], motion: Motion) -> np.ndarray:
+    """What :func:`step_points` adds to the position, for several directions: (n, 5, 2)."""
+    unit = np.array([[math.cos(a), math.sin(a)] for a in angles])
+    step = motion.forward_step * unit
+    return _STEP_FRACTIONS[None, :, None] * step[:, None, :]
+
+
+@functools.cache
+def _snapped_step_offsets(motion: Motion, index: int) -> np.ndarray:
+    turns = _turn_order(motion.headings)
+    offsets = _step_offsets([_turned(0.0, index, t, motion) for t in turns], motion)
+    offsets.flags.writeable = False
+    return offsets
 
 
 def _starting(turns: int | None) -> int | None:
