@@ -140,7 +140,7 @@ def test_compose_and_nginx_name_the_same_replicas() -> None:
         names
     )
     assert sorted(
-        re.findall(r"upstream multion_([a-z0-9]+) \{ server replica-\1:8000;", conf)
+        re.findall(r"upstream multion_([a-z0-9]+) \{ server replica-\1:8000[ ;]", conf)
     ) == sorted(names)
     pinned = re.findall(r"~\^/v1/\(sessions\|runs\)/([a-z0-9]+)-\s+multion_\1;", conf)
     assert sorted(pinned) == sorted(names)
