@@ -124,7 +124,7 @@ def test_two_replicas_share_one_postgresql(
 
 # ---------------------------------------------------------------------- nginx on loopback
 def test_compose_and_nginx_name_the_same_replicas() -> None:
-    """Adding a replica takes a compose service and three nginx lines: none may be forgotten."""
+    """Adding a replica takes a compose service and its nginx lines: none may be forgotten."""
     compose = (ROOT / "docker" / "docker-compose.replicas.yml").read_text()
     conf = (ROOT / "docker" / "nginx.conf").read_text()
     names = re.findall(r"^\s+MULTION_REPLICA: ([a-z0-9]+)", compose, re.MULTILINE)
@@ -142,8 +142,14 @@ def test_compose_and_nginx_name_the_same_replicas() -> None:
     assert sorted(
         re.findall(r"upstream multion_([a-z0-9]+) \{ server replica-\1:8000[ ;]", conf)
     ) == sorted(names)
-    pinned = re.findall(r"~\^/v1/\(sessions\|runs\)/([a-z0-9]+)-\s+multion_\1;", conf)
-    assert sorted(pinned) == sorted(names)
+    for route, upstream in (("sessions", "multion_"), ("runs", "multion_runs_")):
+        pinned = re.findall(rf"~\^/v1/{route}/([a-z0-9]+)-\s+{upstream}\1;", conf)
+        assert sorted(pinned) == sorted(names), route
+    for name in names:  # a run's replica, then every other replica as a backup
+        block = re.search(rf"upstream multion_runs_{name} \{{(.*?)\}}", conf)
+        assert block is not None, name
+        others = re.findall(r"server replica-([a-z0-9]+):8000 backup;", block.group(1))
+        assert sorted(others) == sorted(set(names) - {name}), name
 
 
 def nginx_config(directory: Path, ports: dict[str, int], listen: int) -> Path:
