@@ -139,13 +139,17 @@ def fresh_episode_id(run_id: str, position: int) -> str:
 
 
 def fresh_episode(
-    challenge: Challenge, track: Track, phase: Phase, run_id: str, position: int
+    challenge: Challenge,
+    track: Track,
+    phase: Phase,
+    houses: list[str],
+    run_id: str,
+    position: int,
 ) -> Episode:
     """Episode ``position`` of fresh run ``run_id``: a pure function of the secret, the run
-    id and the position. Blocking (the house's grid may have to be built)."""
-    scene = hidden_houses(challenge, track, phase)[
-        fresh_house_plan(challenge, track, phase, run_id)[position]
-    ]
+    id and the position (``houses``: the phase's :func:`hidden_houses`, which its callers
+    keep). Blocking (the house's grid may have to be built)."""
+    scene = houses[fresh_house_plan(challenge, track, phase, run_id)[position]]
     label = f"episode/{track.name}/{phase.name}/{run_id}/{position}"
     rng = np.random.default_rng(derived_int(challenge.secret, label))
     grid = _grid(scene)
@@ -235,7 +239,8 @@ class HiddenEpisodes:
         """The episode a run plays at ``position``."""
         if draw.episode_set == "fixed":
             return self.phase_set(track, phase)[draw.order[position]]
-        return self._call(fresh_episode, track, phase, draw.run_id, position)
+        houses = self.houses[(track.name, phase.name)]
+        return self._call(fresh_episode, track, phase, houses, draw.run_id, position)
 
     def episode_ids(self, track: Track, phase: Phase, draw: RunDraw) -> list[str]:
         """The ids of a run's episodes in play order, without drawing fresh ones."""
@@ -246,10 +251,10 @@ class HiddenEpisodes:
 
     def house_of(self, track: Track, phase: Phase, draw: RunDraw) -> list[int]:
         """The house (index into the phase's hidden houses) of each position of a run."""
-        houses = self.houses[(track.name, phase.name)]
         if draw.episode_set == "fixed":
+            number = {h: k for k, h in enumerate(self.houses[(track.name, phase.name)])}
             fixed = self.phase_set(track, phase)
-            return [houses.index(fixed[i].scene_id) for i in draw.order]
+            return [number[fixed[i].scene_id] for i in draw.order]
         return fresh_house_plan(self.challenge, track, phase, draw.run_id)
 
     def warm(self, track: Track, phase: Phase) -> None:
