@@ -35,36 +35,31 @@ TOLERANCE = 5.0
 
 def house_table(split: str) -> list[str]:
     """Rooms, footprint, navigable fraction and build time of the split's houses."""
-    from multion.scenes.registry import layout_for, scene_ids
+    from multion.scenes.registry import scene_ids
+    from multion.sim.house_measure import measure_house
     from multion.sim.simulator import Simulator
 
     lines = [f"{'scene':<12}{'rooms':>6}{'corr.':>6}{'doors':>6}{'m²':>7}{'nav m²':>8}"
              f"{'nav %':>7}{'build s':>9}"]  # fmt: skip
     sim = Simulator()
-    fractions, areas, seconds = [], [], []
     try:
+        measures = []
         for scene in scene_ids(split):
-            tick = time.perf_counter()
-            layout = layout_for(scene)
-            grid = sim.load_scene(scene)
-            took = time.perf_counter() - tick
-            area = float(layout.metadata["footprint_area"])
-            nav = float(grid.navigable.sum()) * grid.cell_size**2
-            fractions.append(nav / area)
-            areas.append(area)
-            seconds.append(took)
-            meta = layout.metadata
+            h = measure_house(sim, scene)
+            measures.append(h)
             lines.append(
-                f"{scene:<12}{meta['room_count']:>6}{meta['corridor_count']:>6}"
-                f"{meta['door_count']:>6}{area:>7.0f}{nav:>8.0f}{100 * nav / area:>7.1f}{took:>9.1f}"
+                f"{scene:<12}{h.rooms:>6}{h.corridors:>6}{h.doors:>6}{h.footprint_m2:>7.0f}"
+                f"{h.navigable_m2:>8.0f}{100 * h.navigable_share:>7.1f}{h.build_s:>9.1f}"
             )
     finally:
         sim.close()
+    areas = [h.footprint_m2 for h in measures]
+    fractions = [h.navigable_share for h in measures]
     lines.append(
         f"mean footprint {np.mean(areas):.0f} m² ({min(areas):.0f}–{max(areas):.0f}), "
         f"navigable {100 * np.mean(fractions):.1f} % ({100 * min(fractions):.1f}–"
-        f"{100 * max(fractions):.1f}), build {np.mean(seconds):.1f} s per house (first build; "
-        "includes the navigable grid)"
+        f"{100 * max(fractions):.1f}), build {np.mean([h.build_s for h in measures]):.1f} s "
+        "per house (first build; includes the navigable grid)"
     )
     return lines
 

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from multion.scenes.registry import layout_for, scene_ids
+from multion.scenes.registry import scene_ids
+from multion.sim.house_measure import measure_house
 from multion.sim.simulator import Simulator
 
 
@@ -40,23 +41,18 @@ HEADER = f"{'houses of':<28}{'count':>7}{'rooms':>10}{'mean':>6}{'m² mean (rang
 
 def house_stats(houses: Sequence[str]) -> HouseStats:
     """Rooms, footprint and navigable share of ``houses`` (builds them: seconds each)."""
-    rooms, areas, shares = [], [], []
     simulator = Simulator()
     try:
-        for house in houses:
-            meta = layout_for(house).metadata
-            grid = simulator.load_scene(house)
-            area = float(meta["footprint_area"])
-            rooms.append(int(meta["room_count"]))
-            areas.append(area)
-            shares.append(float(grid.navigable.sum()) * grid.cell_size**2 / area)
+        measures = [measure_house(simulator, house) for house in houses]
     finally:
         simulator.close()
+    rooms = [h.rooms for h in measures]
+    areas = [h.footprint_m2 for h in measures]
     return HouseStats(
         len(houses),
         (min(rooms), max(rooms), float(np.mean(rooms))),
         (min(areas), max(areas), float(np.mean(areas))),
-        float(np.mean(shares)),
+        float(np.mean([h.navigable_share for h in measures])),
     )
 
 
