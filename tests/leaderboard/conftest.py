@@ -50,6 +50,7 @@ episodes = 2
 houses = 1
 feedback = "aggregate"
 total_quota = 1
+episodes_per_run = "fixed"   # the shared fixture's runs replay the same (test_trust: fresh)
 
 [[tracks]]
 name = "1-on-oracle"
@@ -70,6 +71,7 @@ episodes = 2
 houses = 1
 feedback = "sealed"
 sealed_until = 2999-01-01T00:00:00Z
+episodes_per_run = "fixed"
 """
 
 
