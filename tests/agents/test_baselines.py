@@ -9,7 +9,6 @@ import pytest
 
 from multion.pictures import gps_to_world
 from multion.sim.camera import CameraConfig
-from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode, Goal
 from multion.task.maps import MapConfig
@@ -19,6 +18,7 @@ from multion_agents.baselines.navigation import StartFrameGrid
 from multion_agents.evaluate import run_episode
 from multion_agents.registry import make_agent
 from multion_client.constants import GOAL_RGBA, Action
+from v2_episodes import v2_episode
 
 
 def _env(
@@ -39,12 +39,8 @@ def _env(
 
 
 def test_oracle_planner_solves_3on_episodes() -> None:
-    path = packaged_dataset_path(3, "val")
-    if not path.is_file():
-        pytest.skip("no packaged 3-ON val dataset")
-    episodes = load_dataset(path, 3)
-    scene = episodes[0].scene_id
-    same_scene = [e for e in episodes if e.scene_id == scene][:3]  # one scene: one grid build
+    # three episodes of one house (one grid build), among them a gap it once could not enter
+    same_scene = [v2_episode(f"val-3-on-0000{k}") for k in range(3)]
     agent = make_agent("oracle-planner")
     env = _env(agent, 3, same_scene)
     records = [run_episode(env, agent, episode) for episode in same_scene]
@@ -87,11 +83,8 @@ def test_explorer_finds_goals_in_a_room() -> None:
     ],
 )
 def test_explorer_gets_out_of_its_old_traps(episode_id: str, image: int) -> None:
-    num_goals = int(episode_id.split("-")[1])
-    path = packaged_dataset_path(num_goals, "val")
-    if not path.is_file():
-        pytest.skip("no packaged val dataset")
-    episode = next(e for e in load_dataset(path, num_goals) if e.episode_id == episode_id)
+    episode = v2_episode(episode_id)
+    num_goals = episode.num_goals
     agent = make_agent("explorer")
     env = _env(agent, num_goals, [episode], image=image, max_steps=700)
     record = run_episode(env, agent, episode)

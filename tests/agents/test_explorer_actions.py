@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from multion.sim.camera import CameraConfig
-from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion_agents.registry import make_agent
+from v2_episodes import v2_episode
 
 DATA = Path(__file__).parent / "data" / "explorer_actions.json"
 CASES = (
@@ -34,13 +34,9 @@ CASES = (
 
 
 def play(episode_id: str, image: int, max_steps: int) -> dict[str, object]:
-    """The explorer's actions on one packaged val episode, and digests of its final map."""
-    num_goals = int(episode_id.split("-")[1])
-    episode = next(
-        e
-        for e in load_dataset(packaged_dataset_path(num_goals, "val"), num_goals)
-        if e.episode_id == episode_id
-    )
+    """The explorer's actions on one (version 2) val episode, and digests of its final map."""
+    episode = v2_episode(episode_id)
+    num_goals = episode.num_goals
     agent = make_agent("explorer", seed=0)
     config = EnvConfig(
         task=TaskConfig(num_goals=num_goals, max_steps=max_steps),
@@ -78,9 +74,6 @@ def _recorded() -> dict[tuple[str, int], dict[str, object]]:
 
 @pytest.mark.parametrize(("episode_id", "image", "max_steps"), CASES)
 def test_explorer_repeats_its_recorded_actions(episode_id: str, image: int, max_steps: int) -> None:
-    num_goals = int(episode_id.split("-")[1])
-    if not packaged_dataset_path(num_goals, "val").is_file():
-        pytest.skip("no packaged val dataset")
     expected = _recorded()[(episode_id, image)]
     assert expected["max_steps"] == max_steps
     got = play(episode_id, image, max_steps)

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 from multion.sim.camera import CameraConfig
-from multion.task.dataset import load_dataset, packaged_dataset_path
+from v2_episodes import v2_episode
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion_agents.baselines import explorer_reference as ref
 from multion_agents.baselines.explorer import ExplorerAgent, _close
@@ -228,10 +228,7 @@ def test_still_means_what_allclose_says(values: list[float], nudge: float) -> No
 def test_fast_and_reference_explorers_act_alike_on_a_val_episode() -> None:
     """Side by side on the same observations (what ``multion bench --only explorer`` times):
     the same action every step, and the same map at the end."""
-    path = packaged_dataset_path(2, "val")
-    if not path.is_file():
-        pytest.skip("no packaged 2-ON val dataset")
-    episode = next(e for e in load_dataset(path, 2) if e.episode_id == "val-2-on-00010")
+    episode = v2_episode("val-2-on-00010")
     fast, old = ExplorerAgent(), ref.ReferenceExplorerAgent()
     config = EnvConfig(
         task=TaskConfig(num_goals=2, max_steps=400),
