@@ -16,7 +16,6 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 from multion.sim.camera import CameraConfig
-from v2_episodes import v2_episode
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion_agents.baselines import explorer_reference as ref
 from multion_agents.baselines.explorer import ExplorerAgent, _close
@@ -34,6 +33,7 @@ from multion_agents.baselines.navigation import (
     interpolate,
     interpolate_many,
 )
+from v2_episodes import v2_episode
 
 SEEDS = st.integers(0, 2**32 - 1)
 FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
