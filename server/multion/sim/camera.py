@@ -101,6 +101,9 @@ class Camera:
         self.renderer = renderer
         self._flag = p.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else p.ER_TINY_RENDERER
         self.ambient, self.diffuse = lighting
+        self.egl_light_position = EGL_LIGHT_POSITION
+        """Where the EGL plugin's light is placed (benches set ``EGL_PLUGIN_LIGHT`` to time
+        the plugin's shadow pass)."""
         self.projection = p.computeProjectionMatrixFOV(
             fov=config.vfov_deg,
             aspect=config.width / config.height,
@@ -125,10 +128,8 @@ class Camera:
         egl = self.renderer == "egl"
         # the EGL plugin prints its OpenGL vendor ("ven = …") when it uploads new bodies
         with c_output_silenced() if egl else contextlib.nullcontext():
-            if egl:  # TinyRenderer's call stays exactly as it was
-                light = {"lightDirection": EGL_LIGHT_POSITION}
-            else:
-                light = {}
+            # TinyRenderer's call stays exactly as it was
+            light = {"lightDirection": self.egl_light_position} if egl else {}
             _, _, rgba, zbuffer, seg = p.getCameraImage(
                 c.width,
                 c.height,
@@ -158,12 +159,15 @@ class Camera:
         return metres.astype(np.float32)[:, :, None]
 
 
+EGL_PLUGIN_LIGHT = (-5.0, -40.0, 200.0)
+"""The EGL plugin's own light position, used when ``getCameraImage`` names none."""
 EGL_LIGHT_POSITION = (-25.0, -200.0, 1000.0)
-"""Where the EGL plugin's light is: its default direction, (-5, -40, 200), five times as far.
-The plugin lights surfaces by the light's direction only, so images are the same, but it also
-renders a shadow map every frame (whether or not shadows are drawn) with an orthographic
-camera at the light that sees 1–300 m: from 1,020 m it sees nothing, which saves 10–15 ms a
-frame with Mesa on one thread (``tests/sim/test_renderers.py`` checks the pixels are equal)."""
+"""Where cameras put the EGL plugin's light: in its own direction, five times as far. The
+plugin renders a shadow map from its light every frame, whatever ``shadow`` says, with an
+orthographic camera that sees 1–300 m from the light, and darkens what that map shadows;
+TinyRenderer, asked for ``shadow=0`` like the plugin, draws no shadows. From 1,020 m the map
+sees nothing: no shadows (only pixels the map shadowed change, and only get lighter), and
+10–15 ms less per image with Mesa on one thread (``multion bench --only sim``)."""
 
 EGL_PIXEL_SHIFT = (1.0, 1.0)
 """TinyRenderer samples each pixel half a pixel off OpenGL's pixel centres, in x and in y.

@@ -55,12 +55,15 @@ class PyBulletWorld:
 
     # ------------------------------------------------------------------ building
     @classmethod
-    def from_layout(cls, layout: SceneLayout, renderer: str = "tiny") -> PyBulletWorld:
-        """One static body per box. With EGL the boxes are drawn as one merged mesh instead
-        (:mod:`multion.sim.merged_visual`): the per-box bodies keep their collision shapes but
-        are created before the plugin, so it draws one body, not hundreds. TinyRenderer draws
-        the per-box bodies, exactly as before."""
-        merge = bool(layout.boxes) and resolve_renderer(renderer) == "egl"
+    def from_layout(
+        cls, layout: SceneLayout, renderer: str = "tiny", merge: bool = True
+    ) -> PyBulletWorld:
+        """One static body per box. With EGL (and ``merge``) the boxes are drawn as one merged
+        mesh instead (:mod:`multion.sim.merged_visual`): the per-box bodies keep their
+        collision shapes but are created before the plugin, so it draws one body, not
+        hundreds. TinyRenderer draws the per-box bodies, exactly as before; ``merge=False``
+        gives EGL the per-box bodies too (benches and tests compare the two)."""
+        merge = merge and bool(layout.boxes) and resolve_renderer(renderer) == "egl"
         world = cls(renderer, unseen_boxes=layout.boxes if merge else ())
         if "lighting" in layout.metadata:  # houses vary their light a little (issue 12)
             ambient, diffuse = (float(v) for v in layout.metadata["lighting"].split(","))
