@@ -4,6 +4,7 @@ instead of one per box, the same images as the per-box bodies, and the same coll
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -56,6 +57,33 @@ def test_tinyrenderer_draws_a_body_per_box() -> None:
         assert world.scene_draws() == len(layout.boxes)
     finally:
         world.close()
+
+
+TINY_POSES = [
+    (4.0, 6.0, 0.0),
+    (8.5, 3.0, 1.2),
+    (12.0, 8.0, -2.0),
+    (16.0, 9.5, 2.8),
+    (6.0, 10.0, -0.7),
+]
+TINY_DIGEST = "9222b0db33526365c4cb5d1d676d81d6a6b5dbc9da18b2919cab70bac0be03d7"
+"""SHA-256 of TinyRenderer's RGB and depth at ``TINY_POSES``, 64², computed with the code before
+the merge (commit 4363208): other work (recorded explorer actions, baseline evaluations)
+depends on TinyRenderer's exact pixels."""
+
+
+def test_tinyrenderer_images_are_bit_identical_to_before_the_merge() -> None:
+    world = PyBulletWorld.from_layout(layout_for(HOUSE), "tiny")
+    camera = Camera(CameraConfig(width=64, height=64), world.client, world.renderer, world.lighting)
+    digest = hashlib.sha256()
+    try:
+        for x, y, yaw in TINY_POSES:
+            image = camera.render(x, y, yaw, 0.0)
+            digest.update(image.rgb.tobytes())
+            digest.update(image.depth.tobytes())
+    finally:
+        world.close()
+    assert digest.hexdigest() == TINY_DIGEST
 
 
 def test_egl_draws_a_house_in_a_few_draws(egl: None) -> None:
