@@ -20,6 +20,7 @@ import hashlib
 import math
 import os
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -179,7 +180,9 @@ def merged_visual(boxes: tuple[Box, ...], folder: Path | None = None) -> MergedV
     return MergedVisual(mesh=mesh, atlas=atlas_path, boxes=len(boxes))
 
 
-def _write_atomic(path: Path, write) -> None:  # noqa: ANN001 - a one-argument writer
+def _write_atomic(path: Path, write: Callable[[str], object]) -> None:
+    """``write(temporary_path)``, then the file is renamed to ``path`` (readers never see a
+    half-written file)."""
     fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent)
     os.close(fd)
     try:
