@@ -69,7 +69,11 @@ class PyBulletWorld:
             ambient, diffuse = (float(v) for v in layout.metadata["lighting"].split(","))
             world.lighting = (ambient, diffuse)
         if merge:
-            world._add_merged_visual(layout.boxes)
+            try:
+                world._add_merged_visual(layout.boxes)
+            except BaseException:
+                world.close()
+                raise
             return world
         textures: dict[tuple[str, float, float], int] = {}
         for box in layout.boxes:
