@@ -12,6 +12,12 @@ def test_the_simulator_bench_runs_every_part(capsys):
     for key in ("env_sps_tiny_256", "raw_sps_tiny_256", "plain_rps_256", "textured_rps_256"):
         assert results[key] > 0, key
     assert results["generate_s"] > 0
+    # the house's draws per image are printed: a body per box with TinyRenderer, a few with EGL
+    assert results["draws_tiny"] > 400 and "scene draws per image" in out
+    if "env_sps_egl_256" in results:
+        assert results["draws_egl_per_box"] == results["draws_tiny"]
+        assert results["draws_egl"] == results["draws_egl_merged"] <= 3
+        assert results["rps_egl_merged_far_light_256"] > 0
 
 
 def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_two() -> None:

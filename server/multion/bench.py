@@ -23,7 +23,7 @@ import numpy as np
 from multion.api.cli_serve import add_http_stack_arguments
 from multion.sim import grid_cache, simulator
 from multion.sim.bullet import pybullet as p
-from multion.sim.camera import CameraConfig, resolve_renderer
+from multion.sim.camera import EGL_LIGHT_POSITION, CameraConfig, resolve_renderer
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.generate import generate_episodes
 
@@ -136,6 +136,8 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
             )
             env = MultiONEnv(config, episodes=episode_list)
             env_rate, walked = _env_rate(env, steps)
+            assert env.sim.world is not None
+            results[f"draws_{renderer}"] = env.sim.world.scene_draws()
             raw_rate = _raw_render_rate(env, walked)
             used = env.sim.renderer
             env.close()
@@ -147,6 +149,9 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
                 f"{size:>8}² {used:>8} {env_rate:>13.1f} {raw_rate:>14.1f} {ratio:>8.2f}"
                 "   (target env/raw ≥ 0.90)"
             )
+            if size == 256 and renderer == "egl":
+                _egl_rates(walked, config.camera, results)
+                _print_egl_rates(results, size)
             if size == 256 and renderer == "tiny":
                 plain, textured = _appearance_rates(walked, cfg_camera=config.camera)
                 results["plain_rps_256"], results["textured_rps_256"] = plain, textured
@@ -154,6 +159,17 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
                     f"{'':>10} textures and lighting: {textured:.1f} vs {plain:.1f} renders/s "
                     f"with plain colours (ratio {textured / plain:.2f}; target ≥ 0.80)"
                 )
+        if size == 256:
+            egl_draws = (
+                f", EGL {results['draws_egl_per_box']:.0f} with a body per box (before issue "
+                f"23), {results['draws_egl']:.0f} merged"
+                if "egl" in renderers
+                else ""
+            )
+            print(
+                f"{'':>10} {SCENE} scene draws per image: TinyRenderer "
+                f"{results['draws_tiny']:.0f}{egl_draws}"
+            )
         if "egl" in renderers:
             speedup = results[f"env_sps_egl_{size}"] / results[f"env_sps_tiny_{size}"]
             results[f"egl_speedup_{size}"] = speedup
@@ -214,11 +230,52 @@ def _appearance_rates(
     return rates[0], rates[1]
 
 
+def _print_egl_rates(results: dict[str, float], size: int) -> None:
+    r = {k: results[f"rps_egl_{k}_{size}"] for k in (
+        "per_box_plugin_light", "merged_plugin_light", "per_box_far_light", "merged_far_light"
+    )}  # fmt: skip
+    print(
+        f"{'':>10} EGL renders/s: body per box {r['per_box_plugin_light']:.1f}, merged "
+        f"{r['merged_plugin_light']:.1f}; far light: body per box {r['per_box_far_light']:.1f}, "
+        f"merged {r['merged_far_light']:.1f} (before issue 23: the first; now: the last)"
+    )
+
+
+def _egl_rates(
+    poses: list[tuple[float, float, float]], cfg_camera: CameraConfig, results: dict[str, float]
+) -> None:
+    """EGL renders/s of the bench scene at the same poses, back to back, with one body per box
+    or the boxes merged into one mesh, and with the plugin's own light (its shadow pass runs)
+    or the cameras' far light (``sim.camera.EGL_LIGHT_POSITION``); records them and the draws."""
+    from multion.scenes.registry import layout_for
+    from multion.sim.camera import EGL_PLUGIN_LIGHT, Camera
+    from multion.sim.world import PyBulletWorld
+
+    for merge in (False, True):
+        world = PyBulletWorld.from_layout(layout_for(SCENE), "egl", merge=merge)
+        bodies = "merged" if merge else "per_box"
+        results[f"draws_egl_{bodies}"] = world.scene_draws()
+        camera = Camera(cfg_camera, world.client, world.renderer, world.lighting)
+        camera.render(*poses[0], 0.0)  # the plugin uploads the scene on its first image
+        for light, position in (
+            ("plugin_light", EGL_PLUGIN_LIGHT),
+            ("far_light", EGL_LIGHT_POSITION),
+        ):
+            camera.egl_light_position = position
+            begin = time.perf_counter()
+            for x, y, yaw in poses:
+                camera.render(x, y, yaw, 0.0)
+            rate = len(poses) / (time.perf_counter() - begin)
+            results[f"rps_egl_{bodies}_{light}_{cfg_camera.width}"] = rate
+        world.close()
+
+
 def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -> float:
     """Bare ``getCameraImage`` calls with the same camera, scene and lighting, at the same poses."""
     camera, grid, world = env.sim.camera, env.sim.grid, env.sim.world
     assert camera is not None and grid is not None and world is not None
     flag = p.ER_BULLET_HARDWARE_OPENGL if camera.renderer == "egl" else p.ER_TINY_RENDERER
+    light = {"lightDirection": EGL_LIGHT_POSITION} if camera.renderer == "egl" else {}
     cfg = camera.config
     elapsed = 0.0
     for x, y, yaw in poses:
@@ -237,6 +294,7 @@ def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -
             renderer=flag,
             flags=p.ER_NO_SEGMENTATION_MASK,
             physicsClientId=world.client,
+            **light,
         )
         elapsed += time.perf_counter() - begin
     return len(poses) / elapsed

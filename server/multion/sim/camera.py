@@ -101,6 +101,9 @@ class Camera:
         self.renderer = renderer
         self._flag = p.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else p.ER_TINY_RENDERER
         self.ambient, self.diffuse = lighting
+        self.egl_light_position = EGL_LIGHT_POSITION
+        """Where the EGL plugin's light is placed (benches set ``EGL_PLUGIN_LIGHT`` to time
+        the plugin's shadow pass)."""
         self.projection = p.computeProjectionMatrixFOV(
             fov=config.vfov_deg,
             aspect=config.width / config.height,
@@ -122,9 +125,11 @@ class Camera:
         target = (x + math.cos(yaw), y + math.sin(yaw), eye[2])
         view = p.computeViewMatrix(eye, target, (0.0, 0.0, 1.0))
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
+        egl = self.renderer == "egl"
         # the EGL plugin prints its OpenGL vendor ("ven = …") when it uploads new bodies
-        quiet = c_output_silenced() if self.renderer == "egl" else contextlib.nullcontext()
-        with quiet:
+        with c_output_silenced() if egl else contextlib.nullcontext():
+            # TinyRenderer's call stays exactly as it was
+            light = {"lightDirection": self.egl_light_position} if egl else {}
             _, _, rgba, zbuffer, seg = p.getCameraImage(
                 c.width,
                 c.height,
@@ -137,6 +142,7 @@ class Camera:
                 renderer=self._flag,
                 flags=flags,
                 physicsClientId=self.client,
+                **light,
             )
         rgb = np.ascontiguousarray(np.reshape(rgba, (c.height, c.width, 4))[:, :, :3])
         depth = self.process_depth(np.reshape(zbuffer, (c.height, c.width)))
@@ -152,6 +158,16 @@ class Camera:
             metres = (metres - c.min_depth) / (c.max_depth - c.min_depth)
         return metres.astype(np.float32)[:, :, None]
 
+
+EGL_PLUGIN_LIGHT = (-5.0, -40.0, 200.0)
+"""The EGL plugin's own light position, used when ``getCameraImage`` names none."""
+EGL_LIGHT_POSITION = (-25.0, -200.0, 1000.0)
+"""Where cameras put the EGL plugin's light: in its own direction, five times as far. The
+plugin renders a shadow map from its light every frame, whatever ``shadow`` says, with an
+orthographic camera that sees 1–300 m from the light, and darkens what that map shadows;
+TinyRenderer, asked for ``shadow=0`` like the plugin, draws no shadows. From 1,020 m the map
+sees nothing: no shadows (only pixels the map shadowed change, and only get lighter), and
+about 10 ms less per image of a house with Mesa on one thread (``docs/learned.md``)."""
 
 EGL_PIXEL_SHIFT = (1.0, 1.0)
 """TinyRenderer samples each pixel half a pixel off OpenGL's pixel centres, in x and in y.

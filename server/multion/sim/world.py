@@ -15,7 +15,8 @@ from multion.scenes.layout import Box, SceneLayout
 from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
-from multion.sim.camera import attach_renderer
+from multion.sim.camera import attach_renderer, resolve_renderer
+from multion.sim.merged_visual import merged_visual
 
 # pybullet refuses ray batches above this size
 RAY_BATCH_LIMIT = 16_384
@@ -31,15 +32,22 @@ class PyBulletWorld:
     cylinders are visual-only bodies: they are rendered but neither block the agent nor rays.
     """
 
-    def __init__(self, renderer: str = "tiny") -> None:
+    def __init__(self, renderer: str = "tiny", unseen_boxes: Sequence[Box] = ()) -> None:
+        """``unseen_boxes`` become collision-only bodies created before the renderer plugin
+        loads, which makes them invisible to it (see :meth:`from_layout`)."""
         self.client = p.connect(p.DIRECT)
-        try:  # a renderer plugin must be in place before the first body
+        self.scene_bodies: list[int] = []
+        try:
+            for box in unseen_boxes:
+                self.scene_bodies.append(self._box_body(box, visual=False))
+            # a renderer plugin must be in place before the first body it should draw
             self.renderer = attach_renderer(self.client, renderer)
         except BaseException:
             p.disconnect(physicsClientId=self.client)
             raise
         """The renderer cameras of this world use: "tiny" or "egl" (see ``sim.camera``)."""
-        self.scene_bodies: list[int] = []
+        self.visual_bodies: list[int] = []
+        """Visual-only bodies of the scene (the merged mesh under EGL), drawn, never hit."""
         self._goal_bodies: dict[tuple[int, float, float], list[int]] = {}
         self._goal_in_use: list[int] = []
         self.lighting: tuple[float, float] = DEFAULT_LIGHTING
@@ -47,33 +55,67 @@ class PyBulletWorld:
 
     # ------------------------------------------------------------------ building
     @classmethod
-    def from_layout(cls, layout: SceneLayout, renderer: str = "tiny") -> PyBulletWorld:
-        world = cls(renderer)
+    def from_layout(
+        cls, layout: SceneLayout, renderer: str = "tiny", merge: bool = True
+    ) -> PyBulletWorld:
+        """One static body per box. With EGL (and ``merge``) the boxes are drawn as one merged
+        mesh instead (:mod:`multion.sim.merged_visual`): the per-box bodies keep their
+        collision shapes but are created before the plugin, so it draws one body, not
+        hundreds. TinyRenderer draws the per-box bodies, exactly as before; ``merge=False``
+        gives EGL the per-box bodies too (benches and tests compare the two)."""
+        merge = merge and bool(layout.boxes) and resolve_renderer(renderer) == "egl"
+        world = cls(renderer, unseen_boxes=layout.boxes if merge else ())
         if "lighting" in layout.metadata:  # houses vary their light a little (issue 12)
             ambient, diffuse = (float(v) for v in layout.metadata["lighting"].split(","))
             world.lighting = (ambient, diffuse)
+        if merge:
+            try:
+                world._add_merged_visual(layout.boxes)
+            except BaseException:
+                world.close()
+                raise
+            return world
         textures: dict[tuple[str, float, float], int] = {}
         for box in layout.boxes:
-            col = p.createCollisionShape(
-                p.GEOM_BOX, halfExtents=box.half_extents, physicsClientId=world.client
-            )
-            vis = p.createVisualShape(
-                p.GEOM_BOX,
-                halfExtents=box.half_extents,
-                rgbaColor=box.rgba,
-                physicsClientId=world.client,
-            )
-            body = p.createMultiBody(
-                baseMass=0,
-                baseCollisionShapeIndex=col,
-                baseVisualShapeIndex=vis,
-                basePosition=box.center,
-                physicsClientId=world.client,
-            )
+            body = world._box_body(box, visual=True)
             if box.texture:
                 world._apply_texture(body, box, textures)
             world.scene_bodies.append(body)
         return world
+
+    def _box_body(self, box: Box, visual: bool) -> int:
+        """A static box body with its collision shape, and its visual shape if ``visual``."""
+        col = p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=box.half_extents, physicsClientId=self.client
+        )
+        vis = -1
+        if visual:
+            vis = p.createVisualShape(
+                p.GEOM_BOX,
+                halfExtents=box.half_extents,
+                rgbaColor=box.rgba,
+                physicsClientId=self.client,
+            )
+        return p.createMultiBody(
+            baseMass=0,
+            baseCollisionShapeIndex=col,
+            baseVisualShapeIndex=vis,
+            basePosition=box.center,
+            physicsClientId=self.client,
+        )
+
+    def _add_merged_visual(self, boxes: Sequence[Box]) -> None:
+        """One visual-only body drawing every box, its colours and textures in one atlas."""
+        merged = merged_visual(tuple(boxes))
+        vis = p.createVisualShape(
+            p.GEOM_MESH, fileName=str(merged.mesh), physicsClientId=self.client
+        )
+        if vis < 0:
+            raise RuntimeError(f"PyBullet could not load the merged scene mesh {merged.mesh}")
+        body = p.createMultiBody(0, -1, vis, physicsClientId=self.client)
+        texture = p.loadTexture(str(merged.atlas), physicsClientId=self.client)
+        p.changeVisualShape(body, -1, textureUniqueId=texture, physicsClientId=self.client)
+        self.visual_bodies.append(body)
 
     def _apply_texture(
         self, body: int, box: Box, loaded: dict[tuple[str, float, float], int]
@@ -114,6 +156,13 @@ class PyBulletWorld:
         body = p.createMultiBody(0, col, vis, physicsClientId=world.client)
         world.scene_bodies.append(body)
         return world
+
+    def scene_draws(self) -> int:
+        """Visual shapes of the scene (goals excluded) that the renderer draws, one draw each
+        per image: the figure the EGL merge brings down (``multion bench --only sim``)."""
+        goals = {body for bodies in self._goal_bodies.values() for body in bodies}
+        scene = [b for b in (*self.scene_bodies, *self.visual_bodies) if b not in goals]
+        return sum(len(p.getVisualShapeData(b, physicsClientId=self.client)) for b in scene)
 
     @property
     def goal_bodies_in_use(self) -> list[int]:
