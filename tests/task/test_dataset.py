@@ -67,7 +67,7 @@ def write(path, payload, raw=False):
 def good_payload(episodes):
     return {
         "format": "multion-episodes",
-        "version": 2,
+        "version": 3,
         "scene_generator_version": GENERATOR_VERSION,
         "num_goals": 3,
         "split": "val",
@@ -135,13 +135,21 @@ def test_files_record_their_versions_and_rooms_need_no_generator_version(episode
     from multion.task.episode import Episode, Goal
 
     header = read_header(save_dataset(tmp_path / "d.json.gz", episodes, 3, "val"))
-    assert header["version"] == VERSION == 2
+    assert header["version"] == VERSION == 3
     assert header["scene_generator_version"] == GENERATOR_VERSION
     assert header["num_distractors"] == 0
     # empty rooms do not change with the house generator: such a file stays usable
     room = Episode("r", "room-6x4", (1.0, 1.0, 0.0), 0.0, (Goal(0, (4.0, 2.0, 0.0)),))
     path = write(tmp_path / "room.json.gz", {
-        "format": "multion-episodes", "version": 2, "scene_generator_version": 1,
+        "format": "multion-episodes", "version": 3, "scene_generator_version": 1,
         "num_goals": 1, "split": "val", "episodes": [room.to_dict()],
     })  # fmt: skip
     assert load_dataset(path)[0].scene_id == "room-6x4"
+
+
+def test_version_2_files_are_refused_with_the_reason(episodes, tmp_path):
+    # version 2 files were sampled without the step-path check: some of their goals cannot be
+    # reached by the agent's steps, so they must be regenerated, not silently played
+    path = write(tmp_path / "v2.json.gz", {**good_payload(episodes), "version": 2})
+    with pytest.raises(DatasetError, match="version 2 files may hold episodes whose goals"):
+        load_dataset(path)

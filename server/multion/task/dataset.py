@@ -2,13 +2,16 @@
 
 File format (``*.json.gz``)::
 
-    {"format": "multion-episodes", "version": 2, "scene_generator_version": 2,
+    {"format": "multion-episodes", "version": 3, "scene_generator_version": 2,
      "num_goals": 3, "num_distractors": 0, "split": "val",
      "generator": {...}, "episodes": [Episode.to_dict(), ...]}
 
 ``version`` is the file format's; ``scene_generator_version`` the version of the procedural houses
 the episodes were sampled in (:data:`multion.scenes.registry.GENERATOR_VERSION`). A file whose
 house episodes were made for other houses is refused: its starts and goals would not fit.
+Version 3 files hold only episodes whose goals the agent's own steps reach
+(:attr:`EpisodeConstraints.step_paths`); version 2 files did not check it, and version 1 files
+were made for the first houses.
 """
 
 from __future__ import annotations
@@ -29,10 +32,11 @@ from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import AgentConfig
 from multion.task.episode import Episode, Goal
+from multion.task.step_reach import step_headings, steps_reach_goals
 from multion_client.constants import NUM_CATEGORIES
 
 FORMAT = "multion-episodes"
-VERSION = 2
+VERSION = 3
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "datasets"
 
 
@@ -53,10 +57,15 @@ class EpisodeConstraints:
     distance, so a FOUND within reach of a distractor is never within reach of a goal (geodesic
     distances are at least the Euclidean ones)."""
     max_tries: int = 200
-    mobile_start: bool = False
+    mobile_start: bool = True
     """Refuse starts where no MOVE_FORWARD succeeds in any heading the agent can turn to (5 of
-    the 8,000 packaged v2 episodes start so; the packaged datasets were made without this
-    check, so it is off by default until they are regenerated; hidden episodes use it)."""
+    the 8,000 episodes of the version 2 datasets started so). A quick test before ``step_paths``."""
+    step_paths: bool = True
+    """Refuse episodes where the agent's own moves (0.25 m steps, 30° turns) cannot bring it
+    within ``reach`` of every goal (:func:`multion.task.step_reach.steps_reach_goals`): the grid
+    can pass gaps no sequence of steps enters."""
+    reach: float = 1.5
+    """The task's success distance (``task.success_distance``) for ``step_paths``."""
 
     def __post_init__(self) -> None:
         if not 0 < self.min_geodesic <= self.max_geodesic:
@@ -65,6 +74,8 @@ class EpisodeConstraints:
             )
         if self.min_goal_separation < 0 or self.min_distractor_separation < 0:
             raise ValueError("goal and distractor separations must be >= 0")
+        if self.reach <= 0:
+            raise ValueError(f"reach must be > 0, got {self.reach}")
         if self.max_tries < 1:
             raise ValueError(f"max_tries must be >= 1, got {self.max_tries}")
 
@@ -120,7 +131,8 @@ def _read(path: Path) -> dict[str, Any]:
     if data.get("version") != VERSION:
         raise DatasetError(
             f"{path}: dataset version {data.get('version')!r} is not supported (expected "
-            f"{VERSION}); version 1 files were made for the old houses: regenerate it with "
+            f"{VERSION}): version 1 files were made for the old houses, and version 2 files may "
+            "hold episodes whose goals the agent's steps cannot reach; regenerate it with "
             "`multion dataset generate`"
         )
     return data
@@ -264,6 +276,7 @@ def sample_episode(
         start = cells[rng.integers(len(cells))]
         points = [start]
         measured: list[float] = []
+        goal_fields: list[np.ndarray] = []
         # Each leg's candidates come from the previous point's field: the start's (a point), then
         # each goal's, made with its footprint as the env makes it, which also gives the leg's
         # distance exactly as the env measures it. m + 1 fast marchings per episode.
@@ -279,6 +292,7 @@ def sample_episode(
             pick = candidates[rng.integers(len(candidates))]
             goal_xy = np.round(cells[pick], 4)
             field = distance_field(grid, goal_xy, goal_radius)
+            goal_fields.append(field)
             measured.append(float(grid.lookup(field, points[-1], outside=np.inf)))
             points.append(goal_xy)
         if len(points) != num_goals + 1:
@@ -299,6 +313,10 @@ def sample_episode(
         start_yaw = round(float(rng.uniform(-np.pi, np.pi)), 6)
         if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
             continue
+        if constraints.step_paths and not steps_reach_goals(
+            grid, np.asarray(start_xy), start_yaw, goal_fields, constraints.reach
+        ):
+            continue
         return Episode(
             episode_id=episode_id,
             scene_id=scene_id,
@@ -314,9 +332,7 @@ def sample_episode(
 def can_step(grid: NavGrid, xy: np.ndarray, yaw: float, agent: AgentConfig = AgentConfig()) -> bool:
     """True if a MOVE_FORWARD from ``xy`` succeeds in at least one of the headings the agent
     reaches by turning from ``yaw`` (the simulator's own test: the segment on the grid)."""
-    turns = max(1, round(360.0 / agent.turn_angle_deg))
-    for k in range(turns):
-        heading = yaw + np.deg2rad(k * agent.turn_angle_deg)
+    for heading in step_headings(yaw, agent):
         target = xy + agent.forward_step * np.array([np.cos(heading), np.sin(heading)])
         if grid.segment_is_navigable(xy, target):
             return True
