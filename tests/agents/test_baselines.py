@@ -12,7 +12,7 @@ from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode, Goal
 from multion.task.maps import MapConfig
-from multion_agents.agent import Agent
+from multion_agents.agent import Agent, AgentError
 from multion_agents.baselines.mapping import CameraModel, detect_goals, goal_shaped
 from multion_agents.baselines.navigation import StartFrameGrid
 from multion_agents.evaluate import run_episode
@@ -145,3 +145,17 @@ def test_start_frame_grid_round_trip() -> None:
     assert (rows[1], cols[1]) == (10, 15)  # ahead is up, left is towards column 0
     back = grid.to_xy(rows, cols)
     assert back[2] == pytest.approx([-0.3, -1.2])
+
+
+def test_oracle_planner_refuses_a_map_it_was_not_built_for() -> None:
+    # a track's default oracle map (13 cells of 0.8 m) used to be read as 0.1 m cells until the
+    # agent walked off it (IndexError); it now stops at once, saying which map it needs
+    agent = make_agent("oracle-planner")
+    observation = {
+        "goal": np.int64(0),
+        "gps": np.zeros(2, np.float32),
+        "compass": np.zeros(1, np.float32),
+        "oracle_map": np.zeros((13, 13, 2), np.uint8),
+    }
+    with pytest.raises(AgentError, match="maps.ego_size=601, maps.cell_size=0.1"):
+        agent.act(observation)

@@ -8,7 +8,7 @@ from typing import Any
 
 from multion.leaderboard.models import Run
 from multion.leaderboard.storage import Database
-from multion_agents.cli_submit import play_run
+from multion_agents.cli_submit import oracle_maps, play_run
 from multion_agents.registry import agent_class
 from multion_client.run import RunEnv
 
@@ -26,8 +26,11 @@ class PlayedRun:
 def play(
     url: str, token: str, team: str, track: str, phase: str, method: str, agent: str, seed: int
 ) -> str:
-    env = RunEnv(url, track, phase, method, token=token, sensors=list(agent_class(agent).sensors))
-    play_run(env, agent_class(agent), seed=seed, progress=False)
+    cls = agent_class(agent)
+    env = RunEnv(
+        url, track, phase, method, token=token, sensors=list(cls.sensors), maps=oracle_maps(cls)
+    )
+    play_run(env, cls, seed=seed, progress=False)
     return env.run_id
 
 

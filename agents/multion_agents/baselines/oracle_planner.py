@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
 from multion_agents.baselines.navigation import (
     Motion,
     StartFrameGrid,
@@ -104,6 +104,14 @@ class OraclePlannerAgent(Agent):
     # ------------------------------------------------------------------ internals
     def _start_map(self, ego: np.ndarray) -> None:
         size = ego.shape[0]
+        if size != EGO_SIZE:
+            # a smaller map (a track's default 13 cells of 0.8 m) read as 0.1 m cells would be
+            # wrong everywhere, and the agent would walk off it
+            raise AgentError(
+                f"oracle-planner needs an oracle map of {EGO_SIZE} cells of {CELL_SIZE} m "
+                f"(maps.ego_size={EGO_SIZE}, maps.cell_size={CELL_SIZE}), got {size} cells: "
+                "ask for its maps (multion submit and eval do) or use a track that allows them"
+            )
         cell = float(self.config_overrides["maps"]["cell_size"])
         self._grid = StartFrameGrid(size, cell)
         self._layers = ego.copy()
