@@ -36,7 +36,7 @@ from multion.processes import die_with_parent
 from multion.scenes.registry import house_id, sized_house_id
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import EpisodeConstraints, sample_episode, variant_name
+from multion.task.dataset import sample_episode, variant_name
 from multion.task.episode import Episode
 from multion.task.generate import generate_episodes
 
@@ -46,8 +46,6 @@ HIDDEN_HOUSE_SPAN = 10**12
 SAMPLE_TRIES = 8
 """Fresh episodes: sampling attempts (each of ``EpisodeConstraints.max_tries`` starts) before
 giving up on a house (the packaged generator allows 4)."""
-HIDDEN_CONSTRAINTS = EpisodeConstraints(mobile_start=True)
-"""Hidden episodes never start where the agent cannot move (some packaged v2 episodes do)."""
 T = TypeVar("T")
 GRIDS_KEPT = 32
 """Navigable grids the episode sampler keeps in memory (a phase may have up to 1000 houses)."""
@@ -111,7 +109,6 @@ def generate_hidden_episodes(challenge: Challenge, track: Track, phase: Phase) -
         phase.episodes,
         seed=seed,
         scenes=hidden_houses(challenge, track, phase),
-        constraints=HIDDEN_CONSTRAINTS,
         progress=False,
     )
 
@@ -155,8 +152,7 @@ def fresh_episode(
     grid = _grid(scene)
     for _ in range(SAMPLE_TRIES):
         episode = sample_episode(
-            grid, scene, track.num_goals, rng, fresh_episode_id(run_id, position),
-            HIDDEN_CONSTRAINTS,
+            grid, scene, track.num_goals, rng, fresh_episode_id(run_id, position)
         )  # fmt: skip
         if episode is not None:
             return episode
