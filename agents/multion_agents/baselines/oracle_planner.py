@@ -11,7 +11,10 @@ Per episode:
 2. per goal, a fast-marching distance field is computed from the goal's cells;
 3. each step the agent turns or steps so as to go down the field, using GPS and compass;
 4. a refused forward step marks the cell it would have entered and triggers a re-plan;
-5. FOUND once the map distance to the goal is below ``found_distance`` (1.0 m, well inside the
+5. when it stands on one position for the third time for one goal, the field is leading it round
+   in circles (a gap the map's 0.1 m cells cannot resolve): it searches the positions its steps
+   reach instead (:mod:`.lattice_search`) until it is 1 m further down the field;
+6. FOUND once the map distance to the goal is below ``found_distance`` (1.0 m, well inside the
    1.5 m geodesic success radius, which leaves room for map discretisation).
 
 A 0.1 m cell is "free" when at least half of it is navigable, so a narrow gap can come out as
@@ -27,6 +30,7 @@ from typing import ClassVar
 import numpy as np
 
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
+from multion_agents.baselines.lattice_search import LatticeSearch, key_of
 from multion_agents.baselines.navigation import (
     Motion,
     StartFrameGrid,
@@ -35,6 +39,7 @@ from multion_agents.baselines.navigation import (
     distance_field,
     interpolate,
     nearest_free,
+    snap_heading,
     two_step_action,
 )
 from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
@@ -52,6 +57,10 @@ class OraclePlannerAgent(Agent):
     }
     found_distance: float = 1.0
     wall_margin: float = 0.3
+    stuck_visits: int = 3
+    """Visits of one position (for one goal) that start a lattice search."""
+    search_progress: float = 1.0
+    """Metres down the field that end a lattice search."""
     motion: Motion = Motion()
 
     def __init__(self, seed: int = 0) -> None:
@@ -68,7 +77,11 @@ class OraclePlannerAgent(Agent):
         self._goal: int | None = None
         self._last_position: np.ndarray | None = None
         self._last_action: int | None = None
+        self._visits: dict[tuple[int, int], int] = {}
+        self._search: LatticeSearch | None = None
+        self._search_from = math.inf  # the field value where the search started
         self.replans = 0
+        self.searches = 0
 
     def act(self, observation: Observation) -> int:
         position = np.asarray(observation["gps"], dtype=np.float64)
@@ -95,9 +108,12 @@ class OraclePlannerAgent(Agent):
         goal = int(observation["goal"])
         if goal != self._goal:
             self._goal, self._field = goal, None
+            self._visits, self._search = {}, None
         if self._field is None:
             self._field = self._plan(goal, ego, position, heading)
-        action = self._next_action(position, heading, refused)
+        action = self._searched_action(position, heading)
+        if action is None:
+            action = self._next_action(position, heading, refused)
         self._last_position, self._last_action = position, action
         return action
 
@@ -140,6 +156,29 @@ class OraclePlannerAgent(Agent):
         self._moves = relaxed
         targets = nearest_free(sources, relaxed, 5)
         return distance_field(relaxed, targets, cell, self.wall_margin, crawl=relaxed & ~passable)
+
+    def _searched_action(self, position: np.ndarray, heading: float) -> int | None:
+        """The lattice search's action while the field goes round in circles, else None."""
+        assert self._grid is not None and self._field is not None
+        grid, field = self._grid, self._field
+        here = float(interpolate(grid, field, position))
+        goal_known = bool((self._layers[..., 1] == self._goal + 1).any())  # type: ignore[operator]
+        _, index = snap_heading(heading, self.motion)
+        if (goal_known and here <= self.found_distance) or index is None:
+            return None
+        visits = self._visits[key_of(position)] = self._visits.get(key_of(position), 0) + 1
+        if self._search is None and visits >= self.stuck_visits:
+            self._search, self._search_from = LatticeSearch(self.motion), here
+            self.searches += 1
+        if self._search is None:
+            return None
+        if here <= self._search_from - self.search_progress:
+            self._search, self._visits = None, {}  # out of the trap
+            return None
+        action = self._search.act(position, index, lambda p: float(interpolate(grid, field, p)))
+        if action is None:
+            self._search = None  # every known heading tried: back to the field
+        return action
 
     def _next_action(self, position: np.ndarray, heading: float, refused: bool) -> int:
         assert self._grid is not None and self._field is not None
