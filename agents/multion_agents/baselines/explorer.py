@@ -100,6 +100,7 @@ class ExplorerAgent(Agent):
         self.map = SemanticMap(self.grid)
         self._projector: DepthProjector | None = None
         self._blocked = np.zeros((self.map_size, self.map_size), dtype=bool)
+        self._refused_here: list[tuple[np.ndarray, np.ndarray]] = []  # since the agent last moved
         self._given_up = np.zeros_like(self._blocked)
         self._passable = np.ones_like(self._blocked)
         self._visited = np.zeros_like(self._blocked)  # cells the agent's centre has been in
@@ -148,9 +149,13 @@ class ExplorerAgent(Agent):
         """Learn from the last action: refused steps, cells stood in, turning without end."""
         moved = self._last_position is None or not _close(position, self._last_position)
         if self._last_action == Action.MOVE_FORWARD and not moved:
-            self._blocked[cells_ahead(self.grid, position, heading, self.motion)] = True
+            ahead = cells_ahead(self.grid, position, heading, self.motion)
+            self._blocked[ahead] = True
+            self._refused_here.append(ahead)
             self._field = None
             self.map.changed = True
+        if moved:
+            self._refused_here = []
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
@@ -163,6 +168,10 @@ class ExplorerAgent(Agent):
             self._still = 0
             self._field = None
             self._paint_disc(self._blocked, position, 0.5, False)
+            # but not the steps refused from this very spot: the simulator would refuse them
+            # again (at a start with few free headings, retrying them took the whole episode)
+            for cells in self._refused_here:
+                self._blocked[cells] = True
             self.map.changed = True
             if self._target == ("frontier", -1):
                 self._give_up_near(position)
