@@ -17,7 +17,10 @@ Escapes (the failures of docs/baselines.md): stuck for two full turns on the way
 remembered goal, it explores elsewhere for ``detour_steps`` steps (another way in shows up);
 arriving a second time where a frontier plan already ended, it gives that spot up (a frontier
 round a table that depth never closes); when the margin kept round seen obstacles walls it in,
-or leaves the plan's way one cell wide, it plans over the obstacles alone for ``tight_steps``.
+or leaves the plan's way one cell wide, it plans over the obstacles alone for ``tight_steps``;
+when no single step goes down the plan, it looks two, then three steps ahead and follows the steps
+found (a corridor whose lanes no single 30° step reaches). The steps refused from where it stands
+are never retried before it moves.
 
 A goal colour is a goal only in a blob at most 0.2 m wide (:func:`~.mapping.goal_shaped`): white
 paint under bright light renders exactly as the white goal does.
