@@ -92,6 +92,7 @@ class ExplorerAgent(Agent):
     close_range: float = 0.6
     detour_steps: int = 60
     tight_steps: int = 100
+    look_ahead: int = 3  # steps looked ahead when no single one goes down the plan (1: none)
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
@@ -223,7 +224,8 @@ class ExplorerAgent(Agent):
             self.grid, self._field, self._passable, position, heading, self.motion,
             refused=self._refused_here,
         )  # fmt: skip
-        if action is None:
+        if action is None and self._tight > 0:
+            # the margin is already dropped, yet no single step goes down the plan
             action = self._start_route(position, heading)
         if action is None:
             # a local minimum of the field (map changed under the plan): re-plan, look around
@@ -248,7 +250,7 @@ class ExplorerAgent(Agent):
         at different headings can enter a corridor whose lanes no single 0.25 m step at a 30°
         heading reaches (val-1-on-00460); the steps found are then followed to their end."""
         assert self._field is not None
-        for depth in (2, 3):
+        for depth in range(2, self.look_ahead + 1):
             route = steps_ahead(
                 self.grid, self._field, self._passable, position, heading, depth, self.motion,
                 refused=self._refused_here,
