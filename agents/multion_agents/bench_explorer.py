@@ -6,6 +6,7 @@ The env plays packaged 3-ON val episodes; at every step both agents, the explore
 (:class:`~.baselines.explorer_reference.ReferenceExplorerAgent`), get the same observation, one
 after the other (which goes first alternates, so neither always finds the caches warm). Their
 actions must be equal, or the bench stops: the speed-up is worth nothing if a decision changed.
+The explorer plays without its look-ahead (issue 22), which changes decisions on purpose.
 Rendering is not timed; only ``act``, split as :class:`~.baselines.explorer.StepTimes` splits it.
 """
 
@@ -36,6 +37,9 @@ def run_explorer_bench(image: int = 256, houses: int = 3, steps: int = 500) -> d
         first.setdefault(episode.scene_id, episode)
     played = list(first.values())[:houses]
     reference, fast = ReferenceExplorerAgent(seed=0), ExplorerAgent(seed=0)
+    # the look-ahead of issue 22 changes decisions on purpose where the reference turned at
+    # random (squeezed, no step downhill); without it both must still act alike
+    fast.look_ahead = 1
     config = EnvConfig(
         task=TaskConfig(num_goals=3, max_steps=steps),
         camera=CameraConfig(width=image, height=image),

@@ -14,7 +14,14 @@ from multion.task.episode import Episode, Goal
 from multion.task.maps import MapConfig
 from multion_agents.agent import Agent, AgentError
 from multion_agents.baselines.mapping import CameraModel, detect_goals, goal_shaped
-from multion_agents.baselines.navigation import StartFrameGrid
+from multion_agents.baselines.navigation import (
+    StartFrameGrid,
+    choose_action,
+    distance_field,
+    step_points,
+    steps_ahead,
+    two_step_action,
+)
 from multion_agents.evaluate import run_episode
 from multion_agents.registry import make_agent
 from multion_client.constants import GOAL_RGBA, Action
@@ -85,23 +92,30 @@ def test_explorer_finds_goals_in_a_room() -> None:
 
 
 @pytest.mark.parametrize(
-    ("episode_id", "image"),
+    ("episode_id", "image", "max_steps"),
     [
         # the goal colour seen during the first look around: a white plant pot, which colour
         # alone takes for the white goal; the agent used to press against it for 2,500 steps
-        ("val-3-on-00250", 128),
+        ("val-3-on-00250", 128, 700),
         # a cluttered corner where the margin kept round obstacles leaves the plan's only way
         # one cell wide: the agent used to turn on the spot for 2,400 steps
-        ("val-1-on-00650", 256),
+        ("val-1-on-00650", 256, 700),
         # the goal seen over a box 0.7 m away, 1.7 m round it: FOUND was called there
-        ("val-1-on-00000", 256),
+        ("val-1-on-00000", 256, 700),
+        # a start where 8 of the 12 headings are refused: after two full turns without moving
+        # the agent forgot the refused steps and retried them, and never moved in 700 steps
+        ("val-2-on-00080", 128, 700),
+        # a corridor whose lanes for the agent's centre are 0.05 m wide: no single step from
+        # the mouth enters, only three (at 270°, 60°, 180°); the agent turned at the mouth
+        # for the whole episode. It now succeeds after 665 steps (the rest is exploring)
+        ("val-1-on-00460", 256, 800),
     ],
 )
-def test_explorer_gets_out_of_its_old_traps(episode_id: str, image: int) -> None:
+def test_explorer_gets_out_of_its_old_traps(episode_id: str, image: int, max_steps: int) -> None:
     episode = v2_episode(episode_id)
     num_goals = episode.num_goals
     agent = make_agent("explorer")
-    env = _env(agent, num_goals, [episode], image=image, max_steps=700)
+    env = _env(agent, num_goals, [episode], image=image, max_steps=max_steps)
     record = run_episode(env, agent, episode)
     env.close()
     assert record.metrics["success"] == 1.0, record.metrics
@@ -174,3 +188,37 @@ def test_oracle_planner_refuses_a_map_it_was_not_built_for() -> None:
     }
     with pytest.raises(AgentError, match="maps.ego_size=601, maps.cell_size=0.1"):
         agent.act(observation)
+
+
+def _lane_to_the_back() -> tuple[StartFrameGrid, np.ndarray, np.ndarray]:
+    """Open floor ahead (x > -0.05 m), and behind it one lane one cell wide along y = 0: a
+    grid, its passable cells and a distance field from the lane's far end."""
+    grid = StartFrameGrid(61, 0.1)
+    xy = grid.to_xy(*np.mgrid[0:61, 0:61])
+    passable = ((xy[..., 0] > -0.05) | (np.abs(xy[..., 1]) < 0.05)) & (np.abs(xy[..., 1]) < 0.65)
+    field = distance_field(passable, (xy[..., 0] < -2.0) & passable, grid.cell_size)
+    return grid, passable, field
+
+
+def test_three_steps_enter_a_lane_that_one_or_two_steps_do_not() -> None:
+    grid, passable, field = _lane_to_the_back()
+    position, heading = np.array([0.0, -0.12]), math.radians(240)
+    assert choose_action(grid, field, passable, position, heading) is None
+    assert two_step_action(grid, field, passable, position, heading) is None
+    assert steps_ahead(grid, field, passable, position, heading, 2) is None
+    route = steps_ahead(grid, field, passable, position, heading, 3)
+    assert route == [1, 6, 6]  # 30° to line up with the lane, then straight into it
+    end = position.copy()
+    for index in route:
+        end = step_points(end, index * math.pi / 6)[-1]
+    assert end[0] < -0.2 and abs(end[1]) < 0.05
+    assert steps_ahead(grid, field, passable, position, heading, 3, refused={1}) != route
+
+
+def test_a_heading_refused_from_here_is_not_chosen_again() -> None:
+    grid, passable, field = _lane_to_the_back()
+    position = np.array([0.5, 0.0])
+    straight = choose_action(grid, field, passable, position, math.pi)
+    assert straight == Action.MOVE_FORWARD  # facing the lane: straight on
+    # the simulator refused that step (whatever the map says): turn to another heading
+    assert choose_action(grid, field, passable, position, math.pi, refused={6}) != straight

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -221,12 +222,15 @@ def choose_action(
     heading: float,
     motion: Motion = Motion(),
     turn_cost: float = 0.02,
+    refused: Collection[int] = (),
 ) -> int | None:
     """The turn or forward step that starts the best one-step move down ``field``.
 
     Each reachable heading is scored by the field at the end of a forward step in that direction
     (only if the whole step stays on ``passable`` cells), plus ``turn_cost`` metres per turn
     needed, so the agent does not spin for a centimetre. Returns None when no step goes downhill.
+    ``refused``: indices (see :func:`snap_heading`) of headings whose step the simulator refused
+    from this very position, which it would refuse again whatever the map says.
     """
     here = interpolate(grid, field, position)
     n = motion.headings
@@ -240,6 +244,8 @@ def choose_action(
         offsets = _snapped_step_offsets(motion, index)
     points = position[None, None, :] + offsets
     clear = np.flatnonzero(grid.lookup(passable, points, outside=False).all(axis=1))
+    if refused and index is not None:
+        clear = np.array([k for k in clear if (index + turns[k]) % n not in refused], dtype=int)
     values = interpolate_many(grid, field, points[clear, -1])
     values += turn_cost * np.abs(np.asarray(turns)[clear])
     for k, value in zip(clear.tolist(), values.tolist(), strict=True):
@@ -322,6 +328,60 @@ def two_step_action(
             if value < best_value:
                 best_value, best_first = value, first
     return _starting(best_first)
+
+
+def steps_ahead(
+    grid: StartFrameGrid,
+    field: np.ndarray,
+    passable: np.ndarray,
+    position: np.ndarray,
+    heading: float,
+    depth: int,
+    motion: Motion = Motion(),
+    turn_cost: float = 0.02,
+    refused: Collection[int] = (),
+) -> list[int] | None:
+    """The headings (indices, see :func:`snap_heading`) of the best ``depth`` forward steps in
+    a row that end below the field here, each on ``passable`` cells all along; None if none
+    does, or if ``heading`` is not snapped.
+
+    :func:`two_step_action` for any depth, all sequences at once, and the whole sequence rather
+    than its first action: a way into a corridor whose lanes lie between the points one or two
+    0.25 m steps at 30° headings reach can take three steps, and only the whole sequence shows
+    it goes downhill. ``refused`` as in :func:`choose_action`, for the first step.
+    """
+    _, index = snap_heading(heading, motion)
+    if index is None:
+        return None
+    n = motion.headings
+    offsets = _snapped_step_offsets(motion, 0)  # row k: heading index k (its turn order)
+    sequences = _sequences(n, depth)
+    ok = ~np.isin(sequences[:, 0], list(refused))
+    ends = np.broadcast_to(position, (len(sequences), 2))
+    for j in range(depth):
+        points = ends[:, None, :] + offsets[sequences[:, j]]
+        ok &= grid.lookup(passable, points, outside=False).all(axis=1)
+        ends = points[:, -1]
+    chosen = np.flatnonzero(ok)
+    if len(chosen) == 0:
+        return None
+    values = interpolate_many(grid, field, ends[chosen])
+    headings = np.concatenate([np.full((len(chosen), 1), index), sequences[chosen]], axis=1)
+    turns = np.diff(headings, axis=1) % n
+    values += turn_cost * np.minimum(turns, n - turns).sum(axis=1)
+    best = int(np.argmin(values))
+    if values[best] >= interpolate(grid, field, position) - 1e-6:
+        return None
+    return sequences[chosen[best]].tolist()
+
+
+@functools.cache
+def _sequences(n: int, depth: int) -> np.ndarray:
+    """Every sequence of ``depth`` heading indices out of ``n``: (n ** depth, depth)."""
+    grids = np.meshgrid(*[np.arange(n)] * depth, indexing="ij")
+    sequences = np.stack([g.ravel() for g in grids], axis=1)
+    sequences.flags.writeable = False
+    return sequences
 
 
 def cells_ahead(
