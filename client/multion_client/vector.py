@@ -48,6 +48,12 @@ class RemoteVectorEnv(VectorEnv):
         timeout: float = DEFAULT_TIMEOUT_S,
         retries: int = 3,
     ) -> None:
+        # what close() frees, set first: Gymnasium calls close() from __del__ even when
+        # __init__ raised
+        self.clients: list[Client] = []
+        self.sessions: list[SessionInfo] = []
+        self._owners: list[int] = []
+        self._pool: ThreadPoolExecutor | None = None
         if not urls:
             raise ValueError("RemoteVectorEnv needs at least one server URL")
         counts = (
@@ -62,7 +68,6 @@ class RemoteVectorEnv(VectorEnv):
         self.clients = [Client(url, timeout=timeout, retries=retries) for url in urls]
         # One thread per server, created once: steps go to every server concurrently.
         self._pool = ThreadPoolExecutor(len(urls), "multion-vec") if len(urls) > 1 else None
-        self.sessions: list[SessionInfo] = []
         outcomes = self._each(lambda k: self._create(k, config))
         self.sessions = [o for o in outcomes if isinstance(o, SessionInfo)]
         if len(self.sessions) != len(urls):

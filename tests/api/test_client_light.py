@@ -49,3 +49,33 @@ def test_client_imports_nothing_heavy(tmp_path: Path) -> None:
     )
     assert result.returncode == 0, result.stdout + result.stderr
     assert "heavy: []" in result.stdout
+
+
+FAILED_INIT = """
+from multion_client import RemoteVectorEnv
+from multion_client.errors import ServerUnavailable
+
+for urls, error in (([], ValueError), (["http://127.0.0.1:{port}"], ServerUnavailable)):
+    env = RemoteVectorEnv.__new__(RemoteVectorEnv)
+    try:
+        env.__init__(urls, 1, retries=0)
+    except error:
+        pass
+    else:
+        raise SystemExit(f"expected {{error.__name__}}")
+    env.close()  # what Gymnasium 1.1's VectorEnv.__del__ does with it
+print("closed")
+"""
+
+
+def test_a_vector_env_whose_init_failed_closes_quietly() -> None:
+    # with Gymnasium 1.1 (the client's floor) __del__ calls close(), which raised
+    # AttributeError when __init__ had failed before the clients were made
+    result = subprocess.run(
+        [sys.executable, "-c", FAILED_INIT.format(port=_closed_port())],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "closed" in result.stdout
