@@ -120,15 +120,16 @@ class OraclePlannerAgent(Agent):
     # ------------------------------------------------------------------ internals
     def _start_map(self, ego: np.ndarray) -> None:
         size = ego.shape[0]
-        if size != EGO_SIZE:
+        maps = self.config_overrides["maps"]
+        cell = float(maps["cell_size"])
+        if size != maps["ego_size"]:
             # a smaller map (a track's default 13 cells of 0.8 m) read as 0.1 m cells would be
             # wrong everywhere, and the agent would walk off it
             raise AgentError(
-                f"oracle-planner needs an oracle map of {EGO_SIZE} cells of {CELL_SIZE} m "
-                f"(maps.ego_size={EGO_SIZE}, maps.cell_size={CELL_SIZE}), got {size} cells: "
+                f"oracle-planner needs an oracle map of {maps['ego_size']} cells of {cell} m "
+                f"(maps.ego_size={maps['ego_size']}, maps.cell_size={cell}), got {size} cells: "
                 "ask for its maps (multion submit and eval do) or use a track that allows them"
             )
-        cell = float(self.config_overrides["maps"]["cell_size"])
         self._grid = StartFrameGrid(size, cell)
         self._layers = ego.copy()
         self._refused = np.zeros((size, size), dtype=bool)
