@@ -75,6 +75,19 @@ def test_oracle_planner_gets_out_of_a_pocket_its_map_leads_it_into(episode_id: s
     assert agent.searches >= 1  # type: ignore[attr-defined]
 
 
+def test_oracle_planner_finds_a_goal_its_map_cuts_off() -> None:
+    # val-2-on-00650: on the 0.1 m map the second goal's cells are walled in, so the plan crawls
+    # through occupied cells and its travel time never fell under the 1.0 m FOUND threshold,
+    # while the agent stood 0.45 m (geodesic) from the goal: 2,500 steps, one goal
+    episode = v2_episode("val-2-on-00650")
+    agent = make_agent("oracle-planner")
+    env = _env(agent, episode.num_goals, [episode])
+    record = run_episode(env, agent, episode)
+    env.close()
+    assert record.metrics["success"] == 1.0, record.metrics
+    assert record.metrics["steps"] < 400
+
+
 def test_explorer_finds_goals_in_a_room() -> None:
     goals = (Goal(0, (4.8, 3.2, 0.0)), Goal(7, (1.0, 0.8, 0.0)))
     episode = Episode("room-explore", "room-6x4", (1.0, 2.0, 0.0), math.pi, goals)
