@@ -26,7 +26,7 @@ def test_dataset_check_reports_corrupt_file(tmp_path, capsys):
     bad = tmp_path / "bad.json.gz"
     with gzip.open(bad, "wt") as handle:
         handle.write(
-            '{"format": "multion-episodes", "version": 2, "episodes": [{"episode_id": 1}]}'
+            '{"format": "multion-episodes", "version": 3, "episodes": [{"episode_id": 1}]}'
         )
     assert main(["dataset", "check", str(bad)]) == 1
     err = capsys.readouterr().err

@@ -517,8 +517,13 @@ def train(args: Args) -> dict[str, Any]:
         if log is not None:
             plot_learning_curve(out, f"{args.agent} on {args.task}")
         return {**summary, "weights_sha256": weights_digest(policy)}
+    except BaseException:
+        # interrupted (Ctrl-C, SIGTERM) in the middle of a worker's reply: the half-read pipe
+        # would make close() wait for pending calls forever, so the workers are ended instead
+        envs.close(terminate=True)
+        raise
     finally:
-        envs.close()
+        envs.close()  # a no-op once closed
         if log is not None:
             log.close()
 
