@@ -98,18 +98,20 @@ class LatticeSearch:
         """Known steps from ``here`` to the position whose best untried heading ends lowest
         (counting the walk back), followed by that heading; empty if none is left."""
         came_from: dict[Key, Edge | None] = {here: None}
+        depth = {here: 0}
         queue = deque([here])
         best: tuple[float, Key, int] | None = None
         while queue:
             key = queue.popleft()
             ranked = self._ranked(key, value)
             if ranked:
-                cost = ranked[0][0] + BACKTRACK_COST * self._depth(came_from, key)
+                cost = ranked[0][0] + BACKTRACK_COST * depth[key]
                 if best is None or cost < best[0]:
                     best = (cost, key, ranked[0][1])
             for (start, direction), end in self.steps.items():
                 if start == key and end not in came_from:
                     came_from[end] = (start, direction)
+                    depth[end] = depth[key] + 1
                     queue.append(end)
         if best is None:
             return deque()
@@ -121,10 +123,3 @@ class LatticeSearch:
             route.appendleft(edge)
             key = edge[0]
         return route
-
-    @staticmethod
-    def _depth(came_from: dict[Key, Edge | None], key: Key) -> int:
-        depth = 0
-        while (edge := came_from[key]) is not None:
-            key, depth = edge[0], depth + 1
-        return depth
