@@ -108,6 +108,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--episodes-per-scene", type=int, default=defaults.episodes_per_scene)
     parser.add_argument(
+        "--curriculum",
+        action="append",
+        default=[],
+        metavar="FRAMES:METRES",
+        help="easier episodes first: until FRAMES frames, online episodes keep each goal within "
+        "METRES (2-20) of the start or the previous goal (repeatable, increasing FRAMES; "
+        "e.g. --curriculum 240000:4 --curriculum 480000:10)",
+    )
+    parser.add_argument(
         "--threads",
         type=int,
         default=defaults.threads,
@@ -158,6 +167,7 @@ def run(args: argparse.Namespace) -> int:
     from multion_agents.learned.checkpoint import CheckpointError
     from multion_agents.learned.models import MODELS
     from multion_agents.learned.ppo import Args, train
+    from multion_agents.learned.rollout_envs import parse_curriculum
 
     if args.list:
         for name, spec in MODELS.items():
@@ -182,6 +192,7 @@ def run(args: argparse.Namespace) -> int:
             return _fail(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
     try:
         env_overrides = parse_env_overrides(args.set)
+        curriculum = parse_curriculum(args.curriculum)
     except ValueError as error:
         return _fail(str(error))
     settings = Args(
@@ -199,6 +210,7 @@ def run(args: argparse.Namespace) -> int:
         eval_episodes=args.eval_episodes,
         max_steps=args.max_steps,
         episodes_per_scene=args.episodes_per_scene,
+        curriculum=curriculum,
         found_prior=args.found_prior,
         dataset=args.dataset,
         env_overrides=env_overrides,

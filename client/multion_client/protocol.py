@@ -93,8 +93,9 @@ class CreateSession:
         default_factory=dict,
         metadata=schema(
             "an EnvConfig as nested maps (sections task, agent, camera, navgrid, maps; fields "
-            "sensors, split, dataset, episodes_per_scene), plus `episodes`: a list of Episode "
-            "maps to play. Missing fields keep their defaults (GET /v1/spec: `defaults`, and "
+            "sensors, split, dataset, episodes_per_scene, online_max_geodesic), plus `episodes`: a "
+            "list of Episode maps to play. Missing fields keep their defaults (GET /v1/spec: "
+            "`defaults`, and "
             "`ranges` for the allowed values); unknown fields are refused"
         ),
     )

@@ -6,6 +6,7 @@ import copy
 import csv
 import math
 import os
+import re
 import socket
 from pathlib import Path
 
@@ -131,7 +132,9 @@ def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPat
     # the one mini-batch holds every environment, in a random order
     torch.testing.assert_close(seen[-1].flatten().sort()[0], rollout.advantages.flatten().sort()[0])
     ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1, normalize_advantages=True))
-    assert abs(float(seen[-1].mean())) < 1e-5 and float(seen[-1].std()) == pytest.approx(1, rel=1e-4)
+    assert abs(float(seen[-1].mean())) < 1e-5 and float(seen[-1].std()) == pytest.approx(
+        1, rel=1e-4
+    )
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
@@ -402,3 +405,43 @@ def test_training_bench_measures_both_rates_in_one_run(capsys) -> None:
     assert all(0 < s < 1 for s in shares) and sum(shares) <= 1.0 + 1e-6
     assert result["learner_ms_per_frame"] > 0
     assert "ratio train / bare" in capsys.readouterr().out
+
+
+def test_a_curriculum_trains_on_near_goals_first_then_on_the_tasks_own(tmp_path: Path) -> None:
+    args = tiny_args(tmp_path, Path("unused"), frames=256, curriculum=((128, 3.0),))
+    args.dataset = None  # sampled online from the train houses
+    train(args)
+    rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
+    assert [float(r["max_geodesic"]) for r in rows] == [3.0, 3.0, 20.0, 20.0]
+    # the checkpoint keeps the task's own config: a resume or an evaluation never sees the stage
+    assert load_checkpoint(tmp_path / "run" / "checkpoint.pt")["env_config"][
+        "online_max_geodesic"
+    ] == pytest.approx(20.0)
+
+
+@pytest.mark.parametrize(
+    ("stages", "message"),
+    [
+        (["240000:4", "100000:10"], "increasing frame counts > 0, got \\[240000, 100000\\]"),
+        (["0:4"], "increasing frame counts > 0"),
+        (["240000:1"], "online_max_geodesic = 1.0 is out of range: allowed \\[2, 20\\]"),
+        (["240000:25"], "online_max_geodesic = 25.0 is out of range"),
+        (["240000"], "'240000' is not FRAMES:METRES"),
+        (["4:x"], "'4:x' is not FRAMES:METRES"),
+    ],
+)
+def test_train_cli_rejects_a_bad_curriculum(
+    tmp_path: Path, capsys, stages: list[str], message: str
+) -> None:
+    from multion.cli import main
+
+    flags = [arg for stage in stages for arg in ("--curriculum", stage)]
+    code = main(["train", *flags, "--frames", "64", "--out", str(tmp_path)])
+    assert code == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "checkpoint.pt").exists()
+
+
+def test_a_curriculum_needs_online_episodes(tmp_path: Path, room_dataset: Path) -> None:
+    with pytest.raises(ValueError, match="cannot be used with --dataset"):
+        train(tiny_args(tmp_path, room_dataset, curriculum=((128, 3.0),)))

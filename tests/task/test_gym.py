@@ -2,6 +2,7 @@
 
 import gymnasium as gym
 import numpy as np
+import pytest
 from gymnasium.utils.env_checker import check_env
 
 import multion  # noqa: F401  (registers the environment ids)
@@ -74,3 +75,32 @@ def test_online_train_sampling_stays_in_a_house_for_episodes_per_scene():
         scenes.append(info["scene_id"])
     env.close()
     assert scenes[0].startswith("house-") and len(set(scenes)) == 1
+
+
+@pytest.mark.parametrize("max_geodesic", [3.0, 20.0])
+def test_online_max_geodesic_bounds_the_online_episodes(max_geodesic: float):
+    config = EnvConfig(
+        task=TaskConfig(num_goals=2),
+        split="train",
+        sensors=("goal",),
+        episodes_per_scene=8,
+        online_max_geodesic=max_geodesic,
+    )
+    env = MultiONEnv(config)
+    distances = []
+    for seed in (3, *[None] * 7):
+        env.reset(seed=seed)
+        distances.extend(env.episode.geodesic_distances)
+    env.close()
+    assert min(distances) >= 2.0
+    if max_geodesic < 20:
+        assert max(distances) <= max_geodesic
+    else:  # the default draws far goals too: the bound above is not vacuous
+        assert max(distances) > 3.0
+
+
+def test_online_max_geodesic_outside_its_range_names_the_field():
+    with pytest.raises(
+        ValueError, match=r"online_max_geodesic = 1.5 is out of range: allowed \[2, 20\]"
+    ):
+        EnvConfig(online_max_geodesic=1.5)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 import torch.distributed as dist
+from gymnasium.vector import VectorEnv
 from torch import Tensor, nn
 from tqdm import tqdm
 
@@ -36,11 +37,15 @@ from multion_agents.learned.checkpoint import (
     save_checkpoint,
 )
 from multion_agents.learned.models import model_spec
+from multion_agents.learned.periodic_eval import evaluate_policy
 from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
 from multion_agents.learned.rollout_envs import (
     SUMMARY_METRICS,
+    Curriculum,
+    check_curriculum,
     finished_episodes,
     make_vector_env,
+    stage_config,
     training_env_config,
 )
 from multion_agents.learned.training_log import TrainingLog, plot_learning_curve
@@ -110,6 +115,10 @@ class Args:
     the untrained policy from ending most episodes by a wrong FOUND in its first steps, which
     otherwise teaches it early that FOUND ends the slack penalty (see docs/learned.md)."""
     episodes_per_scene: int = 25
+    curriculum: Curriculum = ()
+    """``((until_frames, max_geodesic), ...)``: easier online episodes first (goals within
+    ``max_geodesic`` metres) until each stage's frame count, then the task's own
+    (``rollout_envs.stage_config``). Each stage starts fresh environments and episodes."""
     max_steps: int | None = None
     """Step limit of *training* episodes (None: the task's 2500); evaluation always uses 2500."""
     env_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -368,6 +377,7 @@ def train(args: Args) -> dict[str, Any]:
     # every field spelled out: the checkpoint then fixes the map geometry, crop size and
     # camera even if the env's defaults change later
     env_config = env_config_to_dict(env_config_from_dict(env_config))
+    check_curriculum(args.curriculum, env_config)
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)
     if args.found_prior is not None:
@@ -392,16 +402,15 @@ def train(args: Args) -> dict[str, Any]:
     frames_per_update = args.rollout_steps * args.envs * world
     total_updates = math.ceil(args.frames / frames_per_update)
     servers = tuple(args.servers[rank::world]) or tuple(args.servers)
-    envs = make_vector_env(env_config, args.envs, servers)
+    stage = stage_config(env_config, args.curriculum, frames)
+    envs = make_vector_env(stage, args.envs, servers)
     log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
     window: deque[dict[str, float]] = deque(maxlen=100)
     keys = policy.train_sensors
     try:
-        observation, _ = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
-        state = policy.initial_state(args.envs)
-        prev_action = torch.zeros(args.envs, dtype=torch.long)
-        start = torch.ones(args.envs)
-        returns = np.zeros(args.envs)
+        observation, state, prev_action, start, returns = _start_episodes(
+            envs, policy, args, update, rank
+        )
         bar = tqdm(
             total=total_updates * frames_per_update,
             initial=frames,
@@ -412,6 +421,14 @@ def train(args: Args) -> dict[str, Any]:
         )
         summary: dict[str, Any] = {}
         while update < total_updates:
+            if stage != stage_config(env_config, args.curriculum, frames):
+                # the curriculum's next stage: new environments, fresh episodes and memories
+                envs.close()
+                stage = stage_config(env_config, args.curriculum, frames)
+                envs = make_vector_env(stage, args.envs, servers)
+                observation, state, prev_action, start, returns = _start_episodes(
+                    envs, policy, args, update, rank
+                )
             tick = time.perf_counter()
             initial_state = {k: v.detach().cpu().clone() for k, v in state.items()}
             steps: dict[str, list[Any]] = {
@@ -493,6 +510,7 @@ def train(args: Args) -> dict[str, Any]:
                 "update_seconds": update_seconds,
                 "learning_rate": learning_rate,
                 "clip": clip,
+                "max_geodesic": stage["online_max_geodesic"],
                 **_window_means(window, device),
                 **stats,
             }
@@ -510,7 +528,9 @@ def train(args: Args) -> dict[str, Any]:
                     and frames // args.eval_every != (frames - frames_per_update) // args.eval_every
                 )
                 if args.eval_episodes > 0 and (due or final):
-                    result = evaluate_policy(policy, args, env_config, num_goals)
+                    result = evaluate_policy(
+                        policy, args.eval_episodes, args.seed, env_config, num_goals
+                    )
                     log.write("eval", {"frames": frames, "update": update, **result})
                     plot_learning_curve(out, f"{args.agent} on {args.task}")
         bar.close()
@@ -526,6 +546,22 @@ def train(args: Args) -> dict[str, Any]:
         envs.close()  # a no-op once closed
         if log is not None:
             log.close()
+
+
+def _start_episodes(
+    envs: VectorEnv, policy: RecurrentPolicy, args: Args, update: int, rank: int
+) -> tuple[dict[str, Any], State, Tensor, Tensor, np.ndarray]:
+    """Reset every environment: first observations, memories, previous actions, episode-start
+    flags and running returns."""
+    observation, _ = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
+    prev_action = torch.zeros(args.envs, dtype=torch.long)
+    return (
+        observation,
+        policy.initial_state(args.envs),
+        prev_action,
+        torch.ones(args.envs),
+        np.zeros(args.envs),
+    )
 
 
 def _window_means(window: deque[dict[str, float]], device: torch.device) -> dict[str, float]:
@@ -562,40 +598,3 @@ def _save(
             "frames": frames,
         },
     )
-
-
-def evaluate_policy(
-    policy: RecurrentPolicy, args: Args, env_config: dict[str, Any], num_goals: int
-) -> dict[str, float]:
-    """Mean val metrics of the current policy over ``args.eval_episodes`` evenly spaced packaged
-    val episodes, played in this process with the task's own step limit."""
-    from multion_agents.evaluate import (
-        EvalSettings,
-        episode_seed,
-        local_env_factory,
-        run_episode,
-        select_episodes,
-    )
-    from multion_agents.learned.agent import agent_class_for_policy
-
-    config = {
-        **env_config,
-        "split": "val",
-        "task": {k: v for k, v in env_config["task"].items() if k != "max_steps"},
-    }
-    config["sensors"] = list(dict.fromkeys([*policy.sensors, "gps"]))
-    config.pop("episodes_per_scene", None)
-    episodes = select_episodes(
-        EvalSettings(agent="", num_goals=num_goals, split="val", episodes=args.eval_episodes)
-    )
-    agent = agent_class_for_policy(policy, {})(seed=args.seed)
-    env = local_env_factory()(config)
-    try:
-        records = []
-        for index, episode in enumerate(episodes):
-            agent.seed(episode_seed(args.seed, index))
-            records.append(run_episode(env, agent, episode, index).metrics)
-    finally:
-        env.close()
-        policy.train()
-    return {k: float(np.mean([r[k] for r in records])) for k in SUMMARY_METRICS}

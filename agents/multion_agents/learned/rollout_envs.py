@@ -44,6 +44,53 @@ def training_env_config(
     return merge_overrides(config, overrides or {})
 
 
+Curriculum = tuple[tuple[int, float], ...]
+"""``((until_frames, max_geodesic), ...)``: until ``until_frames`` frames of the run, online
+training episodes keep each goal within ``max_geodesic`` metres (``online_max_geodesic``) of the
+start or the previous goal; after the last stage, the task's own episodes."""
+
+
+def parse_curriculum(texts: Sequence[str]) -> Curriculum:
+    """``["240000:4", "480000:10"]`` → ``((240000, 4.0), (480000, 10.0))``; a ``ValueError``
+    naming the stage otherwise."""
+    stages = []
+    for text in texts:
+        frames, sep, metres = text.partition(":")
+        try:
+            if not sep:
+                raise ValueError
+            stages.append((int(frames), float(metres)))
+        except ValueError:
+            raise ValueError(
+                f"--curriculum stage {text!r} is not FRAMES:METRES (e.g. 240000:4)"
+            ) from None
+    return tuple(stages)
+
+
+def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None:
+    """A ``ValueError`` (or the config's own ``ConfigError``, naming ``online_max_geodesic``
+    and its range) before any environment starts, rather than at a stage switch."""
+    from multion.api.config_io import env_config_from_dict
+
+    if not curriculum:
+        return
+    if env_config.get("dataset") is not None:
+        raise ValueError("--curriculum samples episodes online; it cannot be used with --dataset")
+    ends = [until for until, _ in curriculum]
+    if ends[0] <= 0 or any(b <= a for a, b in zip(ends, ends[1:], strict=False)):
+        raise ValueError(f"--curriculum stages must end at increasing frame counts > 0, got {ends}")
+    for until, _ in curriculum:
+        env_config_from_dict(stage_config(env_config, curriculum, until - 1))
+
+
+def stage_config(env_config: dict[str, Any], curriculum: Curriculum, frames: int) -> dict[str, Any]:
+    """The env config to train with once ``frames`` frames are done."""
+    for until, metres in curriculum:
+        if frames < until:
+            return {**env_config, "online_max_geodesic": metres}
+    return env_config
+
+
 def _make_local_env(config: dict[str, Any]) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
     from multion.api.config_io import env_config_from_dict

@@ -19,6 +19,7 @@ from multion.sim.navgrid import NavGridConfig
 from multion.sim.simulator import AgentConfig, Simulator
 from multion.task.dataset import (
     DatasetError,
+    EpisodeConstraints,
     load_dataset,
     packaged_dataset_path,
     sample_episode,
@@ -113,6 +114,14 @@ class EnvConfig:
     episodes_per_scene: int = bounded(25, 1, 1_000_000)
     """Online (train) sampling draws this many episodes in a scene before moving to another:
     a scene switch rebuilds the PyBullet world, and early training episodes are a few steps."""
+    online_max_geodesic: float = bounded(
+        EpisodeConstraints.max_geodesic,
+        EpisodeConstraints.min_geodesic,
+        EpisodeConstraints.max_geodesic,
+    )
+    """Online (train) sampling keeps each goal within this geodesic distance, metres, of the
+    start or the previous goal; below the datasets' 20 m it makes a curriculum's easy stage
+    (``multion train --curriculum``). Packaged and file datasets ignore it."""
 
     def __post_init__(self) -> None:
         check_fields(self, "")
@@ -184,6 +193,10 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self._done = True
         self._online_count = 0
         self._online_scene: str | None = None
+        self._online_constraints = EpisodeConstraints(
+            max_geodesic=self.config.online_max_geodesic,
+            reach=self.config.task.success_distance,
+        )
 
     # ------------------------------------------------------------------ episodes
     def _default_episodes(self) -> list[Episode] | None:
@@ -223,6 +236,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
                 self.np_random,
                 f"train-online-{self._online_count:07d}",
                 num_distractors=self.config.task.num_distractors,
+                constraints=self._online_constraints,
             )
             if episode is None:  # no valid episode found here: try another scene
                 self._online_scene = None
