@@ -41,6 +41,7 @@ import numpy as np
 from scipy import ndimage
 
 from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.baselines.field_steps import FieldSteps
 from multion_agents.baselines.mapping import (
     CameraModel,
     DepthProjector,
@@ -52,11 +53,8 @@ from multion_agents.baselines.navigation import (
     Motion,
     StartFrameGrid,
     cells_ahead,
-    choose_action,
     cropped_distance_field,
     interpolate,
-    snap_heading,
-    steps_ahead,
 )
 from multion_client.constants import Action
 
@@ -106,8 +104,7 @@ class ExplorerAgent(Agent):
         self.map = SemanticMap(self.grid)
         self._projector: DepthProjector | None = None
         self._blocked = np.zeros((self.map_size, self.map_size), dtype=bool)
-        self._refused_here: set[int] = set()  # headings refused where the agent stands
-        self._route: list[int] = []  # headings of the steps planned ahead (see _step)
+        self._steps = FieldSteps(self.grid, self.motion)  # refused headings, steps planned ahead
         self._given_up = np.zeros_like(self._blocked)
         self._passable = np.ones_like(self._blocked)
         self._visited = np.zeros_like(self._blocked)  # cells the agent's centre has been in
@@ -157,14 +154,11 @@ class ExplorerAgent(Agent):
         moved = self._last_position is None or not _close(position, self._last_position)
         if self._last_action == Action.MOVE_FORWARD and not moved:
             self._blocked[cells_ahead(self.grid, position, heading, self.motion)] = True
-            index = snap_heading(heading, self.motion)[1]
-            if index is not None:
-                self._refused_here.add(index)
-            self._route = []
+            self._steps.refused(heading)
             self._field = None
             self.map.changed = True
         if moved:
-            self._refused_here = set()
+            self._steps.moved()
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
@@ -176,7 +170,7 @@ class ExplorerAgent(Agent):
             # the refusals around here (the simulator will refuse again if it must)
             self._still = 0
             self._field = None
-            # the refused steps from this very spot stay refused (``_refused_here``): retrying
+            # the refused steps from this very spot stay refused (``FieldSteps``): retrying
             # them took whole episodes at starts with few free headings
             self._paint_disc(self._blocked, position, 0.5, False)
             self.map.changed = True
@@ -218,15 +212,9 @@ class ExplorerAgent(Agent):
     def _step(self, position: np.ndarray, heading: float) -> int:
         assert self._field is not None
         self._since_plan += 1
-        if self._route:
-            return self._follow_route(heading)
-        action = choose_action(
-            self.grid, self._field, self._passable, position, heading, self.motion,
-            refused=self._refused_here,
-        )  # fmt: skip
-        if action is None and self._tight > 0:
-            # the margin is already dropped, yet no single step goes down the plan
-            action = self._start_route(position, heading)
+        # the margin already dropped, yet no single step goes down the plan: look further ahead
+        look_ahead = self.look_ahead if self._tight > 0 else 1
+        action = self._steps.action(self._field, self._passable, position, heading, look_ahead)
         if action is None:
             # a local minimum of the field (map changed under the plan): re-plan, look around
             self._stuck += 1
@@ -244,32 +232,6 @@ class ExplorerAgent(Agent):
             return int(Action.TURN_LEFT if self.rng.random() < 0.5 else Action.TURN_RIGHT)
         self._stuck = 0
         return action
-
-    def _start_route(self, position: np.ndarray, heading: float) -> int | None:
-        """No single step goes downhill: look two, then three steps ahead, as two or three steps
-        at different headings can enter a corridor whose lanes no single 0.25 m step at a 30°
-        heading reaches (val-1-on-00460); the steps found are then followed to their end."""
-        assert self._field is not None
-        for depth in range(2, self.look_ahead + 1):
-            route = steps_ahead(
-                self.grid, self._field, self._passable, position, heading, depth, self.motion,
-                refused=self._refused_here,
-            )  # fmt: skip
-            if route:
-                self._route = route
-                return self._follow_route(heading)
-        return None
-
-    def _follow_route(self, heading: float) -> int:
-        """Turn towards the next heading of the route, or step and drop it once facing it."""
-        _, index = snap_heading(heading, self.motion)
-        assert index is not None  # routes are only planned from snapped headings
-        n = self.motion.headings
-        turns = (self._route[0] - index) % n
-        if turns == 0:
-            self._route.pop(0)
-            return int(Action.MOVE_FORWARD)
-        return int(Action.TURN_LEFT if turns <= n // 2 else Action.TURN_RIGHT)
 
     # ------------------------------------------------------------------ perception
     def _perceive(self, observation: Observation, position: np.ndarray, heading: float) -> set[int]:
