@@ -20,7 +20,9 @@ round a table that depth never closes); when the margin kept round seen obstacle
 or leaves the plan's way one cell wide, it plans over the obstacles alone for ``tight_steps``;
 when no single step goes down the plan, it looks two, then three steps ahead and follows the steps
 found (a corridor whose lanes no single 30° step reaches). The steps refused from where it stands
-are never retried before it moves.
+are never retried before it moves. Arriving at one position a third time for one target, it is
+going round in circles: it searches the positions its steps reach, never trying a step twice,
+until it is 1 m down the plan (:mod:`.field_steps`, :mod:`.lattice_search`).
 
 A goal colour is a goal only in a blob at most 0.2 m wide (:func:`~.mapping.goal_shaped`): white
 paint under bright light renders exactly as the white goal does.
@@ -91,6 +93,7 @@ class ExplorerAgent(Agent):
     detour_steps: int = 60
     tight_steps: int = 100
     look_ahead: int = 3  # steps looked ahead when no single one goes down the plan (1: none)
+    lattice_search: bool = True  # search the step lattice when going round in circles
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
@@ -158,7 +161,7 @@ class ExplorerAgent(Agent):
             self._field = None
             self.map.changed = True
         if moved:
-            self._steps.moved()
+            self._steps.moved(position)
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
@@ -191,6 +194,7 @@ class ExplorerAgent(Agent):
             target = ("goal", goal)
             if self._target != target:
                 self._aim, self._field = 0, None
+                self._steps.new_target()
             if self._moved(goal_at):
                 self._field = None
             self._target, self._target_point = target, goal_at
@@ -202,6 +206,8 @@ class ExplorerAgent(Agent):
             if self._spin > 0:
                 self._spin -= 1
                 return int(Action.TURN_LEFT)
+            if self._target != ("frontier", -1):
+                self._steps.new_target()
             if self._target != ("frontier", -1) or self._needs_frontier_replan(position):
                 self._target, self._target_point = ("frontier", -1), None
                 self._field = None
@@ -214,7 +220,9 @@ class ExplorerAgent(Agent):
         self._since_plan += 1
         # the margin already dropped, yet no single step goes down the plan: look further ahead
         look_ahead = self.look_ahead if self._tight > 0 else 1
-        action = self._steps.action(self._field, self._passable, position, heading, look_ahead)
+        action = self._steps.action(
+            self._field, self._passable, position, heading, look_ahead, self.lattice_search
+        )
         if action is None:
             # a local minimum of the field (map changed under the plan): re-plan, look around
             self._stuck += 1
