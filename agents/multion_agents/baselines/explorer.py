@@ -127,6 +127,11 @@ class ExplorerAgent(Agent):
         self._tight = 0  # steps left planning without the margin round obstacles
         self._disc_masks: dict[float, np.ndarray] = {}  # radius → disc of cells round (0, 0)
 
+    @property
+    def searches(self) -> int:
+        """Lattice searches started in the episode (going round in circles)."""
+        return self._steps.searches
+
     # ------------------------------------------------------------------ the policy
     def act(self, observation: Observation) -> int:
         start = time.perf_counter()
