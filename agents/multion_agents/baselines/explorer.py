@@ -20,7 +20,9 @@ round a table that depth never closes); when the margin kept round seen obstacle
 or leaves the plan's way one cell wide, it plans over the obstacles alone for ``tight_steps``;
 when no single step goes down the plan, it looks two, then three steps ahead and follows the steps
 found (a corridor whose lanes no single 30° step reaches). The steps refused from where it stands
-are never retried before it moves.
+are never retried before it moves. Arriving at one position a third time for one target, it is
+going round in circles: it searches the positions its steps reach, never trying a step twice,
+until it is 1 m down the plan (:mod:`.field_steps`, :mod:`.lattice_search`).
 
 A goal colour is a goal only in a blob at most 0.2 m wide (:func:`~.mapping.goal_shaped`): white
 paint under bright light renders exactly as the white goal does.
@@ -41,6 +43,7 @@ import numpy as np
 from scipy import ndimage
 
 from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.baselines.field_steps import FieldSteps
 from multion_agents.baselines.mapping import (
     CameraModel,
     DepthProjector,
@@ -52,11 +55,8 @@ from multion_agents.baselines.navigation import (
     Motion,
     StartFrameGrid,
     cells_ahead,
-    choose_action,
     cropped_distance_field,
     interpolate,
-    snap_heading,
-    steps_ahead,
 )
 from multion_client.constants import Action
 
@@ -93,6 +93,7 @@ class ExplorerAgent(Agent):
     detour_steps: int = 60
     tight_steps: int = 100
     look_ahead: int = 3  # steps looked ahead when no single one goes down the plan (1: none)
+    lattice_search: bool = True  # search the step lattice when going round in circles
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
@@ -106,8 +107,7 @@ class ExplorerAgent(Agent):
         self.map = SemanticMap(self.grid)
         self._projector: DepthProjector | None = None
         self._blocked = np.zeros((self.map_size, self.map_size), dtype=bool)
-        self._refused_here: set[int] = set()  # headings refused where the agent stands
-        self._route: list[int] = []  # headings of the steps planned ahead (see _step)
+        self._steps = FieldSteps(self.grid, self.motion)  # refused headings, steps planned ahead
         self._given_up = np.zeros_like(self._blocked)
         self._passable = np.ones_like(self._blocked)
         self._visited = np.zeros_like(self._blocked)  # cells the agent's centre has been in
@@ -126,6 +126,11 @@ class ExplorerAgent(Agent):
         self._arrivals: list[np.ndarray] = []  # where frontier plans ended
         self._tight = 0  # steps left planning without the margin round obstacles
         self._disc_masks: dict[float, np.ndarray] = {}  # radius → disc of cells round (0, 0)
+
+    @property
+    def searches(self) -> int:
+        """Lattice searches started in the episode (going round in circles)."""
+        return self._steps.searches
 
     # ------------------------------------------------------------------ the policy
     def act(self, observation: Observation) -> int:
@@ -157,14 +162,11 @@ class ExplorerAgent(Agent):
         moved = self._last_position is None or not _close(position, self._last_position)
         if self._last_action == Action.MOVE_FORWARD and not moved:
             self._blocked[cells_ahead(self.grid, position, heading, self.motion)] = True
-            index = snap_heading(heading, self.motion)[1]
-            if index is not None:
-                self._refused_here.add(index)
-            self._route = []
+            self._steps.refused(heading)
             self._field = None
             self.map.changed = True
         if moved:
-            self._refused_here = set()
+            self._steps.moved(position)
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
@@ -176,7 +178,7 @@ class ExplorerAgent(Agent):
             # the refusals around here (the simulator will refuse again if it must)
             self._still = 0
             self._field = None
-            # the refused steps from this very spot stay refused (``_refused_here``): retrying
+            # the refused steps from this very spot stay refused (``FieldSteps``): retrying
             # them took whole episodes at starts with few free headings
             self._paint_disc(self._blocked, position, 0.5, False)
             self.map.changed = True
@@ -197,6 +199,7 @@ class ExplorerAgent(Agent):
             target = ("goal", goal)
             if self._target != target:
                 self._aim, self._field = 0, None
+                self._steps.new_target()
             if self._moved(goal_at):
                 self._field = None
             self._target, self._target_point = target, goal_at
@@ -208,6 +211,8 @@ class ExplorerAgent(Agent):
             if self._spin > 0:
                 self._spin -= 1
                 return int(Action.TURN_LEFT)
+            if self._target != ("frontier", -1):
+                self._steps.new_target()
             if self._target != ("frontier", -1) or self._needs_frontier_replan(position):
                 self._target, self._target_point = ("frontier", -1), None
                 self._field = None
@@ -218,15 +223,11 @@ class ExplorerAgent(Agent):
     def _step(self, position: np.ndarray, heading: float) -> int:
         assert self._field is not None
         self._since_plan += 1
-        if self._route:
-            return self._follow_route(heading)
-        action = choose_action(
-            self.grid, self._field, self._passable, position, heading, self.motion,
-            refused=self._refused_here,
-        )  # fmt: skip
-        if action is None and self._tight > 0:
-            # the margin is already dropped, yet no single step goes down the plan
-            action = self._start_route(position, heading)
+        # the margin already dropped, yet no single step goes down the plan: look further ahead
+        look_ahead = self.look_ahead if self._tight > 0 else 1
+        action = self._steps.action(
+            self._field, self._passable, position, heading, look_ahead, self.lattice_search
+        )
         if action is None:
             # a local minimum of the field (map changed under the plan): re-plan, look around
             self._stuck += 1
@@ -244,32 +245,6 @@ class ExplorerAgent(Agent):
             return int(Action.TURN_LEFT if self.rng.random() < 0.5 else Action.TURN_RIGHT)
         self._stuck = 0
         return action
-
-    def _start_route(self, position: np.ndarray, heading: float) -> int | None:
-        """No single step goes downhill: look two, then three steps ahead, as two or three steps
-        at different headings can enter a corridor whose lanes no single 0.25 m step at a 30°
-        heading reaches (val-1-on-00460); the steps found are then followed to their end."""
-        assert self._field is not None
-        for depth in range(2, self.look_ahead + 1):
-            route = steps_ahead(
-                self.grid, self._field, self._passable, position, heading, depth, self.motion,
-                refused=self._refused_here,
-            )  # fmt: skip
-            if route:
-                self._route = route
-                return self._follow_route(heading)
-        return None
-
-    def _follow_route(self, heading: float) -> int:
-        """Turn towards the next heading of the route, or step and drop it once facing it."""
-        _, index = snap_heading(heading, self.motion)
-        assert index is not None  # routes are only planned from snapped headings
-        n = self.motion.headings
-        turns = (self._route[0] - index) % n
-        if turns == 0:
-            self._route.pop(0)
-            return int(Action.MOVE_FORWARD)
-        return int(Action.TURN_LEFT if turns <= n // 2 else Action.TURN_RIGHT)
 
     # ------------------------------------------------------------------ perception
     def _perceive(self, observation: Observation, position: np.ndarray, heading: float) -> set[int]:
