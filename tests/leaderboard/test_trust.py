@@ -99,11 +99,15 @@ def trust_server(
 
 
 def first_views(client: Client, run_id: str, episodes: int) -> list[str]:
-    """Play each episode of a run with one FOUND; the hash of each first observation."""
+    """Play each episode of a run with one FOUND; the hash of each first observation (every
+    sensor: two starts facing a bare wall can give the same image, not the same depth)."""
     views = []
     for episode in range(episodes):
         answer = client.start_episode(run_id, episode)
-        views.append(hashlib.sha256(answer.observation["rgb"].tobytes()).hexdigest())
+        digest = hashlib.sha256()
+        for name in sorted(answer.observation):
+            digest.update(name.encode() + answer.observation[name].tobytes())
+        views.append(digest.hexdigest())
         assert client.run_step(run_id, episode, 1, 0).done  # FOUND ends it (found or wrong)
     return views
 
@@ -127,7 +131,9 @@ def test_no_two_tracks_or_phases_share_a_hidden_house(tmp_path: Path) -> None:
     for house in houses[("std", "minival")]:
         assert re.fullmatch(r"house-\d{10,}", house) and scene_split(house) is None
     # a challenge may narrow the range, within the generator's own
-    narrowed = read(text.replace("[[tracks]]", "[hidden]\nrooms = [8, 9]\n\n[[tracks]]", 1), tmp_path)
+    narrowed = read(
+        text.replace("[[tracks]]", "[hidden]\nrooms = [8, 9]\n\n[[tracks]]", 1), tmp_path
+    )
     rooms = {int(h.rsplit("-r", 1)[1]) for ids in challenge_houses(narrowed).values() for h in ids}
     assert rooms <= {8, 9} and HOUSE_CONFIG.min_rooms == 8
 
@@ -138,14 +144,15 @@ def test_fresh_runs_never_play_the_same_episodes(
 ) -> None:
     client = Client(trust_server.url, token=new_team("prober"))
     runs = [
-        client.create_run(CreateRun("std", "test-standard", f"probe {i}", ["rgb"]))
+        client.create_run(CreateRun("std", "test-standard", f"probe {i}", ["rgb", "depth"]))
         for i in range(2)
     ]
     views = [first_views(client, run.run_id, 3) for run in runs]
     assert len(set(views[0])) == 3 and not set(views[0]) & set(views[1])
     # a fixed phase (opted in for paired comparisons) plays one set, reordered
     paired = [
-        client.create_run(CreateRun("std", "paired", f"paired {i}", ["rgb"])) for i in range(2)
+        client.create_run(CreateRun("std", "paired", f"paired {i}", ["rgb", "depth"]))
+        for i in range(2)
     ]
     fixed = [first_views(client, run.run_id, 3) for run in paired]
     assert sorted(fixed[0]) == sorted(fixed[1])
