@@ -94,7 +94,14 @@ def test_two_replicas_share_one_postgresql(
     # the run finished on A is on B's leaderboard page, and its run page shows the same numbers
     board = httpx.get(b.url + "/leaderboard", timeout=60)
     assert board.status_code == 200 and f'data-run="{done.run_id}"' in board.text
-    page = httpx.get(f"{b.url}/leaderboard/runs/{done.run_id}", timeout=60).text
+    # pictures are drawn in the background after a run ends: compare the pages once drawn,
+    # or the two requests may fall on either side of the drawing
+    deadline = time.monotonic() + 120
+    while True:
+        page = httpx.get(f"{b.url}/leaderboard/runs/{done.run_id}", timeout=60).text
+        if "The picture is being drawn" not in page or time.monotonic() > deadline:
+            break
+        time.sleep(0.5)
     assert page == httpx.get(f"{a.url}/leaderboard/runs/{done.run_id}", timeout=60).text
     assert "on-a" in page and "Results over 3 episodes" in page
     # a run started on A, continued on B at the same step
