@@ -95,8 +95,7 @@ class CreateSession:
             "an EnvConfig as nested maps (sections task, agent, camera, navgrid, maps; fields "
             "sensors, split, dataset, episodes_per_scene, online_max_geodesic), plus `episodes`: a "
             "list of Episode maps to play. Missing fields keep their defaults (GET /v1/spec: "
-            "`defaults`, and "
-            "`ranges` for the allowed values); unknown fields are refused"
+            "`defaults`, and `ranges` for the allowed values); unknown fields are refused"
         ),
     )
     num_envs: int = field(default=1, metadata=schema("environments in the session", minimum=1))

@@ -421,10 +421,11 @@ def train(args: Args) -> dict[str, Any]:
         )
         summary: dict[str, Any] = {}
         while update < total_updates:
-            if stage != stage_config(env_config, args.curriculum, frames):
+            wanted = stage_config(env_config, args.curriculum, frames)
+            if wanted != stage:
                 # the curriculum's next stage: new environments, fresh episodes and memories
                 envs.close()
-                stage = stage_config(env_config, args.curriculum, frames)
+                stage = wanted
                 envs = make_vector_env(stage, args.envs, servers)
                 observation, state, prev_action, start, returns = _start_episodes(
                     envs, policy, args, update, rank
