@@ -25,6 +25,12 @@ _HYPER = (
     ("value-coef", float, "value loss weight"),
     ("entropy-coef", float, "entropy bonus weight"),
     ("aux-coef", float, "auxiliary loss weight (ObjRecogMap)"),
+    (
+        "imitation-coef",
+        float,
+        "weight of the cross-entropy to oracle-planner's actions on the "
+        "learner's states, in [0, 100] (0: pure PPO, as in the paper)",
+    ),
     ("max-grad-norm", float, "gradient clipping norm"),
     ("gamma", float, "discount"),
     ("gae-lambda", float, "GAE lambda"),
@@ -42,7 +48,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frames", type=int, default=defaults.frames, help="environment steps, all ranks together"
     )
     parser.add_argument(
-        "--envs", type=int, default=defaults.envs, help=f"environments per rank (default {defaults.envs}, the paper's)"
+        "--envs",
+        type=int,
+        default=defaults.envs,
+        help=f"environments per rank (default {defaults.envs}, the paper's)",
     )
     parser.add_argument(
         "--server",

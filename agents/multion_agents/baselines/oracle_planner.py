@@ -122,6 +122,11 @@ class OraclePlannerAgent(Agent):
         self._last_position, self._last_action = position, action
         return action
 
+    def took(self, action: int) -> None:
+        """The action the environment took after the last ``act``, when another agent is in
+        control (imitation learning labels a learner's steps with this agent's actions)."""
+        self._last_action = action
+
     # ------------------------------------------------------------------ internals
     def _start_map(self, ego: np.ndarray) -> None:
         size = ego.shape[0]

@@ -26,6 +26,7 @@ import torch
 import torch.distributed as dist
 from gymnasium.vector import VectorEnv
 from torch import Tensor, nn
+from torch.distributions import Categorical
 from tqdm import tqdm
 
 from multion_agents.agent import merge_overrides
@@ -40,9 +41,11 @@ from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
 from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
 from multion_agents.learned.rollout_envs import (
+    NO_LABEL,
     SUMMARY_METRICS,
     Curriculum,
     check_curriculum,
+    expert_labels,
     finished_episodes,
     make_vector_env,
     stage_config,
@@ -93,6 +96,10 @@ class Args:
     entropy_coef: float = 0.01
     aux_coef: float = 1.0
     """Weight of a model's auxiliary loss (ObjRecogMap's recogniser)."""
+    imitation_coef: float = 0.0
+    """Weight of the cross-entropy between the policy and the oracle planner's action at each
+    step the learner takes (0: none, the paper's pure PPO). The learner stays in control
+    (DAgger's labels, ``learned/expert.py``); needs local environments."""
     max_grad_norm: float = 0.2
     gamma: float = 0.99
     gae_lambda: float = 0.95
@@ -147,6 +154,8 @@ class Rollout:
     initial_state: State
     advantages: Tensor = field(default_factory=lambda: torch.empty(0))
     returns: Tensor = field(default_factory=lambda: torch.empty(0))
+    expert_actions: Tensor = field(default_factory=lambda: torch.empty(0, dtype=torch.long))
+    """The expert's action at each step (``expert.NO_LABEL`` where none); empty: no imitation."""
 
 
 def compute_gae(rollout: Rollout, next_value: Tensor, gamma: float, lam: float) -> None:
@@ -228,6 +237,9 @@ def ppo_update(
                 initial_state={k: v[chunk].to(device) for k, v in rollout.initial_state.items()},
                 advantages=pick(advantages),
                 returns=pick(rollout.returns),
+                expert_actions=pick(rollout.expert_actions)
+                if rollout.expert_actions.numel()
+                else rollout.expert_actions,
             )
             loss, losses = ppo_loss(policy, minibatch, clip, args)
             optimizer.zero_grad(set_to_none=False)
@@ -248,9 +260,15 @@ def ppo_loss(
 ) -> tuple[Tensor, dict[str, Tensor | None]]:
     """PPO's loss on one recurrent mini-batch (every tensor on the policy's device): the
     clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
-    the entropy bonus and the model's auxiliary loss; and those terms for logging."""
-    logprob, entropy, value, aux = policy.evaluate_actions(
-        batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
+    the entropy bonus, the model's auxiliary loss and the imitation loss; and those terms for
+    logging."""
+    out = policy(batch.frames, batch.prev_actions, batch.starts, batch.initial_state)
+    actions = Categorical(logits=out.logits)
+    logprob, entropy, value, aux = (
+        actions.log_prob(batch.actions),
+        actions.entropy(),
+        out.value,
+        out.auxiliary_loss,
     )
     ratio = torch.exp(logprob - batch.logprobs)
     adv = batch.advantages
@@ -262,11 +280,20 @@ def ppo_loss(
     loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy_mean
     if aux is not None:
         loss = loss + args.aux_coef * aux
+    imitation = None
+    if args.imitation_coef > 0 and batch.expert_actions.numel():
+        labelled = batch.expert_actions != NO_LABEL
+        if labelled.any():
+            imitation = nn.functional.cross_entropy(
+                out.logits[labelled], batch.expert_actions[labelled]
+            )
+            loss = loss + args.imitation_coef * imitation
     return loss, {
         "policy_loss": policy_loss.detach(),
         "value_loss": value_loss.detach(),
         "entropy": entropy_mean.detach(),
         "aux_loss": aux.detach() if aux is not None else None,
+        "imitation_loss": imitation.detach() if imitation is not None else None,
         "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
     }
 
@@ -378,6 +405,8 @@ def train(args: Args) -> dict[str, Any]:
     # camera even if the env's defaults change later
     env_config = env_config_to_dict(env_config_from_dict(env_config))
     check_curriculum(args.curriculum, env_config)
+    if not 0.0 <= args.imitation_coef <= 100.0:
+        raise ValueError(f"--imitation-coef must be in [0, 100], got {args.imitation_coef}")
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)
     if args.found_prior is not None:
@@ -403,12 +432,13 @@ def train(args: Args) -> dict[str, Any]:
     total_updates = math.ceil(args.frames / frames_per_update)
     servers = tuple(args.servers[rank::world]) or tuple(args.servers)
     stage = stage_config(env_config, args.curriculum, frames)
-    envs = make_vector_env(stage, args.envs, servers)
+    imitate = args.imitation_coef > 0
+    envs = make_vector_env(stage, args.envs, servers, expert=imitate)
     log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
     window: deque[dict[str, float]] = deque(maxlen=100)
     keys = policy.train_sensors
     try:
-        observation, state, prev_action, start, returns = _start_episodes(
+        observation, labels, state, prev_action, start, returns = _start_episodes(
             envs, policy, args, update, rank
         )
         bar = tqdm(
@@ -426,14 +456,15 @@ def train(args: Args) -> dict[str, Any]:
                 # the curriculum's next stage: new environments, fresh episodes and memories
                 envs.close()
                 stage = wanted
-                envs = make_vector_env(stage, args.envs, servers)
-                observation, state, prev_action, start, returns = _start_episodes(
+                envs = make_vector_env(stage, args.envs, servers, expert=imitate)
+                observation, labels, state, prev_action, start, returns = _start_episodes(
                     envs, policy, args, update, rank
                 )
             tick = time.perf_counter()
             initial_state = {k: v.detach().cpu().clone() for k, v in state.items()}
             steps: dict[str, list[Any]] = {
-                k: [] for k in ("prev", "start", "action", "logprob", "value", "reward", "done")
+                k: []
+                for k in ("prev", "start", "action", "logprob", "value", "reward", "done", "label")
             }
             stored: dict[str, list[Tensor]] = {k: [] for k in keys}
             sim_seconds = act_seconds = 0.0
@@ -453,12 +484,15 @@ def train(args: Args) -> dict[str, Any]:
                 sim_tick = time.perf_counter()
                 observation, reward, terminated, truncated, infos = envs.step(action.cpu().numpy())
                 sim_seconds += time.perf_counter() - sim_tick
+                if imitate:
+                    labels = expert_labels(infos, args.envs)
                 done = np.logical_or(terminated, truncated)
                 returns += reward
                 for index, metrics in finished_episodes(infos):
                     window.append({**metrics, "return": float(returns[index])})
                     returns[index] = 0.0
                 for key, item in (
+                    ("label", torch.as_tensor(labels)),
                     ("prev", prev_action),
                     ("start", start),
                     ("action", action.cpu()),
@@ -487,6 +521,7 @@ def train(args: Args) -> dict[str, Any]:
                 rewards=torch.stack(steps["reward"]),
                 dones=torch.stack(steps["done"]),
                 initial_state=initial_state,
+                expert_actions=torch.stack(steps["label"]) if imitate else torch.empty(0),
             )
             compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
             update_tick = time.perf_counter()
@@ -513,6 +548,7 @@ def train(args: Args) -> dict[str, Any]:
                 "clip": clip,
                 "max_geodesic": stage["online_max_geodesic"],
                 **_window_means(window, device),
+                "expert_agreement": _agreement(rollout),
                 **stats,
             }
             bar.update(frames_per_update)
@@ -551,18 +587,27 @@ def train(args: Args) -> dict[str, Any]:
 
 def _start_episodes(
     envs: VectorEnv, policy: RecurrentPolicy, args: Args, update: int, rank: int
-) -> tuple[dict[str, Any], State, Tensor, Tensor, np.ndarray]:
-    """Reset every environment: first observations, memories, previous actions, episode-start
-    flags and running returns."""
-    observation, _ = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
+) -> tuple[dict[str, Any], np.ndarray, State, Tensor, Tensor, np.ndarray]:
+    """Reset every environment: first observations, the expert's labels for them, memories,
+    previous actions, episode-start flags and running returns."""
+    observation, infos = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
     prev_action = torch.zeros(args.envs, dtype=torch.long)
     return (
         observation,
+        expert_labels(infos, args.envs),
         policy.initial_state(args.envs),
         prev_action,
         torch.ones(args.envs),
         np.zeros(args.envs),
     )
+
+
+def _agreement(rollout: Rollout) -> float:
+    """The fraction of labelled steps where the learner took the expert's action (nan: none)."""
+    labelled = rollout.expert_actions != NO_LABEL
+    if not rollout.expert_actions.numel() or not labelled.any():
+        return math.nan
+    return float((rollout.actions[labelled] == rollout.expert_actions[labelled]).float().mean())
 
 
 def _window_means(window: deque[dict[str, float]], device: torch.device) -> dict[str, float]:

@@ -19,6 +19,11 @@ from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
 from multion_agents.agent import merge_overrides
 
 SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
+EXPERT_ACTION = "expert_action"
+"""The info key of an imitation label: the expert's action for the observation returned with it
+(:mod:`.expert`)."""
+NO_LABEL = -1
+"""The label of a step without one (the last step of an episode), left out of the loss."""
 
 
 def training_env_config(
@@ -91,19 +96,31 @@ def stage_config(env_config: dict[str, Any], curriculum: Curriculum, frames: int
     return env_config
 
 
-def _make_local_env(config: dict[str, Any]) -> gym.Env:
+def _make_local_env(config: dict[str, Any], expert: bool = False) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
     from multion.api.config_io import env_config_from_dict
     from multion.task.env import MultiONEnv
 
-    return MultiONEnv(env_config_from_dict(config))
+    if not expert:
+        return MultiONEnv(env_config_from_dict(config))
+    from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
+
+    sensors = list(dict.fromkeys([*config["sensors"], *EXPERT_SENSORS]))
+    return OraclePlannerLabels(MultiONEnv(env_config_from_dict({**config, "sensors": sensors})))
 
 
 def make_vector_env(
-    config: dict[str, Any], num_envs: int, servers: Sequence[str] = ()
+    config: dict[str, Any], num_envs: int, servers: Sequence[str] = (), expert: bool = False
 ) -> VectorEnv:
-    """``num_envs`` environments: on ``servers`` (spread evenly) or in local worker processes."""
+    """``num_envs`` environments: on ``servers`` (spread evenly) or in local worker processes.
+    ``expert``: local environments whose infos carry the oracle planner's action
+    (:mod:`.expert`)."""
     if servers:
+        if expert:
+            raise ValueError(
+                "--imitation-coef labels steps with a planner beside the simulator: it needs "
+                "local environments, not --server"
+            )
         from multion_client.vector import RemoteVectorEnv
 
         counts = [
@@ -113,10 +130,20 @@ def make_vector_env(
             raise ValueError(f"{num_envs} envs cannot be spread over {len(servers)} servers")
         return RemoteVectorEnv(list(servers), counts, config)
     return AsyncVectorEnv(
-        [functools.partial(_make_local_env, config) for _ in range(num_envs)],
+        [functools.partial(_make_local_env, config, expert) for _ in range(num_envs)],
         context="spawn",
         autoreset_mode=AutoresetMode.SAME_STEP,
     )
+
+
+def expert_labels(infos: dict[str, Any], num_envs: int) -> np.ndarray:
+    """The expert's action for each environment's current observation (``NO_LABEL`` where
+    there is none)."""
+    labels = np.full(num_envs, NO_LABEL, dtype=np.int64)
+    if EXPERT_ACTION in infos:
+        mask = np.asarray(infos[f"_{EXPERT_ACTION}"], dtype=bool)
+        labels[mask] = np.asarray(infos[EXPERT_ACTION])[mask]
+    return labels
 
 
 def finished_episodes(infos: dict[str, Any]) -> list[tuple[int, dict[str, float]]]:

@@ -1,0 +1,75 @@
+"""Expert labels for imitation: the oracle planner's action at every state a learner visits.
+
+``multion train --imitation-coef C`` adds ``C`` × the cross-entropy between the policy and
+these labels to PPO's loss. The learner stays in control: the labels are the expert's actions
+on the learner's own states, as in DAgger (Ross et al., 2011) with β = 0, so the learner is
+also taught how to recover from its own mistakes. The expert is ``oracle-planner``
+(:mod:`multion_agents.baselines.oracle_planner`), which plans on a 0.1 m oracle map of the whole
+house and so uses information the learner's sensors do not give; it runs beside each simulator,
+in the training worker processes, and only during training.
+"""
+
+from __future__ import annotations
+
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+
+from multion.task.env import MultiONEnv
+from multion.task.maps import MapConfig, OracleMap
+from multion_agents.baselines.oracle_planner import OraclePlannerAgent
+from multion_agents.learned.rollout_envs import EXPERT_ACTION
+
+EXPERT_SENSORS = ("goal", "gps", "compass")
+"""Sensors the expert reads each step (the training env adds them; the policy ignores them)."""
+
+
+class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]):
+    """Adds ``info["expert_action"]`` to every reset and to every step that does not end the
+    episode: what ``oracle-planner`` would do next."""
+
+    def __init__(self, env: MultiONEnv) -> None:
+        missing = [s for s in EXPERT_SENSORS if s not in env.config.sensors]
+        if missing:
+            raise ValueError(f"the expert needs sensors {missing} in the env config")
+        super().__init__(env)
+        self._multion = env
+        self._planner = OraclePlannerAgent()
+        maps = OraclePlannerAgent.config_overrides["maps"]
+        self._map_config = MapConfig(cell_size=maps["cell_size"], ego_size=maps["ego_size"])
+        self._oracle: OracleMap | None = None
+        self._oracle_grid: object | None = None
+        self._start_map = np.zeros((0, 0, 2), dtype=np.uint8)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        observation, info = self.env.reset(seed=seed, options=options)
+        self._planner.reset()
+        self._start_map = self._planner_map()
+        info[EXPERT_ACTION] = self._label(observation)
+        return observation, info
+
+    def step(
+        self, action: int
+    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
+        self._planner.took(int(action))
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        if not (terminated or truncated):
+            info[EXPERT_ACTION] = self._label(observation)
+        return observation, reward, terminated, truncated, info
+
+    def _planner_map(self) -> np.ndarray:
+        """The oracle map the planner reads at the start: its own cells, around the start."""
+        env = self._multion
+        grid, episode = env.sim.grid, env.episode
+        assert grid is not None and episode is not None
+        if self._oracle is None or self._oracle_grid is not grid:  # a new scene
+            self._oracle, self._oracle_grid = OracleMap(grid, self._map_config), grid
+        self._oracle.set_goals((*episode.goals, *episode.distractors))
+        return self._oracle.egocentric(self._oracle.layers, env.sim.position, env.sim.yaw)
+
+    def _label(self, observation: dict[str, np.ndarray]) -> int:
+        seen = {key: observation[key] for key in EXPERT_SENSORS}
+        return int(self._planner.act({**seen, "oracle_map": self._start_map}))
