@@ -35,7 +35,8 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
             raise ValueError(f"the expert needs sensors {missing} in the env config")
         super().__init__(env)
         self._multion = env
-        self._planner = OraclePlannerAgent()
+        self.planner = OraclePlannerAgent()
+        """The expert (its ``replans`` and ``searches`` count what it had to redo)."""
         maps = OraclePlannerAgent.config_overrides["maps"]
         self._map_config = MapConfig(cell_size=maps["cell_size"], ego_size=maps["ego_size"])
         self._oracle: OracleMap | None = None
@@ -46,7 +47,7 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         observation, info = self.env.reset(seed=seed, options=options)
-        self._planner.reset()
+        self.planner.reset()
         self._start_map = self._planner_map()
         info[EXPERT_ACTION] = self._label(observation)
         return observation, info
@@ -54,7 +55,7 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
     def step(
         self, action: int
     ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
-        self._planner.took(int(action))
+        self.planner.took(int(action))
         observation, reward, terminated, truncated, info = self.env.step(action)
         if not (terminated or truncated):
             info[EXPERT_ACTION] = self._label(observation)
@@ -72,4 +73,4 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
 
     def _label(self, observation: dict[str, np.ndarray]) -> int:
         seen = {key: observation[key] for key in EXPERT_SENSORS}
-        return int(self._planner.act({**seen, "oracle_map": self._start_map}))
+        return int(self.planner.act({**seen, "oracle_map": self._start_map}))

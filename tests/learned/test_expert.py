@@ -1,0 +1,165 @@
+"""The imitation labels (``learned/expert.py``) and the PPO loss that uses them."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from multion.api.config_io import env_config_from_dict
+from multion.task.env import MultiONEnv
+from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
+from multion_agents.learned.ppo import Args, Rollout, compute_gae, ppo_loss, train
+from multion_agents.learned.rollout_envs import EXPERT_ACTION, NO_LABEL, expert_labels
+from multion_client.constants import Action
+
+
+def _room_env(dataset: Path, sensors: tuple[str, ...] = ("rgb", *EXPERT_SENSORS)) -> MultiONEnv:
+    config = {
+        "task": {"num_goals": 1},
+        "camera": {"width": 16, "height": 16},
+        "sensors": list(sensors),
+        "dataset": str(dataset),
+        "split": "train",
+    }
+    return MultiONEnv(env_config_from_dict(config))
+
+
+def test_following_the_labels_finds_every_goal(room_dataset: Path) -> None:
+    env = OraclePlannerLabels(_room_env(room_dataset))
+    for index in range(4):
+        _, info = env.reset(options={"episode_index": index})
+        for _ in range(200):
+            _, _, terminated, truncated, info = env.step(info[EXPERT_ACTION])
+            if terminated or truncated:
+                break
+        assert env.unwrapped.metrics()["success"] == 1.0
+        assert EXPERT_ACTION not in info  # no label for the observation that ends the episode
+
+
+def test_labels_follow_the_learners_own_steps(room_dataset: Path) -> None:
+    """The learner turns where the expert would step: the expert is told what was done, so it
+    does not take a turn for a refused step (which would make it re-plan), and it still leads
+    to the goal from wherever the learner went."""
+    env = OraclePlannerLabels(_room_env(room_dataset))
+    _, info = env.reset(options={"episode_index": 0})
+    for _ in range(12):  # a full circle of 30° turns
+        _, _, terminated, _, info = env.step(int(Action.TURN_LEFT))
+        assert not terminated
+    assert env.planner.replans == 0
+    for _ in range(200):
+        _, _, terminated, truncated, info = env.step(info[EXPERT_ACTION])
+        if terminated or truncated:
+            break
+    assert env.unwrapped.metrics()["success"] == 1.0
+
+
+def test_the_expert_needs_its_sensors(room_dataset: Path) -> None:
+    with pytest.raises(ValueError, match=r"the expert needs sensors \['gps', 'compass'\]"):
+        OraclePlannerLabels(_room_env(room_dataset, sensors=("rgb", "goal")))
+
+
+def test_vector_infos_become_labels_with_gaps() -> None:
+    infos = {EXPERT_ACTION: np.array([2, 0, 3]), f"_{EXPERT_ACTION}": np.array([True, False, True])}
+    assert expert_labels(infos, 3).tolist() == [2, NO_LABEL, 3]
+    assert expert_labels({}, 2).tolist() == [NO_LABEL, NO_LABEL]
+
+
+def _random_rollout(policy_sensors: tuple[str, ...], steps: int = 6, envs: int = 2) -> Rollout:
+    from multion.sim.camera import CameraConfig
+    from multion.task.env import EnvConfig, build_observation_space
+
+    space = build_observation_space(
+        EnvConfig(sensors=policy_sensors, camera=CameraConfig(width=64, height=64))
+    )
+    space.seed(3)
+    frames = {
+        key: torch.stack(
+            [torch.stack([torch.as_tensor(space[key].sample()) for _ in range(envs)])
+             for _ in range(steps)]
+        )
+        for key in policy_sensors
+    }  # fmt: skip
+    generator = torch.Generator().manual_seed(3)
+    actions = torch.randint(0, 4, (steps, envs), generator=generator)
+    rollout = Rollout(
+        frames=frames,
+        prev_actions=actions.roll(1, 0),
+        starts=torch.zeros(steps, envs),
+        actions=actions,
+        logprobs=torch.full((steps, envs), math.log(0.25)),
+        values=torch.randn(steps, envs, generator=generator),
+        rewards=torch.randn(steps, envs, generator=generator),
+        dones=torch.zeros(steps, envs),
+        initial_state={},
+    )
+    rollout.starts[0] = 1.0
+    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
+    return rollout
+
+
+def test_the_imitation_loss_is_the_cross_entropy_of_the_labelled_steps() -> None:
+    from multion_agents.learned.checkpoint import build_policy
+
+    sensors = ("rgb", "depth", "goal", "oracle_map")
+    config = {"sensors": list(sensors), "camera": {"width": 64, "height": 64}}
+    torch.manual_seed(0)
+    policy = build_policy("oracle-map", config)
+    rollout = _random_rollout(sensors)
+    rollout.initial_state = policy.initial_state(2)
+    labels = torch.randint(0, 4, rollout.actions.shape, generator=torch.Generator().manual_seed(1))
+    labels[0, 0] = labels[2, 1] = NO_LABEL
+    rollout.expert_actions = labels
+    plain, _ = ppo_loss(policy, rollout, 0.2, Args())
+    mixed, terms = ppo_loss(policy, rollout, 0.2, Args(imitation_coef=2.0))
+    out = policy(rollout.frames, rollout.prev_actions, rollout.starts, rollout.initial_state)
+    keep = labels != NO_LABEL
+    expected = torch.nn.functional.cross_entropy(out.logits[keep], labels[keep])
+    assert terms["imitation_loss"] is not None
+    assert float(terms["imitation_loss"]) == pytest.approx(float(expected), rel=1e-5)
+    assert float(mixed - plain) == pytest.approx(2.0 * float(expected), rel=1e-4)
+    rollout.expert_actions = torch.full_like(labels, NO_LABEL)
+    unlabelled, terms = ppo_loss(policy, rollout, 0.2, Args(imitation_coef=2.0))
+    assert terms["imitation_loss"] is None and float(unlabelled) == pytest.approx(float(plain))
+
+
+def test_training_with_imitation_logs_its_loss_and_agreement(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    args = Args(
+        agent="oracle-map", task="1-on", frames=128, envs=2, rollout_steps=32, image_size=36,
+        dataset=str(room_dataset), max_steps=40, out=str(tmp_path / "run"), progress=False,
+        tensorboard=False, imitation_coef=1.0,
+    )  # fmt: skip
+    train(args)
+    rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
+    assert len(rows) == 2
+    for row in rows:
+        assert math.isfinite(float(row["imitation_loss"])) and float(row["imitation_loss"]) > 0
+        assert 0.0 <= float(row["expert_agreement"]) <= 1.0
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--imitation-coef", "-1"], "--imitation-coef must be in \\[0, 100\\], got -1.0"),
+        (["--imitation-coef", "101"], "--imitation-coef must be in \\[0, 100\\], got 101.0"),
+        (
+            ["--imitation-coef", "1", "--server", "http://127.0.0.1:9"],
+            "needs local environments, not --server",
+        ),
+    ],
+)
+def test_train_cli_rejects_bad_imitation(tmp_path: Path, capsys, flags, message) -> None:
+    import re
+
+    from multion.cli import main
+
+    code = main(["train", *flags, "--frames", "64", "--out", str(tmp_path)])
+    assert code == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "checkpoint.pt").exists()
