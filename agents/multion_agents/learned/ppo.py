@@ -472,6 +472,7 @@ def train(args: Args) -> dict[str, Any]:
                 frame = frames_to_tensors(observation, keys)
                 for k in keys:
                     stored[k].append(frame[k])
+                steps["label"].append(torch.as_tensor(labels))  # the label of this frame
                 act_tick = time.perf_counter()
                 with torch.no_grad():
                     action, logprob, value, state = policy.get_action_and_value(
@@ -492,7 +493,6 @@ def train(args: Args) -> dict[str, Any]:
                     window.append({**metrics, "return": float(returns[index])})
                     returns[index] = 0.0
                 for key, item in (
-                    ("label", torch.as_tensor(labels)),
                     ("prev", prev_action),
                     ("start", start),
                     ("action", action.cpu()),
