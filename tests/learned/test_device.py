@@ -11,7 +11,8 @@ from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, build_observation_space
 from multion_agents.learned.gru import MaskedGRU
 from multion_agents.learned.models import MODELS
-from multion_agents.learned.ppo import Args, Rollout, compute_gae, ppo_loss
+from multion_agents.learned.ppo import Args, ppo_loss
+from multion_agents.learned.rollout import Rollout, compute_gae
 
 META = torch.device("meta")
 SIZE = 48

@@ -13,7 +13,8 @@ import torch
 from multion.api.config_io import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
-from multion_agents.learned.ppo import Args, Rollout, compute_gae, ppo_loss, train
+from multion_agents.learned.ppo import Args, ppo_loss, train
+from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import EXPERT_ACTION, NO_LABEL, expert_labels
 from multion_client.constants import Action
 
@@ -100,6 +101,55 @@ def _random_rollout(policy_sensors: tuple[str, ...], steps: int = 6, envs: int =
     rollout.starts[0] = 1.0
     compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
     return rollout
+
+
+class _CountingEnvs:
+    """A stand-in vector env whose ``goal`` observation counts the steps of each env, whose
+    label for an observation is that count mod 4, and whose episodes last 3 steps."""
+
+    num_envs = 2
+
+    def __init__(self, space) -> None:
+        self.space, self.count = space, np.zeros(2, dtype=np.int64)
+
+    def _observe(self) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        frames = {k: np.stack([self.space[k].sample() for _ in range(2)]) for k in self.space}
+        frames["goal"] = self.count % 8
+        labels = {EXPERT_ACTION: self.count % 4, f"_{EXPERT_ACTION}": np.ones(2, dtype=bool)}
+        return frames, labels
+
+    def reset(self, seed: int | None = None):
+        self.count[:] = 0
+        return self._observe()
+
+    def step(self, actions: np.ndarray):
+        self.count += 1
+        done = self.count % 3 == 0
+        frames, infos = self._observe()
+        return frames, np.zeros(2), done, np.zeros(2, dtype=bool), infos
+
+
+def test_a_rollout_stores_each_label_with_the_frame_it_labels() -> None:
+    from collections import deque
+
+    from multion.sim.camera import CameraConfig
+    from multion.task.env import EnvConfig, build_observation_space
+    from multion_agents.learned.checkpoint import build_policy
+
+    sensors = ("rgb", "depth", "goal", "oracle_map")
+    space = build_observation_space(
+        EnvConfig(sensors=sensors, camera=CameraConfig(width=36, height=36))
+    )
+    space.seed(0)
+    policy = build_policy(
+        "oracle-map", {"sensors": list(sensors), "camera": {"width": 36, "height": 36}}
+    )
+    envs = _CountingEnvs(space)
+    live = start_episodes(envs, policy, seed=0)  # type: ignore[arg-type]
+    rollout, _, _ = collect(envs, policy, live, 7, deque(), imitate=True)  # type: ignore[arg-type]
+    assert rollout.expert_actions.shape == (7, 2)
+    assert torch.equal(rollout.expert_actions, rollout.frames["goal"] % 4)
+    assert rollout.expert_actions[:, 0].tolist() == [0, 1, 2, 3, 0, 1, 2]
 
 
 def test_the_imitation_loss_is_the_cross_entropy_of_the_labelled_steps() -> None:

@@ -24,15 +24,14 @@ from multion_agents.learned.checkpoint import (
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import (
     Args,
-    Rollout,
     _save,
-    compute_gae,
     ppo_loss,
     ppo_update,
     schedule,
     set_found_prior,
     train,
 )
+from multion_agents.learned.rollout import Rollout, compute_gae
 
 SIZE = 64
 

@@ -21,10 +21,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 import torch.distributed as dist
-from gymnasium.vector import VectorEnv
 from torch import Tensor, nn
 from torch.distributions import Categorical
 from tqdm import tqdm
@@ -39,14 +37,13 @@ from multion_agents.learned.checkpoint import (
 )
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
-from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
+from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import (
     NO_LABEL,
     SUMMARY_METRICS,
     Curriculum,
     check_curriculum,
-    expert_labels,
-    finished_episodes,
     make_vector_env,
     stage_config,
     training_env_config,
@@ -137,40 +134,6 @@ class Args:
     progress: bool = True
     extra: dict[str, Any] = field(default_factory=dict)
     """Free-form notes stored in the checkpoint (e.g. the command line)."""
-
-
-@dataclass
-class Rollout:
-    """``T`` steps of ``E`` environments, everything (T, E, ...) except the initial state."""
-
-    frames: dict[str, Tensor]
-    prev_actions: Tensor
-    starts: Tensor
-    actions: Tensor
-    logprobs: Tensor
-    values: Tensor
-    rewards: Tensor
-    dones: Tensor
-    initial_state: State
-    advantages: Tensor = field(default_factory=lambda: torch.empty(0))
-    returns: Tensor = field(default_factory=lambda: torch.empty(0))
-    expert_actions: Tensor = field(default_factory=lambda: torch.empty(0, dtype=torch.long))
-    """The expert's action at each step (``expert.NO_LABEL`` where none); empty: no imitation."""
-
-
-def compute_gae(rollout: Rollout, next_value: Tensor, gamma: float, lam: float) -> None:
-    """Generalised advantage estimation; ``dones[t]`` ends the episode after step t."""
-    steps = rollout.rewards.shape[0]
-    advantages = torch.zeros_like(rollout.rewards)
-    last = torch.zeros_like(next_value)
-    for t in reversed(range(steps)):
-        following = next_value if t == steps - 1 else rollout.values[t + 1]
-        alive = 1.0 - rollout.dones[t]
-        delta = rollout.rewards[t] + gamma * following * alive - rollout.values[t]
-        last = delta + gamma * lam * alive * last
-        advantages[t] = last
-    rollout.advantages = advantages
-    rollout.returns = advantages + rollout.values
 
 
 def set_found_prior(policy: RecurrentPolicy, probability: float) -> None:
@@ -436,11 +399,8 @@ def train(args: Args) -> dict[str, Any]:
     envs = make_vector_env(stage, args.envs, servers, expert=imitate)
     log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
     window: deque[dict[str, float]] = deque(maxlen=100)
-    keys = policy.train_sensors
     try:
-        observation, labels, state, prev_action, start, returns = _start_episodes(
-            envs, policy, args, update, rank
-        )
+        live = start_episodes(envs, policy, _reset_seed(args, update, rank))
         bar = tqdm(
             total=total_updates * frames_per_update,
             initial=frames,
@@ -457,71 +417,10 @@ def train(args: Args) -> dict[str, Any]:
                 envs.close()
                 stage = wanted
                 envs = make_vector_env(stage, args.envs, servers, expert=imitate)
-                observation, labels, state, prev_action, start, returns = _start_episodes(
-                    envs, policy, args, update, rank
-                )
+                live = start_episodes(envs, policy, _reset_seed(args, update, rank))
             tick = time.perf_counter()
-            initial_state = {k: v.detach().cpu().clone() for k, v in state.items()}
-            steps: dict[str, list[Any]] = {
-                k: []
-                for k in ("prev", "start", "action", "logprob", "value", "reward", "done", "label")
-            }
-            stored: dict[str, list[Tensor]] = {k: [] for k in keys}
-            sim_seconds = act_seconds = 0.0
-            for _ in range(args.rollout_steps):
-                frame = frames_to_tensors(observation, keys)
-                for k in keys:
-                    stored[k].append(frame[k])
-                steps["label"].append(torch.as_tensor(labels))  # the label of this frame
-                act_tick = time.perf_counter()
-                with torch.no_grad():
-                    action, logprob, value, state = policy.get_action_and_value(
-                        {k: v.to(device) for k, v in frame.items()},
-                        prev_action.to(device),
-                        start.to(device),
-                        state,
-                    )
-                act_seconds += time.perf_counter() - act_tick
-                sim_tick = time.perf_counter()
-                observation, reward, terminated, truncated, infos = envs.step(action.cpu().numpy())
-                sim_seconds += time.perf_counter() - sim_tick
-                if imitate:
-                    labels = expert_labels(infos, args.envs)
-                done = np.logical_or(terminated, truncated)
-                returns += reward
-                for index, metrics in finished_episodes(infos):
-                    window.append({**metrics, "return": float(returns[index])})
-                    returns[index] = 0.0
-                for key, item in (
-                    ("prev", prev_action),
-                    ("start", start),
-                    ("action", action.cpu()),
-                    ("logprob", logprob.cpu()),
-                    ("value", value.cpu()),
-                    ("reward", torch.as_tensor(reward, dtype=torch.float32)),
-                    ("done", torch.as_tensor(done, dtype=torch.float32)),
-                ):
-                    steps[key].append(item)
-                prev_action, start = action.cpu(), torch.as_tensor(done, dtype=torch.float32)
-            with torch.no_grad():
-                frame = frames_to_tensors(observation, keys)
-                next_value = policy.get_value(
-                    {k: v.to(device) for k, v in frame.items()},
-                    prev_action.to(device),
-                    start.to(device),
-                    state,
-                ).cpu()
-            rollout = Rollout(
-                frames={k: torch.stack(v) for k, v in stored.items()},
-                prev_actions=torch.stack(steps["prev"]),
-                starts=torch.stack(steps["start"]),
-                actions=torch.stack(steps["action"]),
-                logprobs=torch.stack(steps["logprob"]),
-                values=torch.stack(steps["value"]),
-                rewards=torch.stack(steps["reward"]),
-                dones=torch.stack(steps["done"]),
-                initial_state=initial_state,
-                expert_actions=torch.stack(steps["label"]) if imitate else torch.empty(0),
+            rollout, next_value, timing = collect(
+                envs, policy, live, args.rollout_steps, window, imitate
             )
             compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
             update_tick = time.perf_counter()
@@ -541,8 +440,8 @@ def train(args: Args) -> dict[str, Any]:
                 "update": update,
                 "frames": frames,
                 "fps": frames_per_update / seconds,
-                "sim_seconds": sim_seconds,
-                "act_seconds": act_seconds,
+                "sim_seconds": timing.sim_seconds,
+                "act_seconds": timing.act_seconds,
                 "update_seconds": update_seconds,
                 "learning_rate": learning_rate,
                 "clip": clip,
@@ -585,21 +484,9 @@ def train(args: Args) -> dict[str, Any]:
             log.close()
 
 
-def _start_episodes(
-    envs: VectorEnv, policy: RecurrentPolicy, args: Args, update: int, rank: int
-) -> tuple[dict[str, Any], np.ndarray, State, Tensor, Tensor, np.ndarray]:
-    """Reset every environment: first observations, the expert's labels for them, memories,
-    previous actions, episode-start flags and running returns."""
-    observation, infos = envs.reset(seed=args.seed * 100_003 + update * 1_009 + rank * args.envs)
-    prev_action = torch.zeros(args.envs, dtype=torch.long)
-    return (
-        observation,
-        expert_labels(infos, args.envs),
-        policy.initial_state(args.envs),
-        prev_action,
-        torch.ones(args.envs),
-        np.zeros(args.envs),
-    )
+def _reset_seed(args: Args, update: int, rank: int) -> int:
+    """The seed of a reset of all of this rank's environments (at a start, resume or stage)."""
+    return args.seed * 100_003 + update * 1_009 + rank * args.envs
 
 
 def _agreement(rollout: Rollout) -> float:
