@@ -213,3 +213,13 @@ def test_train_cli_rejects_bad_imitation(tmp_path: Path, capsys, flags, message)
     assert code == 2
     assert re.search(message, capsys.readouterr().err)
     assert not (tmp_path / "checkpoint.pt").exists()
+
+
+def test_labels_are_never_lattice_search_moves(room_dataset: Path) -> None:
+    """Turning on the spot returns to one position every step; the planner's own loop breaker
+    would start a search there and label its moves."""
+    env = OraclePlannerLabels(_room_env(room_dataset))
+    env.reset(options={"episode_index": 1})
+    for _ in range(24):
+        env.step(int(Action.TURN_RIGHT))
+    assert env.planner.searches == 0
