@@ -84,7 +84,13 @@ class OracleMap:
         return row, col
 
     def egocentric(self, layers: np.ndarray, position: np.ndarray, yaw: float) -> np.ndarray:
-        """Crop ``layers`` (rows, cols, C) around the agent, rotated so that ahead is up."""
+        """Crop ``layers`` (rows, cols, C) around the agent, rotated so that ahead is up.
+
+        Each crop cell takes the map cell under its centre. At angles other than multiples of
+        90° that sampling skips some map cells, so an object (channel 1, one cell each) would
+        vanish from the crop at some poses (10 % of poses within 8 m of the goal in the v3 val
+        houses): object cells are therefore placed by their centres instead, and never skipped.
+        """
         cos, sin = math.cos(yaw), math.sin(yaw)
         x = position[0] + self._forward * cos - self._left * sin
         y = position[1] + self._forward * sin + self._left * cos
@@ -92,7 +98,27 @@ class OracleMap:
         ok = (rows >= 0) & (rows < layers.shape[0]) & (cols >= 0) & (cols < layers.shape[1])
         out = np.zeros((*rows.shape, layers.shape[2]), dtype=layers.dtype)
         out[ok] = layers[rows[ok], cols[ok]]
+        if layers.shape[2] > 1:
+            out[..., 1] = 0
+            self._place_objects(out, layers, position, cos, sin)
         return out
+
+    def _place_objects(
+        self, out: np.ndarray, layers: np.ndarray, position: np.ndarray, cos: float, sin: float
+    ) -> None:
+        """Write the object cells of ``layers`` into the crop ``out`` at their centres' cells."""
+        rows, cols = np.nonzero(layers[..., 1])
+        if rows.size == 0:
+            return
+        size = self.coarse_size
+        dx = self.grid.origin[0] + (cols + 0.5) * size - position[0]
+        dy = self.grid.origin[1] + (rows + 0.5) * size - position[1]
+        half = self.config.ego_size // 2
+        ego_rows = half - np.rint((dx * cos + dy * sin) / size).astype(np.int64)
+        ego_cols = half - np.rint((-dx * sin + dy * cos) / size).astype(np.int64)
+        inside = (ego_rows >= 0) & (ego_rows < out.shape[0]) & (ego_cols >= 0)
+        inside &= ego_cols < out.shape[1]
+        out[ego_rows[inside], ego_cols[inside], 1] = layers[rows[inside], cols[inside], 1]
 
 
 def visible_points(
