@@ -9,12 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from rollouts import SIZE, random_rollout, space_for
 
 from multion.api.config_io import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
+from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import Args, ppo_loss, train
-from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
+from multion_agents.learned.rollout import collect, start_episodes
 from multion_agents.learned.rollout_envs import EXPERT_ACTION, NO_LABEL, expert_labels
 from multion_client.constants import Action
 
@@ -70,37 +72,12 @@ def test_vector_infos_become_labels_with_gaps() -> None:
     assert expert_labels({}, 2).tolist() == [NO_LABEL, NO_LABEL]
 
 
-def _random_rollout(policy_sensors: tuple[str, ...], steps: int = 6, envs: int = 2) -> Rollout:
-    from multion.sim.camera import CameraConfig
-    from multion.task.env import EnvConfig, build_observation_space
-
-    space = build_observation_space(
-        EnvConfig(sensors=policy_sensors, camera=CameraConfig(width=64, height=64))
-    )
-    space.seed(3)
-    frames = {
-        key: torch.stack(
-            [torch.stack([torch.as_tensor(space[key].sample()) for _ in range(envs)])
-             for _ in range(steps)]
-        )
-        for key in policy_sensors
-    }  # fmt: skip
-    generator = torch.Generator().manual_seed(3)
-    actions = torch.randint(0, 4, (steps, envs), generator=generator)
-    rollout = Rollout(
-        frames=frames,
-        prev_actions=actions.roll(1, 0),
-        starts=torch.zeros(steps, envs),
-        actions=actions,
-        logprobs=torch.full((steps, envs), math.log(0.25)),
-        values=torch.randn(steps, envs, generator=generator),
-        rewards=torch.randn(steps, envs, generator=generator),
-        dones=torch.zeros(steps, envs),
-        initial_state={},
-    )
-    rollout.starts[0] = 1.0
-    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
-    return rollout
+def _oracle_map_config() -> dict[str, object]:
+    """The env config of ``space_for("oracle-map")``, for ``build_policy``."""
+    return {
+        "sensors": list(MODELS["oracle-map"].train_sensors),
+        "camera": {"width": SIZE, "height": SIZE},
+    }
 
 
 class _CountingEnvs:
@@ -132,21 +109,14 @@ class _CountingEnvs:
 def test_a_rollout_stores_each_label_with_the_frame_it_labels() -> None:
     from collections import deque
 
-    from multion.sim.camera import CameraConfig
-    from multion.task.env import EnvConfig, build_observation_space
     from multion_agents.learned.checkpoint import build_policy
 
-    sensors = ("rgb", "depth", "goal", "oracle_map")
-    space = build_observation_space(
-        EnvConfig(sensors=sensors, camera=CameraConfig(width=36, height=36))
-    )
+    space = space_for("oracle-map")
     space.seed(0)
-    policy = build_policy(
-        "oracle-map", {"sensors": list(sensors), "camera": {"width": 36, "height": 36}}
-    )
+    policy = build_policy("oracle-map", _oracle_map_config())
     envs = _CountingEnvs(space)
     live = start_episodes(envs, policy, seed=0)  # type: ignore[arg-type]
-    rollout, _, _ = collect(envs, policy, live, 7, deque(), imitate=True)  # type: ignore[arg-type]
+    rollout, _, _ = collect(envs, policy, live, 7, deque())  # type: ignore[arg-type]
     assert rollout.expert_actions.shape == (7, 2)
     assert torch.equal(rollout.expert_actions, rollout.frames["goal"] % 4)
     assert rollout.expert_actions[:, 0].tolist() == [0, 1, 2, 3, 0, 1, 2]
@@ -155,11 +125,9 @@ def test_a_rollout_stores_each_label_with_the_frame_it_labels() -> None:
 def test_the_imitation_loss_is_the_cross_entropy_of_the_labelled_steps() -> None:
     from multion_agents.learned.checkpoint import build_policy
 
-    sensors = ("rgb", "depth", "goal", "oracle_map")
-    config = {"sensors": list(sensors), "camera": {"width": 64, "height": 64}}
     torch.manual_seed(0)
-    policy = build_policy("oracle-map", config)
-    rollout = _random_rollout(sensors)
+    policy = build_policy("oracle-map", _oracle_map_config())
+    rollout = random_rollout(space_for("oracle-map"), seed=3)
     rollout.initial_state = policy.initial_state(2)
     labels = torch.randint(0, 4, rollout.actions.shape, generator=torch.Generator().manual_seed(1))
     labels[0, 0] = labels[2, 1] = NO_LABEL

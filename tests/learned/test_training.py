@@ -13,9 +13,8 @@ from pathlib import Path
 import pytest
 import torch
 import torch.multiprocessing as mp
+from rollouts import SIZE, random_rollout, sample_frames, space_for
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, build_observation_space
 from multion_agents.learned.checkpoint import (
     CheckpointError,
     load_checkpoint,
@@ -32,8 +31,6 @@ from multion_agents.learned.ppo import (
     train,
 )
 from multion_agents.learned.rollout import Rollout, compute_gae
-
-SIZE = 64
 
 
 def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **changes) -> Args:
@@ -54,25 +51,6 @@ def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **change
     return Args(**values)
 
 
-def space_for(name: str):
-    spec = MODELS[name]
-    config = EnvConfig(sensors=spec.train_sensors, camera=CameraConfig(width=SIZE, height=SIZE))
-    return build_observation_space(config)
-
-
-def sample_frames(space, steps: int, batch: int, seed: int = 0) -> dict[str, torch.Tensor]:
-    space.seed(seed)
-    return {
-        k: torch.stack(
-            [
-                torch.stack([torch.as_tensor(space[k].sample()) for _ in range(batch)])
-                for _ in range(steps)
-            ]
-        )
-        for k in space.spaces
-    }
-
-
 @pytest.mark.parametrize("name", list(MODELS))
 def test_every_model_runs_forward_and_backward_on_env_shapes(name: str) -> None:
     torch.manual_seed(0)
@@ -82,9 +60,8 @@ def test_every_model_runs_forward_and_backward_on_env_shapes(name: str) -> None:
     frames = sample_frames(space, steps, batch)
     actions = torch.randint(0, 4, (steps, batch))
     starts = torch.tensor([[1.0, 1.0], [0.0, 0.0], [0.0, 1.0]])
-    logprob, entropy, value, aux = policy.evaluate_actions(
-        frames, actions, starts, policy.initial_state(batch), actions
-    )
+    replay = policy.evaluate_actions(frames, actions, starts, policy.initial_state(batch), actions)
+    logprob, entropy, value, aux = replay.logprob, replay.entropy, replay.value, replay.auxiliary_loss
     assert logprob.shape == entropy.shape == value.shape == (steps, batch)
     loss = -logprob.mean() + value.pow(2).mean() + (aux if aux is not None else 0.0)
     loss.backward()
@@ -124,7 +101,7 @@ def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPat
     torch.manual_seed(0)
     policy = MODELS["no-map"].build(space)
     optimizer = torch.optim.Adam(policy.parameters(), lr=1e-4)
-    rollout = _rollout(space, 0)
+    rollout = random_rollout(space, 0)
     rollout.initial_state = policy.initial_state(2)
     rollout.advantages = rollout.advantages * 10 + 5
     ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1))
@@ -198,26 +175,6 @@ def test_every_model_trains_a_few_hundred_frames(
     assert any(changed)  # the optimiser moved the weights
 
 
-def _rollout(space, seed: int, steps: int = 6, envs: int = 2) -> Rollout:
-    generator = torch.Generator().manual_seed(seed)
-    frames = sample_frames(space, steps, envs, seed)
-    actions = torch.randint(0, 4, (steps, envs), generator=generator)
-    rollout = Rollout(
-        frames=frames,
-        prev_actions=actions.roll(1, 0),
-        starts=torch.zeros(steps, envs),
-        actions=actions,
-        logprobs=torch.full((steps, envs), math.log(0.25)),
-        values=torch.randn(steps, envs, generator=generator),
-        rewards=torch.randn(steps, envs, generator=generator),
-        dones=torch.zeros(steps, envs),
-        initial_state={},
-    )
-    rollout.starts[0] = 1.0
-    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
-    return rollout
-
-
 def test_resume_reproduces_the_next_update_exactly(tmp_path: Path) -> None:
     """Optimiser moments and random states survive a checkpoint: the update after a resume is
     bit-identical to the one an uninterrupted run makes on the same rollout."""
@@ -227,7 +184,7 @@ def test_resume_reproduces_the_next_update_exactly(tmp_path: Path) -> None:
     policy = MODELS[name].build(space)
     policy_state = policy.initial_state(2)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
-    first, second = _rollout(space, 1), _rollout(space, 2)
+    first, second = random_rollout(space, 1), random_rollout(space, 2)
     for rollout in (first, second):
         rollout.initial_state = policy_state
     ppo_update(policy, optimizer, first, args)
@@ -328,11 +285,11 @@ def test_replaying_a_rollout_reproduces_its_log_probs_and_values(name: str) -> N
             logprobs.append(logprob)
             values.append(value)
             prev = action
-        replay_logprob, _, replay_value, _ = policy.evaluate_actions(
+        replay = policy.evaluate_actions(
             frames, torch.stack(prevs), starts, initial, torch.stack(actions)
         )
-    assert torch.allclose(replay_logprob, torch.stack(logprobs), atol=1e-5)
-    assert torch.allclose(replay_value, torch.stack(values), atol=1e-5)
+    assert torch.allclose(replay.logprob, torch.stack(logprobs), atol=1e-5)
+    assert torch.allclose(replay.value, torch.stack(values), atol=1e-5)
 
 
 def test_a_checkpoint_is_evaluated_through_the_eval_path(

@@ -46,7 +46,6 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
         maps = OraclePlannerAgent.config_overrides["maps"]
         self._map_config = MapConfig(cell_size=maps["cell_size"], ego_size=maps["ego_size"])
         self._oracle: OracleMap | None = None
-        self._oracle_grid: object | None = None
         self._start_map = np.zeros((0, 0, 2), dtype=np.uint8)
 
     def reset(
@@ -72,8 +71,8 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
         env = self._multion
         grid, episode = env.sim.grid, env.episode
         assert grid is not None and episode is not None
-        if self._oracle is None or self._oracle_grid is not grid:  # a new scene
-            self._oracle, self._oracle_grid = OracleMap(grid, self._map_config), grid
+        if self._oracle is None or self._oracle.grid is not grid:  # a new scene
+            self._oracle = OracleMap(grid, self._map_config)
         self._oracle.set_goals((*episode.goals, *episode.distractors))
         return self._oracle.egocentric(self._oracle.layers, env.sim.position, env.sim.yaw)
 

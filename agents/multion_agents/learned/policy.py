@@ -80,6 +80,17 @@ class PolicyOutput:
     auxiliary_loss: Tensor | None
 
 
+@dataclass
+class Replay:
+    """A replayed (T, B) sequence: what PPO's loss needs of it."""
+
+    logprob: Tensor  # of the actions taken
+    entropy: Tensor
+    value: Tensor
+    auxiliary_loss: Tensor | None
+    logits: Tensor  # (T, B, A), for losses on other actions (imitation)
+
+
 class RecurrentPolicy(nn.Module):
     """Actor-critic over RGB-D, goal, previous action and a :class:`Memory` (None: no map)."""
 
@@ -253,11 +264,14 @@ class RecurrentPolicy(nn.Module):
         episode_start: Tensor,
         state: State,
         actions: Tensor,
-    ) -> tuple[Tensor, Tensor, Tensor, Tensor | None]:
-        """Replay a (T, B) sequence: log-probs of ``actions``, entropies, values, auxiliary loss."""
+    ) -> Replay:
+        """Replay a (T, B) sequence: log-probs of ``actions``, entropies, values, auxiliary loss
+        and the logits."""
         out = self(frames, prev_action, episode_start, state)
         dist = Categorical(logits=out.logits)
-        return dist.log_prob(actions), dist.entropy(), out.value, out.auxiliary_loss
+        return Replay(
+            dist.log_prob(actions), dist.entropy(), out.value, out.auxiliary_loss, out.logits
+        )
 
 
 def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...]) -> Batch:

@@ -24,7 +24,6 @@ from typing import Any
 import torch
 import torch.distributed as dist
 from torch import Tensor, nn
-from torch.distributions import Categorical
 from tqdm import tqdm
 
 from multion_agents.agent import merge_overrides
@@ -225,13 +224,14 @@ def ppo_loss(
     clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
     the entropy bonus, the model's auxiliary loss and the imitation loss; and those terms for
     logging."""
-    out = policy(batch.frames, batch.prev_actions, batch.starts, batch.initial_state)
-    actions = Categorical(logits=out.logits)
+    replay = policy.evaluate_actions(
+        batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
+    )
     logprob, entropy, value, aux = (
-        actions.log_prob(batch.actions),
-        actions.entropy(),
-        out.value,
-        out.auxiliary_loss,
+        replay.logprob,
+        replay.entropy,
+        replay.value,
+        replay.auxiliary_loss,
     )
     ratio = torch.exp(logprob - batch.logprobs)
     adv = batch.advantages
@@ -248,7 +248,7 @@ def ppo_loss(
         labelled = batch.expert_actions != NO_LABEL
         if labelled.any():
             imitation = nn.functional.cross_entropy(
-                out.logits[labelled], batch.expert_actions[labelled]
+                replay.logits[labelled], batch.expert_actions[labelled]
             )
             loss = loss + args.imitation_coef * imitation
     return loss, {
@@ -419,9 +419,7 @@ def train(args: Args) -> dict[str, Any]:
                 envs = make_vector_env(stage, args.envs, servers, expert=imitate)
                 live = start_episodes(envs, policy, _reset_seed(args, update, rank))
             tick = time.perf_counter()
-            rollout, next_value, timing = collect(
-                envs, policy, live, args.rollout_steps, window, imitate
-            )
+            rollout, next_value, timing = collect(envs, policy, live, args.rollout_steps, window)
             compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
             update_tick = time.perf_counter()
             torch.set_num_threads(update_threads)

@@ -37,7 +37,7 @@ class Rollout:
     advantages: Tensor = field(default_factory=lambda: torch.empty(0))
     returns: Tensor = field(default_factory=lambda: torch.empty(0))
     expert_actions: Tensor = field(default_factory=lambda: torch.empty(0, dtype=torch.long))
-    """The expert's action for each frame (``NO_LABEL`` where none); empty: no imitation."""
+    """The expert's action for each frame (``NO_LABEL`` where none); empty: no labels at all."""
 
 
 @dataclass
@@ -79,11 +79,11 @@ def collect(
     live: Live,
     steps: int,
     finished: deque[dict[str, float]],
-    imitate: bool = False,
 ) -> tuple[Rollout, Tensor, Timing]:
     """Play ``steps`` steps from ``live`` (updated in place) with actions sampled from
     ``policy``; the summary metrics and return of every episode that ends are appended to
-    ``finished``. Returns the rollout, the value of the observation after it, and timings."""
+    ``finished``. Returns the rollout (its expert labels all ``NO_LABEL`` when the environments
+    give none), the value of the observation after it, and timings."""
     device, keys, count = policy.device, policy.train_sensors, envs.num_envs
     timing = Timing()
     initial_state = {k: v.detach().cpu().clone() for k, v in live.state.items()}
@@ -125,8 +125,7 @@ def collect(
             columns[key].append(item)
         live.prev_action = action.cpu()
         live.start = torch.as_tensor(done, dtype=torch.float32)
-        if imitate:
-            live.labels = expert_labels(infos, count)
+        live.labels = expert_labels(infos, count)
     with torch.no_grad():
         frame = frames_to_tensors(live.observation, keys)
         next_value = policy.get_value(
@@ -145,9 +144,7 @@ def collect(
         rewards=torch.stack(columns["reward"]),
         dones=torch.stack(columns["done"]),
         initial_state=initial_state,
-        expert_actions=torch.stack(columns["label"])
-        if imitate
-        else torch.empty(0, dtype=torch.long),
+        expert_actions=torch.stack(columns["label"]),
     )
     return rollout, next_value, timing
 

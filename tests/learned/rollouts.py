@@ -1,0 +1,54 @@
+"""Observation spaces and random rollouts shared by the learned-agent tests."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from multion.sim.camera import CameraConfig
+from multion.task.env import EnvConfig, build_observation_space
+from multion_agents.learned.models import MODELS
+from multion_agents.learned.rollout import Rollout, compute_gae
+
+SIZE = 64
+
+
+def space_for(name: str):
+    spec = MODELS[name]
+    config = EnvConfig(sensors=spec.train_sensors, camera=CameraConfig(width=SIZE, height=SIZE))
+    return build_observation_space(config)
+
+
+def sample_frames(space, steps: int, batch: int, seed: int = 0) -> dict[str, torch.Tensor]:
+    space.seed(seed)
+    return {
+        k: torch.stack(
+            [
+                torch.stack([torch.as_tensor(space[k].sample()) for _ in range(batch)])
+                for _ in range(steps)
+            ]
+        )
+        for k in space.spaces
+    }
+
+
+def random_rollout(space, seed: int, steps: int = 6, envs: int = 2) -> Rollout:
+    """Random frames, actions, values and rewards, with advantages; ``initial_state`` empty."""
+    generator = torch.Generator().manual_seed(seed)
+    frames = sample_frames(space, steps, envs, seed)
+    actions = torch.randint(0, 4, (steps, envs), generator=generator)
+    rollout = Rollout(
+        frames=frames,
+        prev_actions=actions.roll(1, 0),
+        starts=torch.zeros(steps, envs),
+        actions=actions,
+        logprobs=torch.full((steps, envs), math.log(0.25)),
+        values=torch.randn(steps, envs, generator=generator),
+        rewards=torch.randn(steps, envs, generator=generator),
+        dones=torch.zeros(steps, envs),
+        initial_state={},
+    )
+    rollout.starts[0] = 1.0
+    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
+    return rollout
