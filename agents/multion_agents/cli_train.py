@@ -117,6 +117,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--episodes-per-scene", type=int, default=defaults.episodes_per_scene)
     parser.add_argument(
+        "--pretrain-map",
+        type=int,
+        default=defaults.pretrain_map.steps,
+        metavar="STEPS",
+        help="before PPO, train STEPS supervised steps on oracle-map crops at random poses "
+        "(0-20000; agents that read oracle_map; default 0, none, as in the paper; the v3 "
+        "recipe uses 1200, see docs/learned.md)",
+    )
+    parser.add_argument(
         "--curriculum",
         action="append",
         default=[],
@@ -176,6 +185,7 @@ def run(args: argparse.Namespace) -> int:
     from multion_agents.learned.checkpoint import CheckpointError
     from multion_agents.learned.models import MODELS
     from multion_agents.learned.ppo import Args, train
+    from multion_agents.learned.pretrain import MapPretraining
     from multion_agents.learned.rollout_envs import parse_curriculum
 
     if args.list:
@@ -204,6 +214,10 @@ def run(args: argparse.Namespace) -> int:
         curriculum = parse_curriculum(args.curriculum)
     except ValueError as error:
         return _fail(str(error))
+    try:
+        pretraining = MapPretraining(steps=args.pretrain_map)
+    except ValueError as error:
+        return _fail(f"--pretrain-map: {error}")
     settings = Args(
         agent=args.agent,
         task=args.task,
@@ -221,6 +235,7 @@ def run(args: argparse.Namespace) -> int:
         episodes_per_scene=args.episodes_per_scene,
         curriculum=curriculum,
         found_prior=args.found_prior,
+        pretrain_map=pretraining,
         dataset=args.dataset,
         env_overrides=env_overrides,
         threads=args.threads,

@@ -37,6 +37,7 @@ from multion_agents.learned.checkpoint import (
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
 from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.pretrain import MapPretraining, check_map_pretraining, pretrain_map
 from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import (
     NO_LABEL,
@@ -96,6 +97,10 @@ class Args:
     """Weight of the cross-entropy between the policy and the oracle planner's action at each
     step the learner takes (0: none, the paper's pure PPO). The learner stays in control
     (DAgger's labels, ``learned/expert.py``); needs local environments."""
+    pretrain_map: MapPretraining = field(default_factory=MapPretraining)
+    """Before PPO, train the policy with supervision on oracle-map crops at random poses
+    (``learned/pretrain.py``; ``steps`` 0: not at all, as in the paper). Needs an agent that
+    reads ``oracle_map``; skipped on ``resume`` (the checkpoint holds it)."""
     max_grad_norm: float = 0.2
     gamma: float = 0.99
     gae_lambda: float = 0.95
@@ -370,6 +375,7 @@ def train(args: Args) -> dict[str, Any]:
     check_curriculum(args.curriculum, env_config)
     if not 0.0 <= args.imitation_coef <= 100.0:
         raise ValueError(f"--imitation-coef must be in [0, 100], got {args.imitation_coef}")
+    check_map_pretraining(args.pretrain_map, args.agent, spec.sensors)
     torch.manual_seed(args.seed)  # identical initial weights on every rank
     policy = build_policy(args.agent, env_config).to(device)
     if args.found_prior is not None:
@@ -389,6 +395,11 @@ def train(args: Args) -> dict[str, Any]:
         optimizer.load_state_dict(payload["optimizer"])
         update, frames = payload["update"], payload["frames"]
         restore_random_states(payload)
+    elif args.pretrain_map.steps > 0:
+        if rank == 0:
+            pretrain_map(policy, env_config, args.pretrain_map, Path(args.out), args.progress)
+            fresh = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
+            _save(checkpoint_path, policy, fresh, args, env_config, update, frames)
     broadcast_parameters(policy)
     torch.manual_seed(args.seed * 7919 + update * 104729 + rank)  # per-rank action sampling
     frames_per_update = args.rollout_steps * args.envs * world
