@@ -252,7 +252,7 @@ def test_ddppo_two_cpu_ranks_keep_identical_weights(tmp_path: Path, room_dataset
     assert int(rank0[1]) == 256  # 2 ranks × 2 envs × 32 steps per update, 2 updates
     torch.manual_seed(4)
     initial = MODELS["oracle-map"].build(space_for("oracle-map"))
-    from multion_agents.learned.ppo import weights_digest
+    from multion_agents.learned.distributed import weights_digest
 
     assert weights_digest(initial) != rank0[0]
     assert (tmp_path / "run" / "checkpoint.pt").is_file()  # written by rank 0 only
