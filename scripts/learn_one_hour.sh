@@ -4,6 +4,8 @@
 # the most likely actions, and random-oracle-found on the same episodes.
 #   bash scripts/learn_one_hour.sh [AGENT] [OUT] [TRAIN ARGS...]  # default: oracle-map in runs/learn-AGENT
 #   bash scripts/learn_one_hour.sh no-map          # the same recipe without a map
+#   bash scripts/learn_one_hour.sh oracle-map runs/learn-v3 \
+#     --pretrain-map 1200 --episodes-per-scene 5   # the v3 recipe: learns on today's houses
 #   bash scripts/learn_one_hour.sh oracle-map runs/learn-curriculum \
 #     --curriculum 200000:4 --curriculum 440000:10  # near goals first (docs/learned.md)
 #   .venv/bin/multion report runs/learn-oracle-map/eval-* runs/learn-no-map/eval-val100-stochastic \
