@@ -42,6 +42,8 @@ class LatticeSearch:
         self.motion = motion
         self.tried: dict[Key, set[int]] = {}
         self.steps: dict[Edge, Key] = {}
+        self._leaving: dict[Key, dict[int, Key]] = {}
+        """The known steps by start: heading → end (``steps`` indexed for the route search)."""
         self.points: dict[Key, np.ndarray] = {}
         self._pending: Edge | None = None
         self._route: deque[Edge] = deque()
@@ -55,6 +57,7 @@ class LatticeSearch:
             self._pending = None
             if here != start:
                 self.steps[(start, direction)] = here
+                self._leaving.setdefault(start, {})[direction] = here
         if self._route and self._route[0][0] != here:
             self._route.clear()  # not where the route expected: choose again
         if not self._route:
@@ -108,9 +111,9 @@ class LatticeSearch:
                 cost = ranked[0][0] + BACKTRACK_COST * depth[key]
                 if best is None or cost < best[0]:
                     best = (cost, key, ranked[0][1])
-            for (start, direction), end in self.steps.items():
-                if start == key and end not in came_from:
-                    came_from[end] = (start, direction)
+            for direction, end in self._leaving.get(key, {}).items():
+                if end not in came_from:
+                    came_from[end] = (key, direction)
                     depth[end] = depth[key] + 1
                     queue.append(end)
         if best is None:
