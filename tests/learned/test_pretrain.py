@@ -96,6 +96,15 @@ def test_crops_show_the_goal_where_the_labels_say() -> None:
     assert agreed == checked
 
 
+def test_hidden_goal_objects_stay_on_the_map(room_dataset: Path) -> None:
+    # oracle-map-hidden-objects renders no goal cylinders, but its map still shows the goals
+    config = _config(room_dataset)
+    config["task"]["goals_visible"] = False
+    crops = sample_map_crops(config, 20, 0, MapPretraining(poses_per_scene=20))
+    pairs = zip(crops.maps, crops.goals, strict=True)
+    assert all((crop[..., 1] == goal + 1).any() for crop, goal in pairs)
+
+
 def test_the_same_seed_draws_the_same_crops(room_dataset: Path) -> None:
     settings = MapPretraining(poses_per_scene=20)
     first = sample_map_crops(_config(room_dataset), 50, 7, settings)
