@@ -7,6 +7,8 @@ learned embeddings per channel, then a small CNN and a linear layer to 256.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 from torch import Tensor, nn
 
@@ -82,6 +84,36 @@ class MapCNN(nn.Module):
     def forward(self, grid: Tensor) -> Tensor:
         return self.net(grid)
 
+    def forward_cells(self, cells: Tensor, tables: Sequence[Tensor]) -> Tensor:
+        """``self(embedded map)`` for integer ``cells`` (B, S, S, K) whose channel ``k`` is
+        embedded by ``tables[k]``, with the embedding folded into the first convolution
+        (:func:`embed_and_convolve`)."""
+        first = self.net[0]
+        assert isinstance(first, nn.Conv2d)
+        return self.net[1:](embed_and_convolve(cells, tables, first))
+
+
+def embed_and_convolve(cells: Tensor, tables: Sequence[Tensor], conv: nn.Conv2d) -> Tensor:
+    """``conv`` over the embedded map ``cat_k(tables[k][cells[..., k]])``, computed as one
+    convolution over the one-hot cells with each table folded into the kernel.
+
+    A convolution is linear in its input, so the two are the same function with the same
+    gradients (up to rounding); this one skips the embedding's scattered backward and the
+    gradient of the convolution's input, which dominated the PPO update of the map agents.
+    """
+    weights = conv.weight.split([t.shape[1] for t in tables], dim=1)
+    kernel = torch.cat(
+        [torch.einsum("odij,vd->ovij", w, t) for w, t in zip(weights, tables, strict=True)], dim=1
+    )
+    one_hot = torch.cat(
+        [
+            nn.functional.one_hot(cells[..., k], t.shape[0]).to(kernel.dtype)
+            for k, t in enumerate(tables)
+        ],
+        dim=-1,
+    ).permute(0, 3, 1, 2)
+    return nn.functional.conv2d(one_hot, kernel, conv.bias, conv.stride, conv.padding)
+
 
 class SemanticMapEmbedding(nn.Module):
     """Integer map cells (B, S, S, 2) = (occupancy, category + 1) → (B, C, S, S) embeddings.
@@ -100,10 +132,19 @@ class SemanticMapEmbedding(nn.Module):
         self.out_channels = EMBED_DIM * (self.use_occupancy + self.use_category)
 
     def forward(self, cells: Tensor) -> Tensor:
-        cells = cells.long()
-        parts = []
-        if self.use_occupancy:
-            parts.append(self.occupancy(cells[..., 0].clamp(0, NUM_OCCUPANCY_VALUES - 1)))
-        if self.use_category:
-            parts.append(self.category(cells[..., 1].clamp(0, NUM_CATEGORY_VALUES - 1)))
+        indices, tables = self.lookups(cells)
+        parts = [table[indices[..., k]] for k, table in enumerate(tables)]
         return torch.cat(parts, dim=-1).permute(0, 3, 1, 2)
+
+    def lookups(self, cells: Tensor) -> tuple[Tensor, list[Tensor]]:
+        """The clamped indices (B, S, S, K) of the channels in use and their tables, for
+        :meth:`MapCNN.forward_cells`."""
+        cells = cells.long()
+        columns, tables = [], []
+        if self.use_occupancy:
+            columns.append(cells[..., 0].clamp(0, NUM_OCCUPANCY_VALUES - 1))
+            tables.append(self.occupancy.weight)
+        if self.use_category:
+            columns.append(cells[..., 1].clamp(0, NUM_CATEGORY_VALUES - 1))
+            tables.append(self.category.weight)
+        return torch.stack(columns, dim=-1), tables

@@ -51,7 +51,7 @@ class OracleMapMemory(Memory):
             category = cells[..., 1]
             cells = cells.clone()
             cells[..., 1] = category * (category == current)
-        return {"map_embedding": self.cnn(self.embedding(cells))}
+        return {"map_embedding": self.cnn.forward_cells(*self.embedding.lookups(cells))}
 
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
         return frame["map_embedding"], state

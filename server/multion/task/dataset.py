@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from multion.scenes.registry import GENERATOR_VERSION
-from multion.sim.geodesic import distance_field
+from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import AgentConfig
 from multion.task.episode import Episode, Goal
@@ -254,6 +254,7 @@ def sample_episode(
     constraints: EpisodeConstraints = EpisodeConstraints(),
     goal_radius: float = 0.05,
     num_distractors: int = 0,
+    fields: FieldCache | None = None,
 ) -> Episode | None:
     """Sample one episode in a scene, or None when ``max_tries`` starts all fail.
 
@@ -263,6 +264,7 @@ def sample_episode(
     ``num_distractors`` more cylinders then take categories that are not the goals' and navigable
     cells at least ``min_distractor_separation`` from every goal (and ``min_goal_separation`` from
     each other). With no distractors the random stream is the same as before they existed.
+    ``fields``, when given, keeps the goals' distance fields for the episode's reset.
     """
     if not 0 <= num_distractors <= NUM_CATEGORIES - num_goals:
         raise ValueError(
@@ -291,7 +293,11 @@ def sample_episode(
                 break
             pick = candidates[rng.integers(len(candidates))]
             goal_xy = np.round(cells[pick], 4)
-            field = distance_field(grid, goal_xy, goal_radius)
+            field = (
+                fields.get(grid, goal_xy, goal_radius)
+                if fields is not None
+                else distance_field(grid, goal_xy, goal_radius)
+            )
             goal_fields.append(field)
             measured.append(float(grid.lookup(field, points[-1], outside=np.inf)))
             points.append(goal_xy)

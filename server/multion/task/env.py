@@ -14,7 +14,7 @@ from gymnasium import spaces
 from multion.ranges import bounded, check_fields, one_of, require
 from multion.scenes.registry import SPLITS, scene_ids
 from multion.sim.camera import CameraConfig
-from multion.sim.geodesic import distance_field
+from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGridConfig
 from multion.sim.simulator import AgentConfig, Simulator
 from multion.task.dataset import (
@@ -186,6 +186,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self.state: EpisodeState | None = None
         self.measures = Measures()
         self._fields: list[np.ndarray] = []
+        self._field_cache = FieldCache()
         self._distractor_fields: dict[int, np.ndarray] = {}
         self._oracle: OracleMap | None = None
         self._reveal: EgoMapReveal | None = None
@@ -237,6 +238,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
                 f"train-online-{self._online_count:07d}",
                 num_distractors=self.config.task.num_distractors,
                 constraints=self._online_constraints,
+                fields=self._field_cache,
             )
             if episode is None:  # no valid episode found here: try another scene
                 self._online_scene = None
@@ -281,7 +283,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             )
         task = self.config.task
         self._fields = [
-            distance_field(grid, np.asarray(g.position[:2]), task.goal_radius)
+            self._field_cache.get(grid, np.asarray(g.position[:2]), task.goal_radius)
             for g in episode.goals
         ]
         optimal = []
