@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import math
 import os
 import tempfile
 import time
 
+import gymnasium as gym
 import numpy as np
 
 from multion.api.cli_serve import add_http_stack_arguments
@@ -33,8 +35,10 @@ SCENE = "house-00061"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--only",
-        choices=["sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages",
-                 "explorer"],
+        choices=[
+            *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
+            *("explorer", "reset"),
+        ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
     )
@@ -62,22 +66,46 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     explorer.add_argument("--explorer-steps", type=int, default=500, help="steps per episode (500)")
     train = parser.add_argument_group("training bench (--only train, needs torch)")
     train.add_argument(
-        "--train-agent", default="oracle-map", help="learned agent (default oracle-map)"
+        "--train-recipe",
+        choices=["default", "v3"],
+        default="default",
+        help="settings: issue 22's bench (default) or the v3 recipe's (docs/learned.md)",
     )
-    train.add_argument("--train-image-size", type=int, default=64, help="camera size (default 64)")
-    train.add_argument("--train-envs", type=int, default=4, help="local environments (default 4)")
+    train.add_argument("--train-agent", help="learned agent (default oracle-map)")
+    train.add_argument("--train-image-size", type=int, help="camera size (64; v3: 36)")
+    train.add_argument("--train-envs", type=int, help="local environments (4; v3: 8)")
     train.add_argument(
-        "--train-updates",
-        type=int,
-        default=4,
-        help="PPO updates, the first one not timed (default 4)",
+        "--train-updates", type=int, help="PPO updates, the first one not timed (default 4)"
+    )
+    parser.add_argument(
+        "--device",
+        default="cpu",
+        help="torch device of the training bench: cpu (default) or cuda (needs a CUDA GPU)",
+    )
+    parser.add_argument(
+        "--renderer",
+        choices=["all", "tiny", "egl"],
+        default="all",
+        help="renderers of the sim bench: every one that loads here (default), or only one "
+        "(egl needs a GPU or Mesa's EGL)",
     )
 
 
 def run(args: argparse.Namespace) -> int:
     parts = args.only or ["sim", "cache", "http"]
     if "sim" in parts:
-        bench_sim(args.steps, args.episodes)
+        if args.renderer == "egl" and resolve_renderer("auto") != "egl":
+            print(
+                "sim bench with --renderer egl needs EGL: pybullet's eglRenderer plugin did not "
+                "load here (a GPU with its driver's libEGL, or Mesa's: apt-get install libegl1 "
+                "libegl-mesa0 libgl1-mesa-dri)"
+            )
+            return 2
+        bench_sim(args.steps, args.episodes, args.renderer)
+    if "reset" in parts:
+        from multion.bench_reset import run_reset_bench
+
+        run_reset_bench()
     if "cache" in parts:
         bench_cache(args.eval_episodes)
     if "memory" in parts:
@@ -105,16 +133,21 @@ def run(args: argparse.Namespace) -> int:
 
         run_explorer_bench(args.explorer_image, args.explorer_houses, args.explorer_steps)
     if "train" in parts:
-        from multion_agents.bench_train import run_train_bench
+        from multion_agents.bench_train import bench_settings, run_train_bench
 
-        run_train_bench(
-            args.train_agent, args.train_image_size, args.train_envs, args.train_updates
-        )
+        settings = bench_settings(
+            args.train_recipe, args.train_agent, args.train_image_size, args.train_envs,
+            args.train_updates, args.device,
+        )  # fmt: skip
+        if run_train_bench(settings) is None:
+            return 2
     return 0
 
 
-def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
-    """Print and return the simulator numbers of issue 2."""
+def bench_sim(steps: int = 300, episodes: int = 1000, renderer: str = "all") -> dict[str, float]:
+    """Print and return the simulator numbers of issue 2, and frames/s of several simulator
+    processes side by side (per process and per GPU for EGL); ``renderer`` "all" measures every
+    renderer that loads here."""
     results: dict[str, float] = {}
     start = time.perf_counter()
     episode_list = generate_episodes(3, "val", 4, seed=0, scenes=[SCENE], progress=False)
@@ -123,6 +156,8 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
     renderers = ["tiny"] + (["egl"] if resolve_renderer("auto") == "egl" else [])
     if len(renderers) == 1:
         print("EGL: the eglRenderer plugin does not load here (see docs/learned.md); tiny only")
+    if renderer != "all":
+        renderers = [renderer]
     print(
         f"{'resolution':>10} {'renderer':>8} {'env frames/s':>13} {'raw renders/s':>14} "
         f"{'env/raw':>8}   (RGB-D + goal, one process, same poses)"
@@ -170,17 +205,55 @@ def bench_sim(steps: int = 300, episodes: int = 1000) -> dict[str, float]:
                 f"{'':>10} {SCENE} scene draws per image: TinyRenderer "
                 f"{results['draws_tiny']:.0f}{egl_draws}"
             )
-        if "egl" in renderers:
+        if {"egl", "tiny"} <= set(renderers):
             speedup = results[f"env_sps_egl_{size}"] / results[f"env_sps_tiny_{size}"]
             results[f"egl_speedup_{size}"] = speedup
             target = "   (target ≥ 1.3 at 256², one EGL thread per process)" if size == 256 else ""
             print(f"{size:>8}² EGL / TinyRenderer frames per second: {speedup:.2f}×{target}")
+    for name in renderers:
+        results.update(bench_processes(name, 128, steps))
     start = time.perf_counter()
     generate_episodes(3, "val", episodes, seed=0, progress=False)
     results["generate_s"] = time.perf_counter() - start
     print(
         f"generating {episodes} 3-ON val episodes (11 scenes, grids included): {results['generate_s']:.1f} s"
     )
+    return results
+
+
+def bench_processes(renderer: str, size: int, steps: int) -> dict[str, float]:
+    """Frames/s of 1, 4 and up to one simulator process per core stepping side by side (3-ON
+    val, RGB-D + goal, never FOUND): per process, and in all (per GPU for EGL, all processes
+    rendering on this machine's one GPU)."""
+    cores = os.cpu_count() or 1
+    counts = sorted({1, min(4, cores), cores})
+    config = EnvConfig(
+        task=TaskConfig(num_goals=3),
+        camera=CameraConfig(width=size, height=size, renderer=renderer),
+        sensors=("rgb", "depth", "goal"),
+    )
+    results: dict[str, float] = {}
+    where = "per GPU" if renderer == "egl" else "in all"
+    for count in counts:
+        vector = gym.vector.AsyncVectorEnv(
+            [functools.partial(MultiONEnv, config) for _ in range(count)], context="spawn"
+        )
+        try:
+            vector.reset(seed=0)
+            rng = np.random.default_rng(0)
+            for _ in range(5):  # warm-up: scenes loaded, EGL contexts made
+                vector.step(rng.choice([1, 2, 3], size=count))
+            begin = time.perf_counter()
+            for _ in range(steps):
+                vector.step(rng.choice([1, 1, 2, 3], size=count))
+            total = steps * count / (time.perf_counter() - begin)
+        finally:
+            vector.close()
+        results[f"processes_{renderer}_{size}_{count}"] = total
+        print(
+            f"{size:>8}² {renderer:>8} {count:>2} processes side by side: "
+            f"{total / count:7.1f} frames/s per process, {total:7.1f} {where}"
+        )
     return results
 
 

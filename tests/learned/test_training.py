@@ -351,16 +351,31 @@ def test_train_cli_rejects_a_bad_found_prior(tmp_path: Path, capsys) -> None:
     assert not (tmp_path / "checkpoint.pt").exists()
 
 
-def test_training_bench_measures_both_rates_in_one_run(capsys) -> None:
-    from multion_agents.bench_train import run_train_bench
+@pytest.mark.parametrize("recipe", ["default", "v3"])
+def test_training_bench_measures_both_rates_in_one_run(capsys, recipe: str) -> None:
+    from multion_agents.bench_train import bench_settings, run_train_bench
 
-    result = run_train_bench("no-map", image_size=36, envs=2, updates=2)
+    agent = "no-map" if recipe == "default" else None  # v3: the recipe's oracle-map
+    settings = bench_settings(recipe, agent, 36, 2, 2, "cpu")
+    result = run_train_bench(settings)
+    assert result is not None
     assert result["bare_fps"] > 0 and result["train_fps"] > 0
     assert result["ratio"] == pytest.approx(result["train_fps"] / result["bare_fps"])
     shares = [result[f"{k}_share"] for k in ("sim", "act", "update")]
     assert all(0 < s < 1 for s in shares) and sum(shares) <= 1.0 + 1e-6
     assert result["learner_ms_per_frame"] > 0
-    assert "ratio train / bare" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "ratio train / bare" in out
+    if recipe == "v3":
+        assert "oracle-map" in out and "online train episodes" in out
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the message of a machine without one")
+def test_the_cuda_training_bench_says_plainly_it_needs_a_gpu(capsys) -> None:
+    from multion.cli import main
+
+    assert main(["bench", "--only", "train", "--device", "cuda"]) == 2
+    assert "needs a CUDA GPU" in capsys.readouterr().out
 
 
 def test_a_curriculum_trains_on_near_goals_first_then_on_the_tasks_own(tmp_path: Path) -> None:

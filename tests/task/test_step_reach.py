@@ -121,3 +121,68 @@ def test_the_guards_change_only_refused_draws_of_the_version_2_stream() -> None:
         assert steps_reach_goals(grid, start, guarded.start_yaw, fields, 1.5)
     finally:
         simulator.close()
+
+
+def test_the_best_first_search_agrees_with_the_breadth_first_reference() -> None:
+    """Issue 30: the search that replaced the breadth-first one answers the same, on draws
+    that pass and draws that fail (the pocket, goals behind it), also when it widens to layers
+    at once (no greedy expansions) or after a few."""
+    from multion.bench_reset import breadth_first_reach
+
+    simulator = Simulator()
+    rng = np.random.default_rng(3)
+    answers: list[bool] = []
+    try:
+        pocket = v2_episode(POCKET)
+        cases = []
+        grid = simulator.load_scene(pocket.scene_id)
+        pocket_field = distance_field(grid, np.asarray(pocket.goals[0].position[:2]), 0.05)
+        cases.append(
+            (grid, np.asarray(pocket.start_position[:2]), pocket.start_yaw, [pocket_field])
+        )
+        for scene in scene_ids("val")[:2]:
+            grid = simulator.load_scene(scene)
+            rows, cols = np.nonzero(grid.navigable)
+            cells = grid.cell_to_world(rows, cols)
+            for _ in range(12):
+                start = cells[rng.integers(len(cells))]
+                goals = cells[rng.integers(len(cells), size=int(rng.integers(1, 4)))]
+                fields = [distance_field(grid, g, 0.05) for g in goals]
+                cases.append((grid, start, float(rng.uniform(-np.pi, np.pi)), fields))
+        for grid, start, yaw, fields in cases:
+            reference = breadth_first_reach(grid, start, yaw, fields, 1.5)
+            for greedy in (3000, 5, 0):
+                assert (
+                    steps_reach_goals(grid, start, yaw, fields, 1.5, greedy_expansions=greedy)
+                    is reference
+                )
+            answers.append(reference)
+    finally:
+        simulator.close()
+    assert answers[0] is False and answers.count(True) >= 10  # both answers were exercised
+
+
+def test_online_sampling_draws_the_packaged_episodes_again() -> None:
+    """The faster sampler (best-first search, fields kept for the reset) draws exactly the
+    episodes of the packaged dataset from its stream."""
+    from multion.sim.geodesic import FieldCache
+    from multion.task.dataset import load_dataset, packaged_dataset_path
+
+    packaged = load_dataset(packaged_dataset_path(3, "val"), 3)
+    scenes = scene_ids("val")
+    simulator = Simulator()
+    try:
+        grid = simulator.load_scene(scenes[0])
+        rng = np.random.default_rng([VAL_SEED, 3, 0])
+        fields = FieldCache()
+        for expected in packaged[:8]:
+            episode = sample_episode(grid, scenes[0], 3, rng, expected.episode_id, fields=fields)
+            assert episode == expected
+            for goal in episode.goals:  # the reset finds each goal's field computed already
+                cached = fields.get(grid, np.asarray(goal.position[:2]), 0.05)
+                assert not cached.flags.writeable
+                assert np.array_equal(
+                    cached, distance_field(grid, np.asarray(goal.position[:2]), 0.05)
+                )
+    finally:
+        simulator.close()

@@ -68,7 +68,9 @@ class StepLattice:
         if end > len(self.points):
             size = max(end, 2 * len(self.points))
             self.points = np.resize(self.points, (size, 2))
-            self.expanded = np.concatenate([self.expanded, np.zeros(size - len(self.expanded), bool)])
+            self.expanded = np.concatenate(
+                [self.expanded, np.zeros(size - len(self.expanded), bool)]
+            )
         self.points[self.count : end] = points
         self.count = end
         return np.arange(end - len(points), end)
@@ -94,6 +96,7 @@ def steps_reach_goals(
     goal_fields: Sequence[np.ndarray],
     reach: float,
     agent: AgentConfig = AgentConfig(),
+    greedy_expansions: int = GREEDY_EXPANSIONS,
 ) -> bool:
     """True when forward steps and turns from ``(xy, yaw)`` bring the agent within ``reach``
     (geodesic, as the task measures it: each goal's distance field) of every goal.
@@ -101,7 +104,7 @@ def steps_reach_goals(
     A best-first search over positions for each goal in turn (turning is always possible, so a
     position is a state, and each expands into its 12 forward steps): the position found so far
     that is closest to the goal along the floor is expanded first, so a reachable goal costs
-    about one expansion per step of the way. After :data:`GREEDY_EXPANSIONS` it expands whole
+    about one expansion per step of the way. After ``greedy_expansions`` it expands whole
     layers at once, which proves an unreachable goal as fast as a breadth-first search. Every
     position kept was reached by exact steps, so a True is a path the simulator follows; a False
     may (rarely) miss a path through a merged position (:class:`StepLattice`). Reaching each goal
@@ -110,12 +113,12 @@ def steps_reach_goals(
     """
     lattice = StepLattice(grid, xy, yaw, agent)
     for field in goal_fields:
-        if not _reach(lattice, field, reach):
+        if not _reach(lattice, field, reach, greedy_expansions):
             return False
     return True
 
 
-def _reach(lattice: StepLattice, field: np.ndarray, reach: float) -> bool:
+def _reach(lattice: StepLattice, field: np.ndarray, reach: float, greedy_expansions: int) -> bool:
     """Search on from ``lattice`` until a position lies within ``reach`` of ``field``'s goal."""
     grid = lattice.grid
     known = lattice.points[: lattice.count]
@@ -123,9 +126,9 @@ def _reach(lattice: StepLattice, field: np.ndarray, reach: float) -> bool:
     if (distances <= reach).any():
         return True
     waiting = lattice.unexpanded()
-    queue = [(d, i) for d, i in zip(distances[waiting].tolist(), waiting.tolist()) if d != np.inf]
+    queue = _finite(distances[waiting], waiting)
     heapq.heapify(queue)
-    for _ in range(GREEDY_EXPANSIONS):
+    for _ in range(greedy_expansions):
         if not queue:
             return False
         _, index = heapq.heappop(queue)
@@ -134,9 +137,8 @@ def _reach(lattice: StepLattice, field: np.ndarray, reach: float) -> bool:
             values = grid.lookup(field, lattice.points[new], outside=np.inf)
             if (values <= reach).any():
                 return True
-            for d, i in zip(values.tolist(), new.tolist()):
-                if d != np.inf:
-                    heapq.heappush(queue, (d, i))
+            for item in _finite(values, new):
+                heapq.heappush(queue, item)
     frontier = lattice.unexpanded()
     while len(frontier):  # layer by layer from here
         new = lattice.expand(frontier)
@@ -144,3 +146,10 @@ def _reach(lattice: StepLattice, field: np.ndarray, reach: float) -> bool:
             return True
         frontier = new
     return False
+
+
+def _finite(distances: np.ndarray, indices: np.ndarray) -> list[tuple[float, int]]:
+    """``(distance, index)`` pairs of the positions with a finite distance (the others are cut
+    off from the goal on the grid)."""
+    keep = np.isfinite(distances)
+    return list(zip(distances[keep].tolist(), indices[keep].tolist(), strict=True))

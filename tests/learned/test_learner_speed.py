@@ -1,0 +1,131 @@
+"""Issue 30: the faster learner learns what the one before it learned.
+
+The PPO loss of an oracle-map policy (the v3 recipe's model) and every gradient are compared
+with the code before issue 30: the GRU's time loop as it was (kept below) and the cell
+embedding applied before the map CNN instead of folded into its first convolution.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+from unittest import mock
+
+import torch
+from torch import Tensor
+
+from multion_agents.learned import policy as policy_module
+from multion_agents.learned.checkpoint import build_policy
+from multion_agents.learned.oracle_maps import OracleMapMemory
+from multion_agents.learned.policy import Batch
+from multion_agents.learned.ppo import Args, ppo_loss
+from multion_agents.learned.rollout import Rollout, compute_gae
+from multion_agents.learned.rollout_envs import training_env_config
+
+
+class GRUBefore(torch.autograd.Function):
+    """``MaskedGRU`` before issue 30 (lists of steps, stacked at the end)."""
+
+    @staticmethod
+    def forward(
+        ctx: Any, gates_x: Tensor, h0: Tensor, keep: Tensor, w_hh: Tensor, b_hh: Tensor
+    ) -> Tensor:
+        hidden, outputs, saved = h0, [], []
+        for t in range(gates_x.shape[0]):
+            hidden = hidden * keep[t][:, None]
+            x_r, x_z, x_n = gates_x[t].chunk(3, dim=1)
+            h_r, h_z, h_n = torch.addmm(b_hh, hidden, w_hh.t()).chunk(3, dim=1)
+            reset, update = torch.sigmoid(x_r + h_r), torch.sigmoid(x_z + h_z)
+            candidate = torch.tanh(x_n + reset * h_n)
+            saved.append((hidden, reset, update, candidate, h_n))
+            hidden = (1.0 - update) * candidate + update * hidden
+            outputs.append(hidden)
+        ctx.save_for_backward(keep, w_hh, *(torch.stack(s) for s in zip(*saved, strict=True)))
+        return torch.stack(outputs)
+
+    @staticmethod
+    def backward(ctx: Any, grad_outputs: Tensor) -> tuple[Tensor | None, ...]:
+        keep, w_hh, previous, resets, updates, candidates, h_news = ctx.saved_tensors
+        grad_x = grad_outputs.new_empty(*grad_outputs.shape[:2], 3 * grad_outputs.shape[2])
+        grad_h_gates = torch.empty_like(grad_x)
+        grad_next = torch.zeros_like(grad_outputs[0])
+        for t in reversed(range(grad_outputs.shape[0])):
+            grad_h = grad_outputs[t] + grad_next
+            reset, update, candidate = resets[t], updates[t], candidates[t]
+            grad_a_n = grad_h * (1.0 - update) * (1.0 - candidate * candidate)
+            grad_a_z = grad_h * (previous[t] - candidate) * update * (1.0 - update)
+            grad_a_r = grad_a_n * h_news[t] * reset * (1.0 - reset)
+            grad_x[t] = torch.cat([grad_a_r, grad_a_z, grad_a_n], dim=1)
+            grad_h_gates[t] = torch.cat([grad_a_r, grad_a_z, grad_a_n * reset], dim=1)
+            grad_next = (grad_h * update + grad_h_gates[t] @ w_hh) * keep[t][:, None]
+        flat = grad_h_gates.reshape(-1, grad_h_gates.shape[2])
+        grad_w = flat.t() @ previous.reshape(-1, previous.shape[2])
+        return grad_x, grad_next, None, grad_w, flat.sum(dim=0)
+
+
+def embedding_before(self: OracleMapMemory, frames: Batch, image_features: Tensor | None) -> Batch:
+    return {"map_embedding": self.cnn(self.embedding(frames[self.sensor].long()))}
+
+
+def loss_and_gradients(before: bool) -> tuple[float, dict[str, Tensor]]:
+    torch.manual_seed(0)
+    config = training_env_config(
+        1, ("rgb", "depth", "goal", "oracle_map"), 36, "val", {"maps": {"ego_size": 25}}
+    )
+    policy = build_policy("oracle-map", config)
+    steps, envs = 24, 4
+    generator = torch.Generator().manual_seed(1)
+    cells = torch.stack(
+        [
+            torch.randint(0, 3, (steps, envs, 25, 25), generator=generator),
+            torch.randint(0, 9, (steps, envs, 25, 25), generator=generator),
+        ],
+        dim=-1,
+    ).to(torch.uint8)
+    starts = torch.zeros(steps, envs)
+    starts[0], starts[9, 1], starts[17, 3] = 1.0, 1.0, 1.0  # episodes start mid-rollout
+    rollout = Rollout(
+        frames={
+            "rgb": torch.randint(0, 256, (steps, envs, 36, 36, 3), generator=generator).to(
+                torch.uint8
+            ),
+            "depth": torch.rand(steps, envs, 36, 36, 1, generator=generator),
+            "goal": torch.randint(0, 8, (steps, envs), generator=generator),
+            "oracle_map": cells,
+        },
+        prev_actions=torch.randint(0, 4, (steps, envs), generator=generator),
+        starts=starts,
+        actions=torch.randint(0, 4, (steps, envs), generator=generator),
+        logprobs=torch.full((steps, envs), -1.3),
+        values=torch.randn(steps, envs, generator=generator),
+        rewards=torch.randn(steps, envs, generator=generator),
+        dones=torch.roll(starts, -1, 0),
+        initial_state=policy.initial_state(envs),
+    )
+    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
+    with (
+        mock.patch.object(
+            policy_module, "MaskedGRU", GRUBefore if before else policy_module.MaskedGRU
+        ),
+        mock.patch.object(
+            OracleMapMemory,
+            "precompute",
+            embedding_before if before else OracleMapMemory.precompute,
+        ),
+    ):
+        loss, _ = ppo_loss(policy, rollout, 0.2, Args())
+        loss.backward()
+    return float(loss), {
+        n: p.grad.clone() for n, p in policy.named_parameters() if p.grad is not None
+    }
+
+
+def test_the_ppo_loss_and_its_gradients_are_those_of_the_code_before() -> None:
+    loss, gradients = loss_and_gradients(before=False)
+    loss_before, gradients_before = loss_and_gradients(before=True)
+    assert abs(loss - loss_before) <= 1e-5 * max(1.0, abs(loss_before))
+    assert gradients.keys() == gradients_before.keys()
+    assert "memory.embedding.category.weight" in gradients  # the folded tables still learn
+    for name, expected in gradients_before.items():
+        scale = float(expected.abs().max()) or 1.0
+        error = float((gradients[name] - expected).abs().max()) / scale
+        assert error < 1e-4, f"{name}: relative difference {error:.2e}"
