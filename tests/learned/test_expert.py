@@ -13,6 +13,7 @@ from rollouts import SIZE, random_rollout, space_for
 
 from multion.api.config_io import env_config_from_dict
 from multion.task.env import MultiONEnv
+from multion_agents.learned.env_groups import EnvGroups
 from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import Args, ppo_loss, train
@@ -114,9 +115,9 @@ def test_a_rollout_stores_each_label_with_the_frame_it_labels() -> None:
     space = space_for("oracle-map")
     space.seed(0)
     policy = build_policy("oracle-map", _oracle_map_config())
-    envs = _CountingEnvs(space)
-    live = start_episodes(envs, policy, seed=0)  # type: ignore[arg-type]
-    rollout, _, _ = collect(envs, policy, live, 7, deque())  # type: ignore[arg-type]
+    envs = EnvGroups([_CountingEnvs(space)])  # type: ignore[list-item]
+    live = start_episodes(envs, policy, seed=0)
+    rollout, _, _ = collect(envs, policy, live, 7, deque())
     assert rollout.expert_actions.shape == (7, 2)
     assert torch.equal(rollout.expert_actions, rollout.frames["goal"] % 4)
     assert rollout.expert_actions[:, 0].tolist() == [0, 1, 2, 3, 0, 1, 2]

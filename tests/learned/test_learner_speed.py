@@ -1,4 +1,5 @@
-"""Issue 30: the faster learner learns what the one before it learned.
+"""Issue 30: the faster learner learns what the one before it learned, and acting while the
+simulators step plays the same rollouts.
 
 The PPO loss of an oracle-map policy (the v3 recipe's model) and every gradient are compared
 with the code before issue 30: the GRU's time loop as it was (kept below) and the cell
@@ -7,6 +8,8 @@ embedding applied before the map CNN instead of folded into its first convolutio
 
 from __future__ import annotations
 
+from collections import deque
+from pathlib import Path
 from typing import Any
 from unittest import mock
 
@@ -15,11 +18,12 @@ from torch import Tensor
 
 from multion_agents.learned import policy as policy_module
 from multion_agents.learned.checkpoint import build_policy
+from multion_agents.learned.env_groups import EnvGroups, make_env_groups
 from multion_agents.learned.oracle_maps import OracleMapMemory
 from multion_agents.learned.policy import Batch
 from multion_agents.learned.ppo import Args, ppo_loss
-from multion_agents.learned.rollout import Rollout, compute_gae
-from multion_agents.learned.rollout_envs import training_env_config
+from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
+from multion_agents.learned.rollout_envs import make_vector_env, training_env_config
 
 
 class GRUBefore(torch.autograd.Function):
@@ -129,3 +133,36 @@ def test_the_ppo_loss_and_its_gradients_are_those_of_the_code_before() -> None:
         scale = float(expected.abs().max()) or 1.0
         error = float((gradients[name] - expected).abs().max()) / scale
         assert error < 1e-4, f"{name}: relative difference {error:.2e}"
+
+
+def play(groups: EnvGroups, steps: int) -> Rollout:
+    torch.manual_seed(0)
+    config = training_env_config(1, ("rgb", "depth", "goal", "oracle_map"), 36, "val")
+    policy = build_policy("oracle-map", config)
+    torch.manual_seed(7)  # the actions' stream
+    try:
+        live = start_episodes(groups, policy, seed=11)
+        rollout, _, _ = collect(groups, policy, live, steps, deque())
+    finally:
+        groups.close()
+    return rollout
+
+
+def test_two_groups_of_environments_play_the_rollout_of_one(room_dataset: Path) -> None:
+    """Acting for one group while the other steps (issue 30) changes no action, frame or
+    reward of a rollout: the environments are seeded, and the actions drawn, as before."""
+    config = training_env_config(
+        1, ("rgb", "depth", "goal", "oracle_map"), 36, "train", None, 12, str(room_dataset)
+    )
+    two = make_env_groups(config, 4)
+    assert [g.num_envs for g in two.groups] == [2, 2]
+    pipelined = play(two, 30)
+    plain = play(EnvGroups([make_vector_env(config, 4)]), 30)
+    assert plain.dones.sum() > 0  # episodes end inside the rollout (12-step limit)
+    assert torch.equal(pipelined.actions, plain.actions)
+    for key, frames in plain.frames.items():
+        assert torch.equal(pipelined.frames[key], frames), key
+    for name in ("rewards", "dones", "starts", "prev_actions", "expert_actions"):
+        assert torch.equal(getattr(pipelined, name), getattr(plain, name)), name
+    assert torch.allclose(pipelined.values, plain.values, atol=1e-5)
+    assert torch.allclose(pipelined.logprobs, plain.logprobs, atol=1e-5)

@@ -33,7 +33,10 @@ class MaskedGRU(torch.autograd.Function):
     ) -> Tensor:
         steps, batch, width = gates_x.shape
         size = width // 3
-        clears = (keep == 0).any(dim=1).tolist()
+        # which steps clear a state: read on the CPU only (elsewhere it would wait for the
+        # device; every step then multiplies, as before)
+        on_cpu = keep.device.type == "cpu"
+        clears = (keep == 0).any(dim=1).tolist() if on_cpu else [True] * steps
         outputs = gates_x.new_empty(steps, batch, size)
         previous = torch.empty_like(outputs)
         gates = torch.empty_like(gates_x)  # r, z, n after their non-linearities

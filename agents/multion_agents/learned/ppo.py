@@ -40,6 +40,7 @@ from multion_agents.learned.distributed import (
     sum_over_ranks,
     weights_digest,
 )
+from multion_agents.learned.env_groups import make_env_groups
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
 from multion_agents.learned.policy import RecurrentPolicy
@@ -50,7 +51,6 @@ from multion_agents.learned.rollout_envs import (
     SUMMARY_METRICS,
     Curriculum,
     check_curriculum,
-    make_vector_env,
     stage_config,
     training_env_config,
 )
@@ -335,7 +335,7 @@ def train(args: Args) -> dict[str, Any]:
     servers = tuple(args.servers[rank::world]) or tuple(args.servers)
     stage = stage_config(env_config, args.curriculum, frames)
     imitate = args.imitation_coef > 0
-    envs = make_vector_env(stage, args.envs, servers, expert=imitate)
+    envs = make_env_groups(stage, args.envs, servers, expert=imitate)
     log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
     window: deque[dict[str, float]] = deque(maxlen=100)
     try:
@@ -355,7 +355,7 @@ def train(args: Args) -> dict[str, Any]:
                 # the curriculum's next stage: new environments, fresh episodes and memories
                 envs.close()
                 stage = wanted
-                envs = make_vector_env(stage, args.envs, servers, expert=imitate)
+                envs = make_env_groups(stage, args.envs, servers, expert=imitate)
                 live = start_episodes(envs, policy, _reset_seed(args, update, rank))
             tick = time.perf_counter()
             rollout, next_value, timing = collect(envs, policy, live, args.rollout_steps, window)

@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 import torch
-from gymnasium.vector import VectorEnv
 from torch import Tensor
 
+from multion_agents.learned.env_groups import EnvGroups, StepResult
 from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
 from multion_agents.learned.rollout_envs import expert_labels, finished_episodes
 
@@ -59,13 +59,19 @@ class Timing:
     act_seconds: float = 0.0
 
 
-def start_episodes(envs: VectorEnv, policy: RecurrentPolicy, seed: int) -> Live:
+def start_episodes(envs: EnvGroups, policy: RecurrentPolicy, seed: int) -> Live:
     """Reset every environment (seeded with ``seed``) and start empty memories."""
-    observation, infos = envs.reset(seed=seed)
+    observation, infos = envs.reset(seed)
     count = envs.num_envs
+    labels = np.concatenate(
+        [
+            expert_labels(info, rows.stop - rows.start)
+            for info, rows in zip(infos, envs.rows, strict=True)
+        ]
+    )
     return Live(
         observation=observation,
-        labels=expert_labels(infos, count),
+        labels=labels,
         state=policy.initial_state(count),
         prev_action=torch.zeros(count, dtype=torch.long),
         start=torch.ones(count),
@@ -74,7 +80,7 @@ def start_episodes(envs: VectorEnv, policy: RecurrentPolicy, seed: int) -> Live:
 
 
 def collect(
-    envs: VectorEnv,
+    envs: EnvGroups,
     policy: RecurrentPolicy,
     live: Live,
     steps: int,
@@ -83,50 +89,43 @@ def collect(
     """Play ``steps`` steps from ``live`` (updated in place) with actions sampled from
     ``policy``; the summary metrics and return of every episode that ends are appended to
     ``finished``. Returns the rollout (its expert labels all ``NO_LABEL`` when the environments
-    give none), the value of the observation after it, and timings."""
-    device, keys, count = policy.device, policy.train_sensors, envs.num_envs
+    give none), the value of the observation after it, and timings.
+
+    The groups take turns (:mod:`.env_groups`): the policy acts for a group while the others
+    step, so ``sim_seconds`` is only the time spent waiting for them."""
+    keys, count = policy.train_sensors, envs.num_envs
     timing = Timing()
     initial_state = {k: v.detach().cpu().clone() for k, v in live.state.items()}
-    columns: dict[str, list[Tensor]] = {
-        k: [] for k in ("prev", "start", "action", "logprob", "value", "reward", "done", "label")
+    columns = {
+        "label": torch.empty(steps, count, dtype=torch.long),
+        "prev": torch.empty(steps, count, dtype=torch.long),
+        "start": torch.empty(steps, count),
+        "action": torch.empty(steps, count, dtype=torch.long),
+        "logprob": torch.empty(steps, count),
+        "value": torch.empty(steps, count),
+        "reward": torch.empty(steps, count),
+        "done": torch.empty(steps, count),
     }
-    stored: dict[str, list[Tensor]] = {k: [] for k in keys}
-    for _ in range(steps):
-        frame = frames_to_tensors(live.observation, keys)
-        for k in keys:
-            stored[k].append(frame[k])
-        tick = time.perf_counter()
-        with torch.no_grad():
-            action, logprob, value, live.state = policy.get_action_and_value(
-                {k: v.to(device) for k, v in frame.items()},
-                live.prev_action.to(device),
-                live.start.to(device),
-                live.state,
-            )
-        timing.act_seconds += time.perf_counter() - tick
-        tick = time.perf_counter()
-        live.observation, reward, terminated, truncated, infos = envs.step(action.cpu().numpy())
-        timing.sim_seconds += time.perf_counter() - tick
-        done = np.logical_or(terminated, truncated)
-        live.returns += reward
-        for index, metrics in finished_episodes(infos):
-            finished.append({**metrics, "return": float(live.returns[index])})
-            live.returns[index] = 0.0
-        for key, item in (
-            ("label", torch.as_tensor(live.labels)),  # the label of the frame acted on
-            ("prev", live.prev_action),
-            ("start", live.start),
-            ("action", action.cpu()),
-            ("logprob", logprob.cpu()),
-            ("value", value.cpu()),
-            ("reward", torch.as_tensor(reward, dtype=torch.float32)),
-            ("done", torch.as_tensor(done, dtype=torch.float32)),
-        ):
-            columns[key].append(item)
-        live.prev_action = action.cpu()
-        live.start = torch.as_tensor(done, dtype=torch.float32)
-        live.labels = expert_labels(infos, count)
+    frames = {
+        k: torch.empty(steps, *np.shape(live.observation[k]), dtype=_dtype(live.observation[k]))
+        for k in keys
+    }
+    for t in range(steps + 1):
+        for index, rows in enumerate(envs.rows):
+            if t > 0:  # the group's previous step
+                tick = time.perf_counter()
+                result = envs.finish_step(index)
+                timing.sim_seconds += time.perf_counter() - tick
+                _record_step(live, columns, t - 1, rows, result, finished)
+            if t < steps:
+                tick = time.perf_counter()
+                action = _act(policy, live, frames, columns, t, rows, keys)
+                timing.act_seconds += time.perf_counter() - tick
+                tick = time.perf_counter()
+                envs.start_step(index, action.numpy())
+                timing.sim_seconds += time.perf_counter() - tick
     with torch.no_grad():
+        device = policy.device
         frame = frames_to_tensors(live.observation, keys)
         next_value = policy.get_value(
             {k: v.to(device) for k, v in frame.items()},
@@ -135,18 +134,80 @@ def collect(
             live.state,
         ).cpu()
     rollout = Rollout(
-        frames={k: torch.stack(v) for k, v in stored.items()},
-        prev_actions=torch.stack(columns["prev"]),
-        starts=torch.stack(columns["start"]),
-        actions=torch.stack(columns["action"]),
-        logprobs=torch.stack(columns["logprob"]),
-        values=torch.stack(columns["value"]),
-        rewards=torch.stack(columns["reward"]),
-        dones=torch.stack(columns["done"]),
+        frames=frames,
+        prev_actions=columns["prev"],
+        starts=columns["start"],
+        actions=columns["action"],
+        logprobs=columns["logprob"],
+        values=columns["value"],
+        rewards=columns["reward"],
+        dones=columns["done"],
         initial_state=initial_state,
-        expert_actions=torch.stack(columns["label"]),
+        expert_actions=columns["label"],
     )
     return rollout, next_value, timing
+
+
+def _act(
+    policy: RecurrentPolicy,
+    live: Live,
+    frames: dict[str, Tensor],
+    columns: dict[str, Tensor],
+    t: int,
+    rows: slice,
+    keys: tuple[str, ...],
+) -> Tensor:
+    """Sample the actions of environments ``rows`` at step ``t`` and record what they saw."""
+    device = policy.device
+    frame = frames_to_tensors({k: live.observation[k][rows] for k in keys}, keys)
+    for k in keys:
+        frames[k][t, rows] = frame[k]
+    with torch.no_grad():
+        action, logprob, value, state = policy.get_action_and_value(
+            {k: v.to(device) for k, v in frame.items()},
+            live.prev_action[rows].to(device),
+            live.start[rows].to(device),
+            {k: v[rows] for k, v in live.state.items()},
+        )
+    for k, v in state.items():
+        live.state[k][rows] = v
+    action = action.cpu()
+    columns["label"][t, rows] = torch.as_tensor(live.labels[rows])  # the frame acted on
+    columns["prev"][t, rows] = live.prev_action[rows]
+    columns["start"][t, rows] = live.start[rows]
+    columns["action"][t, rows] = action
+    columns["logprob"][t, rows] = logprob.cpu()
+    columns["value"][t, rows] = value.cpu()
+    live.prev_action[rows] = action
+    return action
+
+
+def _record_step(
+    live: Live,
+    columns: dict[str, Tensor],
+    t: int,
+    rows: slice,
+    result: StepResult,
+    finished: deque[dict[str, float]],
+) -> None:
+    """Take in a group's step ``t``: rewards, dones, finished episodes, next observations."""
+    observation, reward, terminated, truncated, infos = result
+    done = np.logical_or(terminated, truncated)
+    for k in live.observation:
+        live.observation[k][rows] = observation[k]
+    returns = live.returns[rows]
+    returns += reward
+    for index, metrics in finished_episodes(infos):
+        finished.append({**metrics, "return": float(returns[index])})
+        returns[index] = 0.0
+    columns["reward"][t, rows] = torch.as_tensor(reward, dtype=torch.float32)
+    columns["done"][t, rows] = torch.as_tensor(done, dtype=torch.float32)
+    live.start[rows] = torch.as_tensor(done, dtype=torch.float32)
+    live.labels[rows] = expert_labels(infos, rows.stop - rows.start)
+
+
+def _dtype(array: np.ndarray) -> torch.dtype:
+    return torch.from_numpy(np.asarray(array)[:0]).dtype
 
 
 def compute_gae(rollout: Rollout, next_value: Tensor, gamma: float, lam: float) -> None:
