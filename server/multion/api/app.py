@@ -16,7 +16,7 @@ from multion.api.deps import MsgpackResponse
 from multion.api.openapi import install_openapi
 from multion.api.routers import meta, sessions
 from multion.api.sessions import SessionRegistry
-from multion.api.settings import ServerSettings
+from multion.api.settings import ServerSettings, fit_outer_memory_limit
 from multion.api.workers import WorkerPool
 from multion_client.errors import (
     BadRequest,
@@ -48,7 +48,9 @@ def create_app(
     With ``leaderboard`` (a challenge file and a results database) it also serves the run
     routes of :mod:`multion.leaderboard`; without, it behaves as a plain session server.
     """
-    settings = settings or ServerSettings()
+    settings, warning = fit_outer_memory_limit(settings or ServerSettings())
+    if warning:  # `multion serve` fitted them already; an app built another way says it here
+        log.warning(warning)
     if settings.sessions == "token" and leaderboard is None:
         raise ValueError(
             "sessions = 'token' needs a challenge (--challenge FILE): team tokens come from "

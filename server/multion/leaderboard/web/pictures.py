@@ -20,7 +20,6 @@ import io
 import logging
 import multiprocessing
 import os
-import resource
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -37,7 +36,7 @@ from multion.leaderboard.models import EpisodePicture, EpisodeRecord, Run
 from multion.leaderboard.results import RANKED_STATES
 from multion.leaderboard.storage import Database
 from multion.pictures import episode_picture, gps_to_world
-from multion.processes import die_with_parent
+from multion.processes import die_with_parent, limit_address_space
 from multion.task.env import MultiONEnv
 from multion.task.episode import Episode
 
@@ -58,7 +57,7 @@ def _start_drawer() -> None:
     never take more memory than its limit."""
     die_with_parent()
     os.nice(DRAWER_NICE)
-    resource.setrlimit(resource.RLIMIT_AS, (DRAWER_MEMORY_BYTES, DRAWER_MEMORY_BYTES))
+    limit_address_space(DRAWER_MEMORY_BYTES)  # or the server's outer limit, if lower
 
 
 @dataclass(frozen=True)
