@@ -32,6 +32,18 @@ def die_with_parent(signum: int = signal.SIGTERM) -> None:
         libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0)
 
 
+def ignore_stop_signals() -> None:
+    """In a helper process of the server (simulator worker, hidden-episode helper, picture
+    drawer): ignore SIGINT and SIGTERM, and die with the server instead. A process-group kill
+    (Ctrl-C, ``kill -- -PGID``, systemd's default ``KillMode=control-group``) signals every
+    process at once; the server then stops in order (uvicorn finishes the requests in flight,
+    which need these helpers) and stops them last. SIGKILL on the server's death, as SIGTERM
+    is ignored now."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    die_with_parent(signal.SIGKILL)
+
+
 def address_space_limit() -> int | None:
     """This process's address-space limit in bytes (``ulimit -v``, ``prlimit --as``, a
     container's): the lower of the soft and hard limits, or None when there is none."""

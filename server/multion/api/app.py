@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import secrets
 from collections.abc import AsyncIterator
 from typing import TYPE_CHECKING
 
@@ -133,5 +134,11 @@ async def _http_error(request: Request, error: Exception) -> MsgpackResponse:
 
 
 async def _unexpected_error(request: Request, error: Exception) -> MsgpackResponse:
-    log.exception("unexpected error in %s %s", request.method, request.url.path, exc_info=error)
-    return _respond(InternalError(f"{type(error).__name__}: {error}"))
+    # The exception's text stays in the log (it can name files, queries, internals); the
+    # client gets an incident number to quote.
+    incident = secrets.token_hex(4)
+    log.error("incident %s: unexpected error in %s %s", incident, request.method,
+              request.url.path, exc_info=error)  # fmt: skip
+    return _respond(
+        InternalError(f"the server failed on this request (incident {incident}); retry later")
+    )

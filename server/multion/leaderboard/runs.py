@@ -25,7 +25,7 @@ import datetime as dt
 import logging
 import time
 from collections import OrderedDict
-from typing import Any
+from typing import Any, NoReturn
 
 from sqlalchemy import select
 
@@ -54,6 +54,14 @@ from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunS
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
+STOPPING = (
+    "the server is stopping (a restart): retry in a minute; the run goes on where it was, "
+    "nothing is lost"
+)
+REFUNDED = (
+    "the server failed during this run (its log says why); the run is over and refunded: it "
+    "does not count against your quota"
+)
 KNOWN_END_REASONS = ("max_steps", "timeout")
 """End reasons a participant knows anyway (it counted its steps, it was late): the only ones
 sent on phases without per-episode feedback (success vs wrong_found would leak results)."""
@@ -72,6 +80,7 @@ class RunService:
         self._creating = asyncio.Lock()  # one quota check at a time in this process
         self.ended: OrderedDict[str, LiveRun] = OrderedDict()
         """Recently ended runs, so a retry of a run's last step still gets its answer."""
+        self.stopping = False
 
     # ------------------------------------------------------------------ create
     async def create(self, team_id: int, message: CreateRun) -> RunInfo:
@@ -80,17 +89,24 @@ class RunService:
         request = checked_request(self.challenge, message)
         track, phase, sensors = request.track, request.phase, request.sensors
         run_id = self.registry.settings.new_id()  # NAME-<hex> on a named replica, ≤ 32
-        if phase.episode_set == "fixed":
-            fixed = await asyncio.to_thread(self.hidden.phase_set, track, phase)
-            order = run_order(self.challenge, run_id, len(fixed))
-        else:
-            order = list(range(phase.episodes))
-        draw = RunDraw(run_id, phase.episode_set, tuple(order))
-        episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
-        firsts = [
-            await asyncio.to_thread(self.hidden.episode, track, phase, draw, k)
-            for k in range(request.num_envs)
-        ]
+        try:  # nothing is charged yet: a failure here is a plain error to retry
+            if phase.episode_set == "fixed":
+                fixed = await asyncio.to_thread(self.hidden.phase_set, track, phase)
+                order = run_order(self.challenge, run_id, len(fixed))
+            else:
+                order = list(range(phase.episodes))
+            draw = RunDraw(run_id, phase.episode_set, tuple(order))
+            episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
+            firsts = [
+                await asyncio.to_thread(self.hidden.episode, track, phase, draw, k)
+                for k in range(request.num_envs)
+            ]
+        except Exception:
+            log.exception("preparing a new run's episodes on %s/%s failed", track.name, phase.name)
+            raise errors.InternalError(
+                "the server failed to prepare this run's episodes; no run was created and "
+                "nothing counts against your quota: retry later"
+            ) from None
         deadline = utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
         state = RunState(0, [LaneState(deadline=deadline) for _ in firsts])
         row = Run(
@@ -115,10 +131,16 @@ class RunService:
         for lane, first in zip(live.lanes, firsts, strict=True):
             lane.episode = first
         self.live[run_id] = live
-        spaces = [await self._open(live, lane) for lane in live.lanes]
-        for lane in live.lanes:  # the first step budgets start now, with every lane ready
-            lane.state.deadline = self._deadline()
-        await self._save(live, [])
+        try:
+            spaces = [await self._open(live, lane) for lane in live.lanes]
+            for lane in live.lanes:  # the first step budgets start now, with every lane ready
+                lane.state.deadline = self._deadline()
+            await self._save(live, [])
+        except errors.MultiONError:
+            raise
+        except Exception:  # the quota was debited: the server's failure refunds it
+            log.exception("opening run %s failed", run_id)
+            await self._fail(live, ServerFault(errors.InternalError(REFUNDED)))
         limits = self.challenge.describe()["limits"]
         return RunInfo(
             run_id=run_id,
@@ -153,7 +175,10 @@ class RunService:
                     f"the next episode{where} is {live.next_position(lane)}, not "
                     f"{message.episode} (the server chooses the episodes)"
                 )
-            episode = await self.sessions.draw(live, message.episode)
+            try:
+                episode = await self.sessions.draw(live, message.episode)
+            except ServerFault as fault:
+                await self._fail(live, fault)
             reply = await self._session_call(live, lane, episode)
             observation, info = reply["observations"][0], reply["infos"][0]
             lane.episode = episode
@@ -374,8 +399,7 @@ class RunService:
         try:
             return await self.sessions.open(live, lane)
         except ServerFault as fault:
-            await self._finish(live, [], "failed", "server_error", refunded=True)
-            raise fault.error from None
+            await self._fail(live, fault)
 
     async def _session_call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> Any:
         """Reset (argument: the episode) or step (argument: the action) a lane's environment,
@@ -390,8 +414,7 @@ class RunService:
                 if attempt == 1:
                     raise
             except ServerFault as fault:
-                await self._finish(live, [], "failed", "server_error", refunded=True)
-                raise fault.error from None
+                await self._fail(live, fault)
         raise AssertionError("unreachable")
 
     async def _rebuild(self, live: LiveRun, lane: Lane) -> None:
@@ -399,11 +422,18 @@ class RunService:
         try:
             replayed = await self.sessions.replay(live, lane)
         except ServerFault as fault:
-            await self._finish(live, [], "failed", "server_error", refunded=True)
-            raise fault.error from None
+            await self._fail(live, fault)
         if replayed is not None:
             # the state is as saved, unless (defensively) its last action ended the episode
             await self._conclude(live, lane, *replayed, save_unfinished=False)
+
+    async def _fail(self, live: LiveRun, fault: ServerFault) -> NoReturn:
+        """The server broke the run: it fails and is refunded (never charged), unless the
+        server is stopping in order: then it stays as saved, to go on after the restart."""
+        if self.stopping:
+            raise errors.WorkerFailed(STOPPING) from None
+        await self._finish(live, [], "failed", "server_error", refunded=True)
+        raise fault.error from None
 
     def _shown_reason(self, live: LiveRun, end_reason: str | None) -> str | None:
         """What the participant may learn of why an episode ended (see KNOWN_END_REASONS)."""
@@ -517,6 +547,7 @@ class RunService:
         return await asyncio.to_thread(run)
 
     async def close(self) -> None:
+        self.stopping = True  # what fails from now on is the stop, not the runs' fault
         for live in list(self.live.values()):
             for lane in live.lanes:
                 await self.sessions.close(lane)

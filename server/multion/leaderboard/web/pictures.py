@@ -22,6 +22,7 @@ import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,7 +37,7 @@ from multion.leaderboard.models import EpisodePicture, EpisodeRecord, Run
 from multion.leaderboard.results import RANKED_STATES
 from multion.leaderboard.storage import Database
 from multion.pictures import episode_picture, gps_to_world
-from multion.processes import die_with_parent, limit_address_space
+from multion.processes import ignore_stop_signals, limit_address_space
 from multion.task.env import MultiONEnv
 from multion.task.episode import Episode
 
@@ -55,7 +56,7 @@ DRAWER_NICE = 19
 def _start_drawer() -> None:
     """In the drawing process: end with the server, yield the CPU to everything else, and
     never take more memory than its limit."""
-    die_with_parent()
+    ignore_stop_signals()  # a process-group SIGTERM must not end a drawing: the server does
     os.nice(DRAWER_NICE)
     limit_address_space(DRAWER_MEMORY_BYTES)  # or the server's outer limit, if lower
 
@@ -209,7 +210,7 @@ class PictureDrawer:
                 record.actions, record.metrics, f"episode {record.position + 1}",
             )  # fmt: skip
             try:
-                png = await asyncio.wrap_future(self._executor().submit(replay.draw))
+                png = await self._draw(replay)
             except Exception:  # noqa: BLE001 - recorded as failed, never retried in a loop
                 log.exception("the picture of episode %d of run %s failed", record.position, run.id)
                 png = b""
@@ -227,6 +228,22 @@ class PictureDrawer:
                 session.add_all(pictures)
         except IntegrityError:  # another replica drew them first
             pass
+
+    async def _draw(self, replay: EpisodeReplay) -> bytes:
+        """Draw in the helper process; a helper that died (a broken pool stays broken) is
+        replaced by a new one, which tries once more."""
+        for attempt in range(2):
+            pool = self._executor()
+            try:
+                return await asyncio.wrap_future(pool.submit(replay.draw))
+            except BrokenProcessPool:
+                log.warning("the picture drawer died; starting a new one")
+                if self._pool is pool:
+                    self._pool = None
+                pool.shutdown(wait=False, cancel_futures=True)
+                if attempt == 1:
+                    raise
+        raise AssertionError("unreachable")
 
     def _executor(self) -> ProcessPoolExecutor:
         if self._pool is None:
