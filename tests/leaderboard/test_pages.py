@@ -147,14 +147,21 @@ def test_names_are_escaped_and_an_abandoned_run_counts_its_missed_episodes(
 
     method = '<script>alert("x")</script> & co'
     env = RunEnv(server.url, "1-on", "minival", method, token=new_team("gamma"), sensors=["goal"])
+    env.reset()
+    env.step(0)  # FOUND: the episode ends (one played), then the run is abandoned
     env.abandon()
+    # a run abandoned before any episode ended is no entry at all (no ranked "0 / 3")
+    quitter = RunEnv(server.url, "1-on", "minival", "q", token=new_team("delta"), sensors=["goal"])
+    quitter.abandon()
     page = get(server, "/leaderboard").text
     assert "<script>alert" not in page and "&lt;script&gt;alert(" in page
     row = next(r for r in rows(board(page, "1-on", "minival")) if env.run_id in r)
-    assert "0 / 3" in row  # abandoned before any episode: all three missed, counted as failures
+    assert "1 / 3" in row  # the two missed episodes count as failures
+    assert quitter.run_id not in page and "delta" not in page
     run_page = get(server, f"/leaderboard/runs/{env.run_id}").text
     assert "<script>alert" not in run_page and "&lt;script&gt;alert(" in run_page
-    assert "not_played 3" in run_page
+    assert "not_played 2" in run_page
+    assert "not_played 3" in get(server, f"/leaderboard/runs/{quitter.run_id}").text
 
 
 def test_pages_answer_head_and_ids_start_with_a_letter(

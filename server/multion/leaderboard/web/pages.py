@@ -147,7 +147,7 @@ async def run_page(run_id: str, request: Request) -> HTMLResponse:
     )
 
 
-@router.get("/leaderboard/runs/{run_id}/episodes/{position}.png")
+@router.api_route("/leaderboard/runs/{run_id}/episodes/{position}.png", methods=PAGE_METHODS)
 async def episode_picture(run_id: str, position: int, request: Request) -> Response:
     """A stored picture of one of a run's first episodes (drawn when the run ended; nothing is
     drawn here, so a burst of requests costs only database reads)."""
