@@ -167,6 +167,15 @@ def test_sorting_a_column(visit: Any, played: dict[str, PlayedRun]) -> None:
     team_heading = board.locator("thead th", has_text="team")
     team_heading.click()
     assert teams() == sorted(teams(), key=str.lower)
+    # the keyboard sorts too: Space (without scrolling the page) and Enter
+    team_heading.focus()
+    scrolled = page.evaluate("window.scrollY")
+    page.keyboard.press(" ")
+    assert team_heading.get_attribute("aria-sort") == "descending"
+    assert teams() == sorted(teams(), key=str.lower, reverse=True)
+    assert page.evaluate("window.scrollY") == scrolled
+    page.keyboard.press("Enter")
+    assert team_heading.get_attribute("aria-sort") == "ascending"
 
 
 def test_a_sealed_phase_shows_nothing_in_the_browser(

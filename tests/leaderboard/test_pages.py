@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 import httpx
+import pytest
 from PIL import Image
 from played_runs import PlayedRun, percent
 
@@ -128,11 +129,25 @@ def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None
     assert played["beta"].run_id not in team
     assert "<svg" in team and "best PPL over time" in team
     rules = get(server, "/leaderboard/rules").text
-    for text in ("Track 1-on", "Track 1-on-oracle", "oracle_map", "60.0 s", "1 in all"):
-        assert text in rules
+    for text in ("Track 1-on", "Track 1-on-oracle", "oracle_map", "<strong>60 s</strong>",
+                 "<strong>24 hours</strong>", "1 in all", "<strong>1 room</strong>",
+                 "up to <strong>4</strong> episodes at once", "<code>multion-pybullet</code>"):  # fmt: skip
+        assert text in rules, text
+    assert "1.0 hours" not in rules and "24.0" not in rules
     assert get(server, "/leaderboard/teams/nobody").status_code == 404
     assert get(server, "/leaderboard/runs/0123").status_code == 404
     assert get(server, "/leaderboard/static/sort.js").status_code == 200
+
+
+@pytest.mark.parametrize(
+    ("seconds", "said"),
+    [(60, "60 s"), (0.5, "0.5 s"), (90, "90 s"), (120, "2 minutes"), (5400, "90 minutes"),
+     (3600, "1 hour"), (86400, "24 hours"), (7 * 86400, "7 days"), (30 * 86400, "30 days")],
+)  # fmt: skip
+def test_time_budgets_read_as_people_say_them(seconds: float, said: str) -> None:
+    from multion.leaderboard.web.pages import _duration
+
+    assert _duration(seconds) == said
 
 
 def test_pages_are_not_in_the_api_schema(server: Any) -> None:
