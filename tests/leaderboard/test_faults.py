@@ -17,6 +17,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
+from conftest import new_database
 from multion.api.app import create_app
 from multion.api.local_server import LocalServer
 from multion.leaderboard.models import EpisodePicture, Run
@@ -111,11 +112,13 @@ class Player:
         self.play()
 
 
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_a_process_group_sigterm_loses_nothing_and_refunds_nothing(
-    make_challenge: Callable[..., Path], tmp_path: Path
-) -> None:
+    request: pytest.FixtureRequest, backend: str, make_challenge: Callable[..., Path],
+    tmp_path: Path,
+) -> None:  # fmt: skip
     challenge_file = fault_challenge(make_challenge, tmp_path)
-    database = f"sqlite:///{tmp_path / 'results.db'}"
+    database = new_database(request, backend, tmp_path)
     Database.open(database).close()
     token = new_token(database, "steady")
     server = group_server(challenge_file, database)

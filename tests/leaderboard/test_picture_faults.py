@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +14,7 @@ import httpx
 import pytest
 from sqlalchemy import delete, select
 
+from conftest import new_database
 from multion.leaderboard.challenge import load_challenge
 from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import draw_of
@@ -22,17 +23,17 @@ from multion.leaderboard.storage import Database, add_team
 from multion.leaderboard.web.pictures import CLAIM, MAX_ATTEMPTS, PictureDrawer
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="module", params=["sqlite", "postgresql"])
 def played(
-    tmp_path_factory: pytest.TempPathFactory, make_challenge: Callable[..., Path],
-    launch: Callable[..., Any],
-) -> dict[str, Any]:  # fmt: skip
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
+    make_challenge: Callable[..., Path], launch: Callable[..., Any],
+) -> Iterator[dict[str, Any]]:  # fmt: skip
     """One ended minival run (3 played episodes) and no pictures: the server draws none."""
     from played_runs import play
 
     directory = tmp_path_factory.mktemp("picture-faults")
     challenge_file = make_challenge(directory)
-    database = f"sqlite:///{directory / 'results.db'}"
+    database = new_database(request, request.param, directory)
     db = Database.open(database)
     with db.sessions.begin() as session:
         token = add_team(session, "pics")[1]
