@@ -246,7 +246,13 @@ def postgres_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
                        capture_output=True, timeout=60)  # fmt: skip
 
 
-def new_database(request: pytest.FixtureRequest, backend: str, directory: Path) -> str:
+@pytest.fixture(scope="session")
+def new_database() -> Callable[[pytest.FixtureRequest, str, Path], str]:
+    """``new_database(request, backend, directory)``: see :func:`make_database`."""
+    return make_database
+
+
+def make_database(request: pytest.FixtureRequest, backend: str, directory: Path) -> str:
     """An empty database of ``backend``: a SQLite file in ``directory``, or a new database on
     the session's PostgreSQL server (skips without PostgreSQL, as ``postgres_url`` does)."""
     if backend == "sqlite":

@@ -17,7 +17,6 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
-from conftest import new_database
 from multion.api.app import create_app
 from multion.api.local_server import LocalServer
 from multion.leaderboard.models import EpisodePicture, Run
@@ -115,7 +114,7 @@ class Player:
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_a_process_group_sigterm_loses_nothing_and_refunds_nothing(
     request: pytest.FixtureRequest, backend: str, make_challenge: Callable[..., Path],
-    tmp_path: Path,
+    new_database: Callable[..., str], tmp_path: Path,
 ) -> None:  # fmt: skip
     challenge_file = fault_challenge(make_challenge, tmp_path)
     database = new_database(request, backend, tmp_path)

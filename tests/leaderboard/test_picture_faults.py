@@ -14,7 +14,6 @@ import httpx
 import pytest
 from sqlalchemy import delete, select
 
-from conftest import new_database
 from multion.leaderboard.challenge import load_challenge
 from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import draw_of
@@ -27,6 +26,7 @@ from multion.leaderboard.web.pictures import CLAIM, MAX_ATTEMPTS, PictureDrawer
 def played(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
     make_challenge: Callable[..., Path], launch: Callable[..., Any],
+    new_database: Callable[..., str],
 ) -> Iterator[dict[str, Any]]:  # fmt: skip
     """One ended minival run (3 played episodes) and no pictures: the server draws none."""
     from played_runs import play

@@ -358,4 +358,6 @@ def _insert_new(session: Session, rows: list[dict[str, Any]]) -> int:
     statement = insert(EpisodePicture).on_conflict_do_nothing(
         index_elements=["run_id", "position"]
     )
-    return sum(session.execute(statement.values(**row)).rowcount for row in rows)
+    # RETURNING, not rowcount: the PostgreSQL driver reports no rowcount for an INSERT (-1)
+    returning = statement.returning(EpisodePicture.position)
+    return sum(len(session.execute(returning.values(**row)).all()) for row in rows)
