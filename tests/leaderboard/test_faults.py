@@ -10,7 +10,9 @@ import subprocess
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -19,13 +21,15 @@ from sqlalchemy import select
 
 from multion.api.app import create_app
 from multion.api.local_server import LocalServer
+from multion.api.settings import ServerSettings
 from multion.leaderboard.models import EpisodePicture, Run
-from multion.leaderboard.storage import Database, add_team
+from multion.leaderboard.settings import LeaderboardSettings
+from multion.leaderboard.storage import Database, add_team, runs_counted
 from multion.processes import die_with_parent
 from multion_client import errors
 from multion_client.client import Client
-from multion_client.protocol import decode
-from multion_client.run_protocol import CreateRun, RunObservation
+from multion_client.protocol import CONTENT_TYPE, decode, encode
+from multion_client.run_protocol import RUNS_PATH, CreateRun, RunObservation, StartEpisode, run_path
 
 SERVER_ENV = {
     "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
@@ -245,6 +249,51 @@ def test_killed_helpers_are_replaced_and_nothing_is_charged(
         assert not any(r.refunded or r.state == "failed" for r in runs_of(database))
     finally:
         server.stop()
+
+
+def test_a_helper_that_keeps_failing_charges_no_quota(
+    make_challenge: Callable[..., Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """In process: the hidden-episode helper fails at every try (even after its pool was
+    replaced). A running run fails and is refunded; a new run is not created at all."""
+    challenge_file = fault_challenge(make_challenge, tmp_path)
+    database = f"sqlite:///{tmp_path / 'results.db'}"
+    Database.open(database).close()
+    token = new_token(database, "unlucky")
+    leaderboard = LeaderboardSettings(
+        challenge=challenge_file, database=database, warm_up=False, draw_pictures=False,
+        token_cache_s=0,
+    )  # fmt: skip
+    app = create_app(ServerSettings(), leaderboard)
+    headers = {"authorization": f"Bearer {token}", "content-type": CONTENT_TYPE}
+    create = CreateRun("1-on", "test-standard", "m", sensors=["goal"]).to_wire()
+    with TestClient(app, raise_server_exceptions=False) as http:
+
+        def post(path: str, body: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+            answer = http.post(path, content=encode(body), headers=headers)
+            return answer.status_code, decode(answer.content)
+
+        code, info = post(RUNS_PATH, create)
+        assert code == 201, info
+
+        def broken(*args: object) -> None:
+            raise BrokenProcessPool("A child process terminated abruptly, the process pool …")
+
+        monkeypatch.setattr(app.state.runs.hidden, "_call_plain", broken)
+        code, started = post(run_path(info["run_id"], "episodes"), StartEpisode(0).to_wire())
+        assert code == 500 and "refunded" in started["error"]["message"]
+        code, again = post(RUNS_PATH, create)
+        assert code == 500 and "no run was created" in again["error"]["message"]
+    for answer in (started, again):  # the server's words, never the exception's
+        assert "BrokenProcessPool" not in str(answer) and "child process" not in str(answer)
+    [run] = runs_of(database)  # the second run was never created
+    assert (run.id, run.state, run.end_reason, run.refunded) == (
+        info["run_id"], "failed", "server_error", True
+    )
+    db = Database.open(database)
+    with db.sessions() as session:
+        assert runs_counted(session, run.team_id, "1-on", "test-standard", None) == 0
+    db.close()
 
 
 def test_an_unexpected_error_shows_no_internal_text(caplog: pytest.LogCaptureFixture) -> None:

@@ -140,7 +140,7 @@ class RunService:
             raise
         except Exception:  # the quota was debited: the server's failure refunds it
             log.exception("opening run %s failed", run_id)
-            await self._fail(live, ServerFault(errors.InternalError(REFUNDED)))
+            await self._fail(live, ServerFault(errors.InternalError(REFUNDED)), stopping=False)
         limits = self.challenge.describe()["limits"]
         return RunInfo(
             run_id=run_id,
@@ -395,11 +395,12 @@ class RunService:
             raise errors.RunOver(_over(row.state, row.end_reason))
 
     async def _open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
-        """Open a lane's session; on a server fault the run fails and is refunded."""
+        """Open a lane's session for a new run; on a server fault the run fails and is
+        refunded, also while the server stops (its creator never got its id)."""
         try:
             return await self.sessions.open(live, lane)
         except ServerFault as fault:
-            await self._fail(live, fault)
+            await self._fail(live, fault, stopping=False)
 
     async def _session_call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> Any:
         """Reset (argument: the episode) or step (argument: the action) a lane's environment,
@@ -427,10 +428,12 @@ class RunService:
             # the state is as saved, unless (defensively) its last action ended the episode
             await self._conclude(live, lane, *replayed, save_unfinished=False)
 
-    async def _fail(self, live: LiveRun, fault: ServerFault) -> NoReturn:
+    async def _fail(
+        self, live: LiveRun, fault: ServerFault, stopping: bool | None = None
+    ) -> NoReturn:
         """The server broke the run: it fails and is refunded (never charged), unless the
         server is stopping in order: then it stays as saved, to go on after the restart."""
-        if self.stopping:
+        if self.stopping if stopping is None else stopping:
             raise errors.WorkerFailed(STOPPING) from None
         await self._finish(live, [], "failed", "server_error", refunded=True)
         raise fault.error from None
