@@ -91,12 +91,16 @@ def play_baselines(
                     continue
                 for name in agents_for(track["sensors"], agents):
                     cls = agent_class(name)
+                    # said before the run is created: the server may first build the phase's
+                    # hidden episodes, which can take a minute
+                    print(f"{track['name']}/{phase['name']}: {name}", end="", flush=True)
                     try:
                         env = RunEnv(
                             server, track["name"], phase["name"], name, token=token,
                             sensors=list(cls.sensors), maps=oracle_maps(cls),
                         )  # fmt: skip
                     except Unauthorized:
+                        print(flush=True)  # end the line begun above
                         raise StorageError(
                             f"{server} refused the baselines' token: the token was written to "
                             f"{db.engine.url.render_as_string(hide_password=True)}, which is not "
@@ -105,7 +109,7 @@ def play_baselines(
                         ) from None
                     # Each run's start and end are said even with --quiet (which only drops
                     # the progress bar): a run can take minutes.
-                    print(f"{track['name']}/{phase['name']}: {name} (run {env.run_id})", flush=True)
+                    print(f" (run {env.run_id})", flush=True)
                     play_run(env, cls, 0, None, progress)
                     status = env.status()
                     env.close()
