@@ -247,7 +247,7 @@ class PictureDrawer:
                 return int(session.scalar(_claim_column(run_id, EpisodePicture.width)) or 0)
             if session.scalar(select(exists().where(EpisodePicture.run_id == run_id))):
                 return None
-            inserted = _insert_new(session, [_row(run_id, CLAIM, b"", 0, now + LEASE)])
+            inserted = _insert_new(session, [_row(run_id, CLAIM, now + LEASE)])
             return 0 if inserted else None
 
     async def draw_run(
@@ -277,14 +277,18 @@ class PictureDrawer:
                 failed.append(record.position)
                 continue
             width, height = png_size(png)
-            pictures.append(_row(run.id, record.position, png, width, utcnow(), height))
+            pictures.append(_row(run.id, record.position, utcnow(), png, width, height))
         await asyncio.to_thread(self._store, run.id, pictures, failed, tries + 1)
 
-    def _store(self, run_id: str, pictures: list[dict], failed: list[int], tries: int) -> None:
+    def _store(
+        self, run_id: str, pictures: list[dict[str, Any]], failed: list[int], tries: int
+    ) -> None:
+        """Store what was drawn; on failures, give up after :data:`MAX_ATTEMPTS` tries or let
+        the claim lapse when the next try is due; else drop the claim (the run is done)."""
         now = utcnow()
         with self.db.sessions.begin() as session:
             if failed and tries >= MAX_ATTEMPTS:  # given up: the page says it failed
-                pictures += [_row(run_id, position, b"", 0, now) for position in failed]
+                pictures += [_row(run_id, position, now) for position in failed]
                 failed = []
             _insert_new(session, pictures)
             if failed:  # the claim lapses when the next try is due
@@ -301,7 +305,7 @@ class PictureDrawer:
                 )
             )
             if not session.scalar(select(exists().where(EpisodePicture.run_id == run_id))):
-                _insert_new(session, [_row(run_id, NOTHING, b"", 0, now)])  # nothing played
+                _insert_new(session, [_row(run_id, NOTHING, now)])  # nothing played
 
     async def _draw(self, replay: EpisodeReplay) -> bytes:
         """Draw in the helper process; a helper that died (a broken pool stays broken) is
@@ -332,8 +336,10 @@ class PictureDrawer:
 
 
 def _row(
-    run_id: str, position: int, png: bytes, width: int, created_at: dt.datetime, height: int = 0
-) -> dict[str, Any]:
+    run_id: str, position: int, created_at: dt.datetime, png: bytes = b"", width: int = 0,
+    height: int = 0,
+) -> dict[str, Any]:  # fmt: skip
+    """An ``episode_pictures`` row: a picture, an empty one (given up), a claim or a marker."""
     return {"run_id": run_id, "position": position, "png": png, "width": width,
             "height": height, "created_at": created_at}  # fmt: skip
 
