@@ -18,6 +18,9 @@ from multion.leaderboard.run_store import EpisodeResult
 from multion_client import errors
 
 log = logging.getLogger("multion.leaderboard")
+RESTART_GRACE = dt.timedelta(minutes=5)
+"""At an orderly stop, the runs in play get this long more on their step budgets: their
+clients cannot act while the server restarts."""
 
 
 class RunExpiry:
@@ -109,3 +112,30 @@ class RunExpiry:
             lane.last_answer = None
             await self._save(live, results)
 
+    async def grant_restart_grace(self) -> None:
+        """At an orderly stop: every lane of the runs in play may wait until
+        :data:`RESTART_GRACE` and a step budget from now, saved (so a replica that carries a
+        run on sees it too), and a restart that takes minutes costs no episode a timeout."""
+        step = dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
+        later = utcnow() + RESTART_GRACE + step
+        for live in list(self.live.values()):
+            try:  # bounded: a stop must not wait on a stuck lane
+                await asyncio.wait_for(self._extend(live, later), 5.0)
+            except errors.MultiONError:
+                continue  # ended meanwhile, or moved to another replica
+            except Exception:  # noqa: BLE001 - the stop goes on; the saved deadlines stand
+                log.exception("run %s: no restart grace", live.run_id)
+
+    async def _extend(self, live: LiveRun, later: dt.datetime) -> None:
+        held = []
+        try:
+            for lane in live.lanes:  # in lane order, as everywhere: no deadlock
+                await lane.lock.acquire()
+                held.append(lane)
+            for lane in live.lanes:
+                if lane.state.deadline is not None:
+                    lane.state.deadline = max(lane.state.deadline, later)
+            await self._save(live, [])
+        finally:
+            for lane in held:
+                lane.lock.release()

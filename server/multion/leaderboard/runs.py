@@ -485,6 +485,7 @@ class RunService(RunExpiry):
 
     async def close(self) -> None:
         self.stopping = True  # what fails from now on is the stop, not the runs' fault
+        await self.grant_restart_grace()
         for live in list(self.live.values()):
             for lane in live.lanes:
                 await self.sessions.close(lane)
