@@ -75,6 +75,11 @@ def play_baselines(
     unknown = sorted(set(tracks or ()) - {t["name"] for t in hosted})
     if unknown:
         raise ValueError(f"--track {', '.join(unknown)}: the server has {[t['name'] for t in hosted]}")
+    selected = [t for t in hosted if not tracks or t["name"] in tracks]
+    known_phases = sorted({p["name"] for t in selected for p in t["phases"]})
+    missing = sorted(set(phases or ()) - set(known_phases))
+    if missing:
+        raise ValueError(f"--phase {', '.join(missing)}: the server's phases are {known_phases}")
     token = baseline_token(db)
     run_ids = []
     try:
@@ -86,27 +91,34 @@ def play_baselines(
                     continue
                 for name in agents_for(track["sensors"], agents):
                     cls = agent_class(name)
+                    # said before the run is created: the server may first build the phase's
+                    # hidden episodes, which can take a minute
+                    print(f"{track['name']}/{phase['name']}: {name}", end="", flush=True)
                     try:
                         env = RunEnv(
                             server, track["name"], phase["name"], name, token=token,
                             sensors=list(cls.sensors), maps=oracle_maps(cls),
                         )  # fmt: skip
                     except Unauthorized:
+                        print(flush=True)  # end the line begun above
                         raise StorageError(
                             f"{server} refused the baselines' token: the token was written to "
                             f"{db.engine.url.render_as_string(hide_password=True)}, which is not "
                             "that server's database (give the server's --database, or set "
                             "MULTION_LEADERBOARD_DATABASE as for `multion serve`)"
                         ) from None
-                    if progress:
-                        print(f"{track['name']}/{phase['name']}: {name} (run {env.run_id})")
+                    # Each run's start and end are said even with --quiet (which only drops
+                    # the progress bar): a run can take minutes.
+                    print(f" (run {env.run_id})", flush=True)
                     play_run(env, cls, 0, None, progress)
                     status = env.status()
                     env.close()
                     run_ids.append(env.run_id)
-                    if progress and status.results:
+                    score = ""
+                    if status.results:
                         value = status.results[track["metric"]]["mean"]
-                        print(f"  {status.state}: {track['metric']} {100 * value:.1f}%")
+                        score = f": {track['metric']} {100 * value:.1f}%"
+                    print(f"  {status.state}{score}", flush=True)
     finally:
         with db.sessions.begin() as session:
             revoke_tokens(session, find_team(session, BASELINE_TEAM))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import functools
+import resource
 import signal
 import sys
 from types import FrameType
@@ -29,6 +30,36 @@ def die_with_parent(signum: int = signal.SIGTERM) -> None:
     libc = _libc()
     if libc is not None:
         libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0)
+
+
+def ignore_stop_signals() -> None:
+    """In a helper process of the server (simulator worker, hidden-episode helper, picture
+    drawer): ignore SIGINT and SIGTERM, and die with the server instead. A process-group kill
+    (Ctrl-C, ``kill -- -PGID``, systemd's default ``KillMode=control-group``) signals every
+    process at once; the server then stops in order (uvicorn finishes the requests in flight,
+    which need these helpers) and stops them last. SIGKILL on the server's death, as SIGTERM
+    is ignored now."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    die_with_parent(signal.SIGKILL)
+
+
+def address_space_limit() -> int | None:
+    """This process's address-space limit in bytes (``ulimit -v``, ``prlimit --as``, a
+    container's): the lower of the soft and hard limits, or None when there is none."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    finite = [x for x in (soft, hard) if x != resource.RLIM_INFINITY]
+    return min(finite) if finite else None
+
+
+def limit_address_space(limit_bytes: int) -> int:
+    """Set this process's address-space limit to ``limit_bytes``, or keep the outer limit where
+    it is lower (raising it is not allowed: ``ValueError``); returns the limit now in force."""
+    outer = address_space_limit()
+    if outer is not None:
+        limit_bytes = min(limit_bytes, outer)
+    resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
+    return limit_bytes
 
 
 def give_back_memory() -> None:

@@ -244,3 +244,26 @@ def postgres_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     finally:
         subprocess.run([*prefix, str(bindir / "pg_ctl"), "-D", str(data), "-m", "fast", "stop"],
                        capture_output=True, timeout=60)  # fmt: skip
+
+
+@pytest.fixture(scope="session")
+def new_database() -> Callable[[pytest.FixtureRequest, str, Path], str]:
+    """``new_database(request, backend, directory)``: see :func:`make_database`."""
+    return make_database
+
+
+def make_database(request: pytest.FixtureRequest, backend: str, directory: Path) -> str:
+    """An empty database of ``backend``: a SQLite file in ``directory``, or a new database on
+    the session's PostgreSQL server (skips without PostgreSQL, as ``postgres_url`` does)."""
+    if backend == "sqlite":
+        return f"sqlite:///{directory / 'results.db'}"
+    server = request.getfixturevalue("postgres_url")
+    import secrets
+
+    import psycopg
+
+    name = f"db_{secrets.token_hex(4)}"
+    plain = server.replace("postgresql+psycopg", "postgresql").rsplit("/", 1)[0] + "/postgres"
+    with psycopg.connect(plain, autocommit=True) as connection:
+        connection.execute(f"CREATE DATABASE {name}")
+    return server.rsplit("/", 1)[0] + f"/{name}"

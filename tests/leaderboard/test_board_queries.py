@@ -134,9 +134,9 @@ def test_equal_per_episode_values_give_equal_scores_ranks_and_intervals(tmp_path
                 ))  # fmt: skip
         with db.sessions() as session:
             board = queries.leaderboards(session, challenge, start + dt.timedelta(days=1))[0]
-            from multion.leaderboard.cli import best_rows, run_rows
+            from multion.leaderboard.cli import run_rows, shown_rows
 
-            exported = [r["run_id"] for r in best_rows(run_rows(session))
+            exported = [r["run_id"] for r in shown_rows(session, challenge, run_rows(session))
                         if (r["track"], r["phase"]) == ("1-on", "minival")]  # fmt: skip
     finally:
         db.close()

@@ -167,6 +167,15 @@ def test_sorting_a_column(visit: Any, played: dict[str, PlayedRun]) -> None:
     team_heading = board.locator("thead th", has_text="team")
     team_heading.click()
     assert teams() == sorted(teams(), key=str.lower)
+    # the keyboard sorts too: Space (without scrolling the page) and Enter
+    team_heading.focus()
+    scrolled = page.evaluate("window.scrollY")
+    page.keyboard.press(" ")
+    assert team_heading.get_attribute("aria-sort") == "descending"
+    assert teams() == sorted(teams(), key=str.lower, reverse=True)
+    assert page.evaluate("window.scrollY") == scrolled
+    page.keyboard.press("Enter")
+    assert team_heading.get_attribute("aria-sort") == "ascending"
 
 
 def test_a_sealed_phase_shows_nothing_in_the_browser(
@@ -220,11 +229,14 @@ def _found_at_once(url: str, token: str, method: str) -> str:
 @pytest.fixture(scope="module")
 def ties(server: Any, played: dict[str, PlayedRun], new_team: Any) -> dict[str, str]:
     """Runs with equal scores (0 on every metric): team delta's abandoned run (first), then two
-    finished ones; team omega's abandoned run with a long method and paper / code links."""
+    finished ones; team omega's abandoned run with a long method and paper / code links. The
+    abandoned runs play one episode (FOUND at once) first: a run that played none is no entry."""
     from multion_client.run import RunEnv
 
     token = new_team("delta")
     abandoned = RunEnv(server.url, "1-on", "minival", "delta", token=token, sensors=["goal"])
+    abandoned.reset()
+    abandoned.step(0)
     abandoned.abandon()
     first = _found_at_once(server.url, token, "delta")
     second = _found_at_once(server.url, token, "delta")
@@ -232,6 +244,8 @@ def ties(server: Any, played: dict[str, PlayedRun], new_team: Any) -> dict[str, 
         server.url, "1-on", "minival", LONG_METHOD, token=new_team("omega"), sensors=["goal"],
         paper_url="https://example.org/paper", code_url="https://example.org/code",
     )  # fmt: skip
+    long.reset()
+    long.step(0)
     long.abandon()
     return {"abandoned": abandoned.run_id, "first": first, "second": second, "long": long.run_id}
 
@@ -244,7 +258,7 @@ def _rows(board: Any) -> list[dict[str, Any]]:
 
 
 def test_equal_scores_share_a_rank_and_the_best_run_is_the_exports(
-    visit: Any, ties: dict[str, str], database: str, tmp_path: Path
+    visit: Any, ties: dict[str, str], database: str, challenge_file: Path, tmp_path: Path
 ) -> None:
     import json
 
@@ -265,7 +279,8 @@ def test_equal_scores_share_a_rank_and_the_best_run_is_the_exports(
     delta = next(r for r in rows if r["team"] == "delta")
     assert delta["run"] == ties["first"]
     out = tmp_path / "best.json"
-    assert main(["leaderboard", "export", "--best", "--database", database, "--out", str(out)]) == 0
+    assert main(["leaderboard", "export", "--best", "--database", database, "--out", str(out),
+                 "--challenge", str(challenge_file)]) == 0  # fmt: skip
     best = json.loads(out.read_text())["runs"]
     exported = {r["run_id"] for r in best if (r["track"], r["phase"]) == ("1-on", "minival")}
     assert exported == {r["run"] for r in rows}

@@ -56,6 +56,9 @@ def test_admin_submit_baselines_export_replay(
     code, out, err = run_cli(capsys, "leaderboard", "baselines", "--server", server.url,
                              *db, "--track", "1-on-oracle", "--phase", "minival", "--quiet")  # fmt: skip
     assert code == 0, err
+    # --quiet drops the progress bars, not the news: each run's start and end, then a count
+    assert out.count("1-on-oracle/minival: ") == 4 and out.count("  finished: ppl ") == 4
+    assert out.strip().endswith("4 baseline runs played")
     code, out, _ = run_cli(capsys, "leaderboard", "runs", *db, "--track", "1-on-oracle")
     names = [line.split("  ")[3] for line in out.strip().splitlines()]
     assert sorted(names) == ["explorer", "oracle-planner", "random", "random-oracle-found"]
@@ -67,8 +70,9 @@ def test_admin_submit_baselines_export_replay(
     assert code == 0 and {r["team"] for r in rows} >= {"Lab One", "baselines"}
     assert {"ppl_mean", "ppl_low", "ppl_high", "method", "baseline"} <= set(rows[0])
     code, _, _ = run_cli(
-        capsys, "leaderboard", "export", *db, "--best", "--out", str(tmp_path / "best.json")
-    )
+        capsys, "leaderboard", "export", *db, "--best", "--challenge", str(challenge_file),
+        "--out", str(tmp_path / "best.json"),
+    )  # fmt: skip
     best = json.loads((tmp_path / "best.json").read_text())["runs"]
     assert code == 0 and all(len(r["episode_records"]) == r["episodes"] for r in best)
     # exactly the runs the leaderboard page shows: one per team, one per baseline method

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 import httpx
+import pytest
 from PIL import Image
 from played_runs import PlayedRun, percent
 
@@ -128,11 +129,25 @@ def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None
     assert played["beta"].run_id not in team
     assert "<svg" in team and "best PPL over time" in team
     rules = get(server, "/leaderboard/rules").text
-    for text in ("Track 1-on", "Track 1-on-oracle", "oracle_map", "60.0 s", "1 in all"):
-        assert text in rules
+    for text in ("Track 1-on", "Track 1-on-oracle", "oracle_map", "<strong>60 s</strong>",
+                 "<strong>24 hours</strong>", "1 in all", "<strong>1 room</strong>",
+                 "up to <strong>4</strong> episodes at once", "<code>multion-pybullet</code>"):  # fmt: skip
+        assert text in rules, text
+    assert "1.0 hours" not in rules and "24.0" not in rules
     assert get(server, "/leaderboard/teams/nobody").status_code == 404
     assert get(server, "/leaderboard/runs/0123").status_code == 404
     assert get(server, "/leaderboard/static/sort.js").status_code == 200
+
+
+@pytest.mark.parametrize(
+    ("seconds", "said"),
+    [(60, "60 s"), (0.5, "0.5 s"), (90, "90 s"), (120, "2 minutes"), (5400, "90 minutes"),
+     (3600, "1 hour"), (86400, "24 hours"), (7 * 86400, "7 days"), (30 * 86400, "30 days")],
+)  # fmt: skip
+def test_time_budgets_read_as_people_say_them(seconds: float, said: str) -> None:
+    from multion.leaderboard.web.pages import _duration
+
+    assert _duration(seconds) == said
 
 
 def test_pages_are_not_in_the_api_schema(server: Any) -> None:
@@ -147,14 +162,21 @@ def test_names_are_escaped_and_an_abandoned_run_counts_its_missed_episodes(
 
     method = '<script>alert("x")</script> & co'
     env = RunEnv(server.url, "1-on", "minival", method, token=new_team("gamma"), sensors=["goal"])
+    env.reset()
+    env.step(0)  # FOUND: the episode ends (one played), then the run is abandoned
     env.abandon()
+    # a run abandoned before any episode ended is no entry at all (no ranked "0 / 3")
+    quitter = RunEnv(server.url, "1-on", "minival", "q", token=new_team("delta"), sensors=["goal"])
+    quitter.abandon()
     page = get(server, "/leaderboard").text
     assert "<script>alert" not in page and "&lt;script&gt;alert(" in page
     row = next(r for r in rows(board(page, "1-on", "minival")) if env.run_id in r)
-    assert "0 / 3" in row  # abandoned before any episode: all three missed, counted as failures
+    assert "1 / 3" in row  # the two missed episodes count as failures
+    assert quitter.run_id not in page and "delta" not in page
     run_page = get(server, f"/leaderboard/runs/{env.run_id}").text
     assert "<script>alert" not in run_page and "&lt;script&gt;alert(" in run_page
-    assert "not_played 3" in run_page
+    assert "not_played 2" in run_page
+    assert "not_played 3" in get(server, f"/leaderboard/runs/{quitter.run_id}").text
 
 
 def test_pages_answer_head_and_ids_start_with_a_letter(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import secrets
 from collections.abc import AsyncIterator
 from typing import TYPE_CHECKING
 
@@ -16,7 +17,7 @@ from multion.api.deps import MsgpackResponse
 from multion.api.openapi import install_openapi
 from multion.api.routers import meta, sessions
 from multion.api.sessions import SessionRegistry
-from multion.api.settings import ServerSettings
+from multion.api.settings import ServerSettings, fit_outer_memory_limit
 from multion.api.workers import WorkerPool
 from multion_client.errors import (
     BadRequest,
@@ -48,7 +49,9 @@ def create_app(
     With ``leaderboard`` (a challenge file and a results database) it also serves the run
     routes of :mod:`multion.leaderboard`; without, it behaves as a plain session server.
     """
-    settings = settings or ServerSettings()
+    settings, warning = fit_outer_memory_limit(settings or ServerSettings())
+    if warning:  # `multion serve` fitted them already; an app built another way says it here
+        log.warning(warning)
     if settings.sessions == "token" and leaderboard is None:
         raise ValueError(
             "sessions = 'token' needs a challenge (--challenge FILE): team tokens come from "
@@ -131,5 +134,11 @@ async def _http_error(request: Request, error: Exception) -> MsgpackResponse:
 
 
 async def _unexpected_error(request: Request, error: Exception) -> MsgpackResponse:
-    log.exception("unexpected error in %s %s", request.method, request.url.path, exc_info=error)
-    return _respond(InternalError(f"{type(error).__name__}: {error}"))
+    # The exception's text stays in the log (it can name files, queries, internals); the
+    # client gets an incident number to quote.
+    incident = secrets.token_hex(4)
+    log.error("incident %s: unexpected error in %s %s", incident, request.method,
+              request.url.path, exc_info=error)  # fmt: skip
+    return _respond(
+        InternalError(f"the server failed on this request (incident {incident}); retry later")
+    )

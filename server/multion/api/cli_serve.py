@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from pathlib import Path
 
-from multion.api.settings import ServerSettings
+from multion.api.settings import ServerSettings, fit_outer_memory_limit
 
 # Options that map one-to-one onto ServerSettings fields (None: keep the MULTION_* / default).
 _OPTIONS: tuple[tuple[str, type, str], ...] = (
@@ -23,7 +24,7 @@ _OPTIONS: tuple[tuple[str, type, str], ...] = (
         "worker_memory_mb",
         int,
         "address-space limit of each simulator worker, and the room its sessions' memory "
-        "estimates share (default 8192)",
+        "estimates share (default 8192, or this process's address-space limit if lower: ulimit -v)",
     ),
     (
         "sessions",
@@ -130,6 +131,13 @@ def run(args: argparse.Namespace) -> int:
     except ValidationError as error:
         print(f"multion serve: invalid option: {error}")
         return 2
+    try:
+        settings, warning = fit_outer_memory_limit(settings)
+    except ValueError as error:
+        print(f"multion serve: {error}", file=sys.stderr)
+        return 2
+    if warning:
+        print(f"multion serve: warning: {warning}", file=sys.stderr)
     leaderboard = None
     # the leaderboard is on with --challenge or $MULTION_LEADERBOARD_CHALLENGE (docs' Serving)
     challenge_file = getattr(args, "challenge", None) or os.environ.get(

@@ -10,9 +10,13 @@ from typing import Literal
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from multion.processes import address_space_limit
+
 ID_LENGTH = 32
 """Session and run ids are at most this long (the leaderboard's ``runs.id`` is String(32))."""
 REPLICA_PATTERN = re.compile(r"[a-z0-9]{1,8}")
+MIN_WORKER_MEMORY_MB = 1024
+"""The least address space a simulator worker starts in (the interpreter, PyBullet, numpy)."""
 
 
 class ServerSettings(BaseSettings):
@@ -34,7 +38,7 @@ class ServerSettings(BaseSettings):
     worker_start_timeout_s: float = Field(120.0, gt=0)
     worker_memory_mb: int = Field(
         8192,
-        ge=1024,
+        ge=MIN_WORKER_MEMORY_MB,
         description="address-space limit of each simulator worker (RLIMIT_AS); the memory "
         "estimates of the sessions a worker holds must fit in it, less what the process itself "
         "needs",
@@ -96,3 +100,36 @@ def replica_of(some_id: str) -> str | None:
     """The replica name a session or run id starts with (``NAME-``), or None."""
     name, dash, _ = some_id.partition("-")
     return name if dash and REPLICA_PATTERN.fullmatch(name) else None
+
+
+def fit_outer_memory_limit(
+    settings: ServerSettings, outer_bytes: int | None = None
+) -> tuple[ServerSettings, str | None]:
+    """Settings whose ``worker_memory_mb`` fits under this process's own address-space limit
+    (``ulimit -v``, ``prlimit --as``; ``outer_bytes`` to test), which every worker inherits
+    and cannot raise: the default is lowered to it, with a warning to show; a value given
+    above it, or a limit too low for any worker, is a ValueError naming the option."""
+    if outer_bytes is None:
+        outer_bytes = address_space_limit()
+    if outer_bytes is None or settings.worker_memory_mb * 2**20 <= outer_bytes:
+        return settings, None
+    outer_mb = outer_bytes // 2**20
+    option = "--worker-memory-mb (MULTION_WORKER_MEMORY_MB)"
+    if outer_mb < MIN_WORKER_MEMORY_MB:
+        raise ValueError(
+            f"this process's address-space limit (ulimit -v / prlimit --as) is {outer_mb} MiB, "
+            f"below the {MIN_WORKER_MEMORY_MB} MiB a simulator worker needs ({option} is at "
+            f"least {MIN_WORKER_MEMORY_MB}): raise the limit"
+        )
+    if "worker_memory_mb" in settings.model_fields_set:
+        raise ValueError(
+            f"{option} is {settings.worker_memory_mb} MiB, above this process's address-space "
+            f"limit (ulimit -v / prlimit --as) of {outer_mb} MiB, which the simulator workers "
+            f"cannot exceed: give {outer_mb} or less, or raise the limit"
+        )
+    warning = (
+        f"this process's address-space limit (ulimit -v / prlimit --as) is {outer_mb} MiB, "
+        f"below the default {option} of {settings.worker_memory_mb} MiB: each simulator worker "
+        f"gets {outer_mb} MiB (give {option} to choose a value up to {outer_mb})"
+    )
+    return settings.model_copy(update={"worker_memory_mb": outer_mb}), warning

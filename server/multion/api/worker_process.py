@@ -10,14 +10,12 @@ server splices into its HTTP response without decoding them. This module never i
 from __future__ import annotations
 
 import os
-import resource
-import signal
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.api.config_io import ConfigError, session_config_from_dict
-from multion.processes import die_with_parent, give_back_memory
+from multion.processes import give_back_memory, ignore_stop_signals, limit_address_space
 from multion.task.dataset import DatasetError
 from multion.task.env import EpisodeOverError, MultiONEnv
 from multion_client import errors
@@ -40,10 +38,10 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
     """Serve commands until ``shutdown``, until the server's end of the pipe closes, or until
     memory runs out (the worker then answers and exits: its state is not to be trusted, and the
     server replaces it)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which stops us
-    die_with_parent()
-    # A bug or a bad estimate can cost this worker, never the machine.
-    resource.setrlimit(resource.RLIMIT_AS, (memory_limit_bytes, memory_limit_bytes))
+    ignore_stop_signals()  # Ctrl-C or SIGTERM reach the server too, which stops us in order
+    # A bug or a bad estimate can cost this worker, never the machine. (The server already
+    # lowered the limit to any outer one; the clamp is for apps built without that check.)
+    memory_limit_bytes = limit_address_space(memory_limit_bytes)
     shards: dict[str, Shard] = {}
     conn.send_bytes(encode({"ready": True, "pid": os.getpid()}))
     while True:

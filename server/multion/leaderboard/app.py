@@ -17,6 +17,7 @@ from fastapi import FastAPI
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, load_challenge
 from multion.leaderboard.live_run import draw_of
+from multion.leaderboard.models import utcnow
 from multion.leaderboard.routes import TokenCache, router, team_of
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
@@ -32,6 +33,8 @@ def check_leaderboard(app: FastAPI, settings: LeaderboardSettings) -> Challenge:
     and check it was used with the same secret (StorageError if not), and add the routes and
     web pages."""
     challenge = load_challenge(settings.challenge)
+    for warning in challenge.warnings(utcnow()):
+        log.warning("%s: %s", settings.challenge, warning)
     db = Database.open(settings.database)
     try:
         with db.sessions.begin() as session:

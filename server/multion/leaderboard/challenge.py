@@ -267,6 +267,17 @@ class Challenge:
     def track(self, name: str) -> Track | None:
         return next((t for t in self.tracks if t.name == name), None)
 
+    def warnings(self, now: dt.datetime) -> list[str]:
+        """What is allowed but likely a mistake: a sealed phase whose date has passed shows
+        its results to everyone (a wrong year unseals it)."""
+        return [
+            f"phase {t.name}/{p.name}: sealed_until {p.sealed_until.isoformat()} is in the past, "
+            "so its results are shown to everyone now (a wrong year?)"
+            for t in self.tracks
+            for p in t.phases
+            if p.sealed_until is not None and p.sealed_until <= now
+        ]
+
     def describe(self) -> dict[str, Any]:
         """The public description (no secret): what ``GET /v1/challenge`` answers."""
         return {

@@ -72,13 +72,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = command("runs", "list runs")
     for option in ("team", "track", "phase", "state"):
         p.add_argument(f"--{option}", default=None)
-    p = command("export", "write results as CSV or JSON (by --out's suffix)")
+    p = command("export", "write results as CSV or JSON (by --out's suffix)", challenge=True)
     p.add_argument("--out", type=Path, required=True, help="results.csv or results.json")
     p.add_argument(
         "--best",
         action="store_true",
-        help="only the runs the leaderboard shows: each team's best per track and phase (each "
-        "baseline method's for the baselines team)",
+        help="only the runs the leaderboard page shows now: each team's best per track and "
+        "phase (each baseline method's for the baselines team), none of a sealed phase before "
+        "its date (needs --challenge)",
     )
     p = command("replay", "replay a stored run and compare (or re-score) it", challenge=True)
     p.add_argument("run_id")
@@ -144,10 +145,15 @@ def _init(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> int:
     challenge = _challenge(args)
+    from multion.leaderboard.models import utcnow
+
     phases = sum(len(t.phases) for t in challenge.tracks)
     print(
-        f"{args.challenge}: challenge {challenge.name!r}, {len(challenge.tracks)} tracks, {phases} phases: OK"
+        f"{args.challenge}: challenge {challenge.name!r}, {_count(len(challenge.tracks), 'track')}, "
+        f"{_count(phases, 'phase')}: OK"
     )
+    for warning in challenge.warnings(utcnow()):
+        print(f"  warning: {warning}")
     if args.generate:
         _generate(challenge)
     return 0
@@ -178,8 +184,15 @@ def _generate(challenge: Challenge) -> None:
     print("\n".join(rows))
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def _tracks(args: argparse.Namespace) -> int:
+    from multion.leaderboard.models import utcnow
+
     challenge = _challenge(args)
+    now = utcnow()
     for track in challenge.tracks:
         print(
             f"{track.name}: {track.num_goals}-ON, {track.kind}, ranked by {track.metric}, sensors {', '.join(track.allowed_sensors)}"
@@ -192,6 +205,8 @@ def _tracks(args: argparse.Namespace) -> int:
                 ) if q
             ) or "no quota"  # fmt: skip
             sealed = f", sealed until {p.sealed_until.isoformat()}" if p.sealed_until else ""
+            if p.sealed_until is not None and p.sealed_until <= now:
+                sealed += " (passed: results shown to everyone)"
             print(
                 f"  {p.name}: {p.episodes} episodes in {p.houses} houses, feedback {p.feedback}, {quota}{sealed}"
             )
@@ -285,30 +300,25 @@ def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
     return rows
 
 
-def best_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The runs the leaderboard shows: each team's best run per (track, phase) by the track's
-    ranking metric, and each baseline method's (the rule of the leaderboard page)."""
-    import datetime as dt
+def shown_rows(
+    session: Any, challenge: Challenge, rows: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """The rows of the runs the leaderboard page shows now, in its order: the page's own query
+    (:func:`~multion.leaderboard.web.queries.leaderboards`), so sealed phases before their
+    date and runs that played nothing are left out here too."""
+    from multion.leaderboard.models import utcnow
+    from multion.leaderboard.web.queries import leaderboards
 
-    from multion.leaderboard.results import RANKED_STATES, best_first, entrant, keep_best
-
-    def order(row: dict[str, Any]) -> tuple:
-        finished = dt.datetime.fromisoformat(row["finished_at"]) if row["finished_at"] else None
-        score = row[f"{row['primary']}_mean"] or 0.0
-        return best_first(score, row["state"], finished, row["run_id"])
-
-    best = keep_best(
-        (r for r in rows if r["state"] in RANKED_STATES and r["primary"] is not None),
-        key=lambda r: (r["track"], r["phase"], *entrant(r["team"], r["method"], r["baseline"])),
-        order=order,
-    )
-    return sorted(best.values(), key=lambda r: (r["track"], r["phase"], order(r)))
+    by_id = {row["run_id"]: row for row in rows}
+    boards = leaderboards(session, challenge, utcnow())
+    return [by_id[r.run_id] for board in boards for r in board.rows if r.run_id in by_id]
 
 
 def _runs(args: argparse.Namespace) -> int:
     db = _db(args)
     try:
         with db.sessions() as session:
+            _check_filters(session, args)
             rows = run_rows(
                 session, team=args.team, track=args.track, phase=args.phase, state=args.state
             )
@@ -328,6 +338,29 @@ def _runs(args: argparse.Namespace) -> int:
     return 0
 
 
+RUN_STATES = ("running", "finished", "ended", "failed")
+
+
+def _check_filters(session: Any, args: argparse.Namespace) -> None:
+    """A filter that matches nothing the database holds is named with what it does hold (a
+    typo must not read as "no runs")."""
+    from sqlalchemy import distinct, select
+
+    from multion.leaderboard.models import Run, Team
+
+    for option, column in (("team", Team.name), ("track", Run.track), ("phase", Run.phase)):
+        given = getattr(args, option)
+        if given is None:
+            continue
+        known = sorted(session.scalars(select(distinct(column))))
+        if given not in known:
+            listed = ", ".join(known[:20]) + (" …" if len(known) > 20 else "") or "none yet"
+            where = "teams" if option == "team" else f"{option}s with runs"
+            raise ValueError(f"--{option} {given!r}: no such {option}; {where}: {listed}")
+    if args.state is not None and args.state not in RUN_STATES:
+        raise ValueError(f"--state {args.state!r}: states are {', '.join(RUN_STATES)}")
+
+
 def _export(args: argparse.Namespace) -> int:
     from sqlalchemy import select
 
@@ -338,7 +371,7 @@ def _export(args: argparse.Namespace) -> int:
         with db.sessions() as session:
             rows = run_rows(session)
             if args.best:
-                rows = best_rows(rows)
+                rows = shown_rows(session, _challenge(args), rows)
             suffix = args.out.suffix.lower()
             if suffix == ".json":
                 for row in rows:
@@ -400,11 +433,12 @@ def _baselines(args: argparse.Namespace) -> int:
     baselines = importlib.import_module("multion_agents.leaderboard_baselines")
     db = _db(args)
     try:
-        baselines.play_baselines(
+        run_ids = baselines.play_baselines(
             db, args.server, args.track, args.phase, args.agents, not args.quiet
         )
     finally:
         db.close()
+    print(f"{_count(len(run_ids), 'baseline run')} played")
     return 0
 
 

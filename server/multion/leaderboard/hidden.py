@@ -21,18 +21,20 @@ from __future__ import annotations
 import functools
 import hashlib
 import hmac
+import logging
 import multiprocessing
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
-from multion.processes import die_with_parent
+from multion.processes import ignore_stop_signals
 from multion.scenes.registry import house_id, sized_house_id
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
@@ -47,6 +49,7 @@ SAMPLE_TRIES = 8
 """Fresh episodes: sampling attempts (each of ``EpisodeConstraints.max_tries`` starts) before
 giving up on a house (the packaged generator allows 4)."""
 T = TypeVar("T")
+log = logging.getLogger("multion.leaderboard")
 GRIDS_KEPT = 32
 """Navigable grids the episode sampler keeps in memory (a phase may have up to 1000 houses)."""
 
@@ -271,9 +274,28 @@ class HiddenEpisodes:
     def _call_plain(self, function: Callable[..., T], *args: object) -> T:
         if not self.in_subprocess:
             return function(*args)
+        for attempt in range(2):
+            pool = self._live_pool()
+            try:
+                return pool.submit(function, *args).result()
+            except BrokenProcessPool:
+                # The helper died (killed, out of memory): a broken pool stays broken, so a
+                # new one takes its place, and the call is tried once more in it.
+                log.warning("the hidden-episode helper died; starting a new one")
+                self._drop_pool(pool)
+                if attempt == 1:
+                    raise
+        raise AssertionError("unreachable")
+
+    def _live_pool(self) -> ProcessPoolExecutor:
         with self._pool_lock:
             if self._pool is None:
                 spawn = multiprocessing.get_context("spawn")
-                self._pool = ProcessPoolExecutor(1, spawn, initializer=die_with_parent)
-            pool = self._pool
-        return pool.submit(function, *args).result()
+                self._pool = ProcessPoolExecutor(1, spawn, initializer=ignore_stop_signals)
+            return self._pool
+
+    def _drop_pool(self, pool: ProcessPoolExecutor) -> None:
+        with self._pool_lock:
+            if self._pool is pool:
+                self._pool = None
+        pool.shutdown(wait=False, cancel_futures=True)

@@ -38,9 +38,18 @@ class LaneSessions:
 
     async def draw(self, live: LiveRun, position: int) -> Episode:
         """The episode the run plays at ``position`` (a fresh one is drawn now)."""
-        return await asyncio.to_thread(
-            self.hidden.episode, live.track, live.phase, live.draw, position
-        )
+        try:
+            return await asyncio.to_thread(
+                self.hidden.episode, live.track, live.phase, live.draw, position
+            )
+        except Exception:  # the hidden-episode helper failed twice: the server's fault
+            log.exception("run %s: drawing episode %d failed", live.run_id, position)
+            raise ServerFault(
+                errors.InternalError(
+                    "the server failed to prepare this run's next episode (its log says why); "
+                    "the run is over and refunded: it does not count against your quota"
+                )
+            ) from None
 
     async def open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
         """Create the lane's session; returns the observation and action spaces."""

@@ -25,7 +25,7 @@ import datetime as dt
 import logging
 import time
 from collections import OrderedDict
-from typing import Any
+from typing import Any, NoReturn
 
 from sqlalchemy import select
 
@@ -35,6 +35,7 @@ from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
 from multion.leaderboard.lane_sessions import LaneSessions, ServerFault
 from multion.leaderboard.live_run import Lane, LiveRun, draw_of
 from multion.leaderboard.models import Run, utcnow
+from multion.leaderboard.run_expiry import RunExpiry
 from multion.leaderboard.run_request import checked_request, track_phase
 from multion.leaderboard.run_store import (
     EpisodeResult,
@@ -54,12 +55,20 @@ from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunS
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
+STOPPING = (
+    "the server is stopping (a restart): retry in a minute; the run goes on where it was, "
+    "nothing is lost"
+)
+REFUNDED = (
+    "the server failed during this run (its log says why); the run is over and refunded: it "
+    "does not count against your quota"
+)
 KNOWN_END_REASONS = ("max_steps", "timeout")
 """End reasons a participant knows anyway (it counted its steps, it was late): the only ones
 sent on phases without per-episode feedback (success vs wrong_found would leak results)."""
 
 
-class RunService:
+class RunService(RunExpiry):
     """Every run operation; raises the typed errors of ``multion_client.errors``."""
 
     def __init__(self, challenge: Challenge, db: Database, registry: SessionRegistry) -> None:
@@ -72,6 +81,7 @@ class RunService:
         self._creating = asyncio.Lock()  # one quota check at a time in this process
         self.ended: OrderedDict[str, LiveRun] = OrderedDict()
         """Recently ended runs, so a retry of a run's last step still gets its answer."""
+        self.stopping = False
 
     # ------------------------------------------------------------------ create
     async def create(self, team_id: int, message: CreateRun) -> RunInfo:
@@ -80,17 +90,24 @@ class RunService:
         request = checked_request(self.challenge, message)
         track, phase, sensors = request.track, request.phase, request.sensors
         run_id = self.registry.settings.new_id()  # NAME-<hex> on a named replica, ≤ 32
-        if phase.episode_set == "fixed":
-            fixed = await asyncio.to_thread(self.hidden.phase_set, track, phase)
-            order = run_order(self.challenge, run_id, len(fixed))
-        else:
-            order = list(range(phase.episodes))
-        draw = RunDraw(run_id, phase.episode_set, tuple(order))
-        episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
-        firsts = [
-            await asyncio.to_thread(self.hidden.episode, track, phase, draw, k)
-            for k in range(request.num_envs)
-        ]
+        try:  # nothing is charged yet: a failure here is a plain error to retry
+            if phase.episode_set == "fixed":
+                fixed = await asyncio.to_thread(self.hidden.phase_set, track, phase)
+                order = run_order(self.challenge, run_id, len(fixed))
+            else:
+                order = list(range(phase.episodes))
+            draw = RunDraw(run_id, phase.episode_set, tuple(order))
+            episode_ids = await asyncio.to_thread(self.hidden.episode_ids, track, phase, draw)
+            firsts = [
+                await asyncio.to_thread(self.hidden.episode, track, phase, draw, k)
+                for k in range(request.num_envs)
+            ]
+        except Exception:
+            log.exception("preparing a new run's episodes on %s/%s failed", track.name, phase.name)
+            raise errors.InternalError(
+                "the server failed to prepare this run's episodes; no run was created and "
+                "nothing counts against your quota: retry later"
+            ) from None
         deadline = utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
         state = RunState(0, [LaneState(deadline=deadline) for _ in firsts])
         row = Run(
@@ -115,10 +132,16 @@ class RunService:
         for lane, first in zip(live.lanes, firsts, strict=True):
             lane.episode = first
         self.live[run_id] = live
-        spaces = [await self._open(live, lane) for lane in live.lanes]
-        for lane in live.lanes:  # the first step budgets start now, with every lane ready
-            lane.state.deadline = self._deadline()
-        await self._save(live, [])
+        try:
+            spaces = [await self._open(live, lane) for lane in live.lanes]
+            for lane in live.lanes:  # the first step budgets start now, with every lane ready
+                lane.state.deadline = self._deadline()
+            await self._save(live, [])
+        except errors.MultiONError:
+            raise
+        except Exception:  # the quota was debited: the server's failure refunds it
+            log.exception("opening run %s failed", run_id)
+            await self._fail(live, ServerFault(errors.InternalError(REFUNDED)), stopping=False)
         limits = self.challenge.describe()["limits"]
         return RunInfo(
             run_id=run_id,
@@ -153,7 +176,10 @@ class RunService:
                     f"the next episode{where} is {live.next_position(lane)}, not "
                     f"{message.episode} (the server chooses the episodes)"
                 )
-            episode = await self.sessions.draw(live, message.episode)
+            try:
+                episode = await self.sessions.draw(live, message.episode)
+            except ServerFault as fault:
+                await self._fail(live, fault)
             reply = await self._session_call(live, lane, episode)
             observation, info = reply["observations"][0], reply["infos"][0]
             lane.episode = episode
@@ -270,73 +296,6 @@ class RunService:
 
         return await self._db(read)
 
-    # ------------------------------------------------------------------ expiry
-    async def expire_forever(self, interval_s: float) -> None:
-        """Expire late episodes of running runs, also of clients that never come back."""
-        while True:
-            await asyncio.sleep(interval_s)
-            try:
-                await self.expire_all()
-            except Exception:  # noqa: BLE001 - the loop must outlive any one failure
-                log.exception("expiring runs failed")
-
-    async def expire_all(self) -> None:
-        now = utcnow()
-
-        def due(session: Any) -> list[tuple[str, int]]:
-            rows = session.execute(
-                select(Run.id, Run.team_id).where(Run.state == "running", Run.deadline < now)
-            ).all()
-            return [(r[0], r[1]) for r in rows]
-
-        for run_id, team_id in await self._db(due):
-            try:
-                live = await self._get_live(team_id, run_id)
-                for lane in live.lanes:
-                    async with lane.lock:
-                        await self._expire_due(live, lane)
-            except errors.MultiONError:
-                continue
-
-    async def _expire_due(self, live: LiveRun, lane: Lane) -> None:
-        """Score a lane's late episodes as they stand; end the run on too many in a row or
-        on its time budget."""
-        if live.run_id not in self.live:
-            return
-        limits, st = self.challenge.limits, lane.state
-        now = utcnow()
-        results: list[EpisodeResult] = []
-        if now > live.created_at + dt.timedelta(seconds=limits.run_timeout_s):
-            results = [live.result(x, "timeout") for x in live.lanes if x.state.episode_active]
-            await self._finish(live, results, "ended", "run_timeout")
-            return
-        while st.deadline is not None and now > st.deadline:
-            if st.episode_active:
-                results.append(live.result(lane, "timeout"))
-                st.episode_active = False
-            elif live.next_position(lane) < live.num_episodes:  # never started in time
-                st.position = live.next_position(lane)
-                st.seq, st.actions, st.last_metrics = 0, [], None
-                results.append(live.result(lane, "timeout"))
-            st.consecutive_timeouts += 1
-            st.deadline += dt.timedelta(seconds=limits.step_timeout_s)
-            if live.all_done:
-                await self._finish(live, results, "finished", None)
-                return
-            if st.consecutive_timeouts >= limits.max_consecutive_timeouts:
-                results += [
-                    live.result(x, "run_ended")
-                    for x in live.lanes
-                    if x is not lane and x.state.episode_active
-                ]
-                await self._finish(live, results, "ended", "timeouts")
-                return
-            if live.lane_done(lane):
-                st.deadline = None  # this lane is through; the others go on
-        if results:
-            lane.last_answer = None
-            await self._save(live, results)
-
     # ------------------------------------------------------------------ internals
     def _lane(self, live: LiveRun, episode: int) -> Lane:
         if not 0 <= episode < live.num_episodes:
@@ -370,12 +329,12 @@ class RunService:
             raise errors.RunOver(_over(row.state, row.end_reason))
 
     async def _open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
-        """Open a lane's session; on a server fault the run fails and is refunded."""
+        """Open a lane's session for a new run; on a server fault the run fails and is
+        refunded, also while the server stops (its creator never got its id)."""
         try:
             return await self.sessions.open(live, lane)
         except ServerFault as fault:
-            await self._finish(live, [], "failed", "server_error", refunded=True)
-            raise fault.error from None
+            await self._fail(live, fault, stopping=False)
 
     async def _session_call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> Any:
         """Reset (argument: the episode) or step (argument: the action) a lane's environment,
@@ -390,8 +349,7 @@ class RunService:
                 if attempt == 1:
                     raise
             except ServerFault as fault:
-                await self._finish(live, [], "failed", "server_error", refunded=True)
-                raise fault.error from None
+                await self._fail(live, fault)
         raise AssertionError("unreachable")
 
     async def _rebuild(self, live: LiveRun, lane: Lane) -> None:
@@ -399,11 +357,20 @@ class RunService:
         try:
             replayed = await self.sessions.replay(live, lane)
         except ServerFault as fault:
-            await self._finish(live, [], "failed", "server_error", refunded=True)
-            raise fault.error from None
+            await self._fail(live, fault)
         if replayed is not None:
             # the state is as saved, unless (defensively) its last action ended the episode
             await self._conclude(live, lane, *replayed, save_unfinished=False)
+
+    async def _fail(
+        self, live: LiveRun, fault: ServerFault, stopping: bool | None = None
+    ) -> NoReturn:
+        """The server broke the run: it fails and is refunded (never charged), unless the
+        server is stopping in order: then it stays as saved, to go on after the restart."""
+        if self.stopping if stopping is None else stopping:
+            raise errors.WorkerFailed(STOPPING) from None
+        await self._finish(live, [], "failed", "server_error", refunded=True)
+        raise fault.error from None
 
     def _shown_reason(self, live: LiveRun, end_reason: str | None) -> str | None:
         """What the participant may learn of why an episode ended (see KNOWN_END_REASONS)."""
@@ -517,6 +484,8 @@ class RunService:
         return await asyncio.to_thread(run)
 
     async def close(self) -> None:
+        self.stopping = True  # what fails from now on is the stop, not the runs' fault
+        await self.grant_restart_grace()
         for live in list(self.live.values()):
             for lane in live.lanes:
                 await self.sessions.close(lane)

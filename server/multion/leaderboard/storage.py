@@ -13,6 +13,7 @@ import hashlib
 import hmac
 import re
 import secrets
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,10 @@ from multion.leaderboard.models import Run, SecretFingerprint, Team, Token, utcn
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
 TOKEN_PREFIX = "mlb"
 _TOKEN = re.compile(rf"{TOKEN_PREFIX}_([A-Za-z0-9]{{12}})_([A-Za-z0-9_-]{{20,100}})")
-_TEAM = re.compile(r"[A-Za-z0-9][A-Za-z0-9 ._-]{0,79}")
+TEAM_RULE = (
+    "1–80 letters (of any script), digits, spaces, '.', '_' or '-', starting with a letter or "
+    "digit and not ending in a space"
+)
 
 
 class StorageError(ValueError):
@@ -162,16 +166,27 @@ def hash_secret(secret: str) -> str:
     return hashlib.sha256(secret.encode("utf-8")).hexdigest()
 
 
+def valid_team_name(name: str) -> bool:
+    """Letters of any script (Très, Zürich, 東京, with their combining marks), digits, spaces,
+    '.', '_', '-'; 1–80 characters, starting with a letter or digit, not ending in a space."""
+    return (
+        0 < len(name) <= 80 and name[0].isalnum() and not name[-1].isspace()
+        and all(c.isalnum() or c in " ._-" or unicodedata.category(c).startswith("M") for c in name)
+    )  # fmt: skip
+
+
 def add_team(session: Session, name: str) -> tuple[Team, str]:
-    """A new team and its first token (returned once, never stored in clear)."""
-    if not _TEAM.fullmatch(name):
+    """A new team and its first token (returned once, never stored in clear). Names are
+    stored in Unicode NFC, and may not differ from another team's by case alone (pages and
+    people would take them for one team)."""
+    name = unicodedata.normalize("NFC", name)
+    if not valid_team_name(name):
+        raise StorageError(f"team name {name!r}: {TEAM_RULE}")
+    same = _same_name(session, name)
+    if same is not None:
+        differs = "" if same.name == name else f" (names may not differ by case alone: {same.name!r})"
         raise StorageError(
-            f"team name {name!r}: 1–80 letters, digits, spaces, '.', '_' or '-', starting with a "
-            "letter or digit"
-        )
-    if session.scalar(select(Team).where(Team.name == name)) is not None:
-        raise StorageError(
-            f"a team named {name!r} already exists (`multion leaderboard token add`)"
+            f"a team named {name!r} already exists{differs} (`multion leaderboard token add`)"
         )
     team = Team(name=name)
     session.add(team)
@@ -188,10 +203,21 @@ def add_token(session: Session, team: Team) -> str:
 
 
 def find_team(session: Session, name: str) -> Team:
+    """The team of exactly this name; a name that differs by case only is suggested."""
+    name = unicodedata.normalize("NFC", name)
     team = session.scalar(select(Team).where(Team.name == name))
     if team is None:
-        raise StorageError(f"no team named {name!r}")
+        same = _same_name(session, name)
+        hint = f" (did you mean {same.name!r}?)" if same is not None else ""
+        raise StorageError(f"no team named {name!r}{hint}")
     return team
+
+
+def _same_name(session: Session, name: str) -> Team | None:
+    """The team whose name equals ``name`` but for case (Unicode case folding, which SQL's
+    lower() does not do for every script: compared here, over the few teams there are)."""
+    key = name.casefold()
+    return next((t for t in session.scalars(select(Team)) if t.name.casefold() == key), None)
 
 
 def revoke_tokens(session: Session, team: Team, key: str | None = None) -> int:

@@ -66,7 +66,23 @@ def _date(value: dt.datetime | None) -> str:
     return f"{value:%Y-%m-%d %H:%M} UTC"
 
 
+def _duration(seconds: float) -> str:
+    """A time budget as people say it: "60 s", "90 minutes", "24 hours", "7 days"."""
+
+    def unit(count: float, name: str) -> str:
+        return f"{count:g} {name}{'' if count == 1 else 's'}"
+
+    if seconds >= 3 * 86400 and seconds % 86400 == 0:
+        return unit(seconds / 86400, "day")
+    if seconds >= 3600 and seconds % 3600 == 0:
+        return unit(seconds / 3600, "hour")
+    if seconds >= 120 and seconds % 60 == 0:
+        return unit(seconds / 60, "minute")
+    return f"{seconds:g} s"
+
+
 templates.env.filters["percent"] = _percent
+templates.env.filters["duration"] = _duration
 templates.env.filters["date"] = _date
 templates.env.globals["metric_names"] = queries.METRIC_NAMES
 templates.env.globals["static"] = STATIC_PATH
@@ -147,7 +163,7 @@ async def run_page(run_id: str, request: Request) -> HTMLResponse:
     )
 
 
-@router.get("/leaderboard/runs/{run_id}/episodes/{position}.png")
+@router.api_route("/leaderboard/runs/{run_id}/episodes/{position}.png", methods=PAGE_METHODS)
 async def episode_picture(run_id: str, position: int, request: Request) -> Response:
     """A stored picture of one of a run's first episodes (drawn when the run ended; nothing is
     drawn here, so a burst of requests costs only database reads)."""

@@ -55,7 +55,7 @@ class BoardRow:
     code_url: str | None
     scores: dict[str, Estimate]
     completed: int
-    """Episodes played (not counting those missed because the run ended early)."""
+    """Episodes played (not those missed or abandoned in play because the run ended early)."""
     total: int
     date: dt.datetime
 
@@ -88,13 +88,15 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
             Run.state, Run.finished_at, Team.name, *numbers,
             Run.summary["episodes"].as_integer().label("episodes"),
             Run.summary["end_reasons"]["not_played"].as_integer().label("not_played"),
+            Run.summary["end_reasons"]["abandoned"].as_integer().label("abandoned"),
         )  # fmt: skip
         .join(Team)
         .where(Run.state.in_(RANKED_STATES), Run.summary.is_not(None))
     )
     by_board: dict[tuple[str, str], list[Any]] = defaultdict(list)
     for row in session.execute(query):
-        by_board[(row.track, row.phase)].append(row)
+        if _completed(row) > 0:  # a run that played nothing (abandoned at once) is no entry
+            by_board[(row.track, row.phase)].append(row)
     boards = []
     for track in challenge.tracks:
         column = f"{track.metric}_mean"
@@ -108,6 +110,11 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
             runs = [] if sealed else list(best.values())
             boards.append(Board(track, phase, sealed, _ranked(runs, track.metric)))
     return boards
+
+
+def _completed(row: Any) -> int:
+    """Episodes played to their end: not those missed or cut short because the run ended."""
+    return int(row.episodes or 0) - int(row.not_played or 0) - int(row.abandoned or 0)
 
 
 def _order(row: Any, column: str) -> tuple:
@@ -140,7 +147,7 @@ def _ranked(runs: Sequence[Any], metric: str) -> list[BoardRow]:
                 paper_url=run.paper_url,
                 code_url=run.code_url,
                 scores=scores,
-                completed=total - int(run.not_played or 0),
+                completed=_completed(run),
                 total=total,
                 date=run.finished_at,
             )

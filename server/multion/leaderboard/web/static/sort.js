@@ -30,7 +30,11 @@ document.addEventListener("DOMContentLoaded", () => {
         rows.forEach((row) => body.appendChild(row));
       };
       th.addEventListener("click", sort);
-      th.addEventListener("keydown", (event) => { if (event.key === "Enter") sort(); });
+      th.addEventListener("keydown", (event) => {
+        if (event.key !== "Enter" && event.key !== " ") return;
+        event.preventDefault(); // Space would scroll the page
+        sort();
+      });
     });
   }
 });
