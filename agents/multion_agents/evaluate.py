@@ -13,6 +13,7 @@ Each episode is reset by id on the server, and the agent's random stream is re-s
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import queue
@@ -165,6 +166,14 @@ def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
     return env_config_to_dict(env_config_from_dict(config))
 
 
+def configured_agent(cls: type[Agent], seed: int, resolved: dict[str, Any]) -> Agent:
+    """An agent of class ``cls`` that has been given its environment's resolved config
+    (:meth:`Agent.configure`); an AgentError when it cannot work with it."""
+    agent = cls(seed=seed)
+    agent.configure(copy.deepcopy(resolved))
+    return agent
+
+
 def resolve_agent(settings: EvalSettings) -> type[Agent]:
     """The agent class: a registered or import-path agent, or a learned one from a checkpoint."""
     if settings.checkpoint is None:
@@ -251,6 +260,7 @@ def play_all(
     """Play ``episodes`` with ``settings.workers`` threads, one env and one agent each."""
     cls = resolve_agent(settings)
     config = env_config(settings, cls)
+    resolved = resolve_config(config)
     # one (env, agent) pair per worker thread, created on first need and handed back after use
     idle: queue.SimpleQueue[tuple[gym.Env, Agent]] = queue.SimpleQueue()
     opened: list[gym.Env] = []
@@ -260,7 +270,8 @@ def play_all(
         try:
             env, agent = idle.get_nowait()
         except queue.Empty:
-            env, agent = make_env(config), cls(seed=settings.seed)
+            agent = configured_agent(cls, settings.seed, resolved)
+            env = make_env(config)
             with lock:
                 opened.append(env)
         try:
@@ -319,7 +330,9 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
 
     # fail on a bad agent, checkpoint or config before starting anything
     check_overrides(settings.env_overrides)
-    resolved = resolve_config(env_config(settings, resolve_agent(settings)))
+    cls = resolve_agent(settings)
+    resolved = resolve_config(env_config(settings, cls))
+    configured_agent(cls, settings.seed, resolved)  # an agent refuses a config it cannot use
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:

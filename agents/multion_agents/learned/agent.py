@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 import torch
 
-from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
 from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
 
 
@@ -28,6 +28,23 @@ class LearnedAgent(Agent):
         self._state: State = {}
         self._prev_action = 0
         self._start = True
+
+    def configure(self, config: dict[str, Any]) -> None:
+        """Refuses an environment that differs from the checkpoint's in a field that shapes the
+        observations (``camera``, ``maps``: what ``config_overrides`` holds)."""
+        super().configure(config)
+        wrong = [
+            f"{section}.{key}={config.get(section, {}).get(key)!r} (trained with {value!r})"
+            for section, values in self.config_overrides.items()
+            for key, value in values.items()
+            if config.get(section, {}).get(key) != value
+        ]
+        if wrong:
+            raise AgentError(
+                f"this {self.model or 'learned'} checkpoint cannot act in this environment: "
+                + ", ".join(wrong)
+                + "; leave these fields as the checkpoint recorded them"
+            )
 
     def reset(self) -> None:
         assert self.policy is not None
