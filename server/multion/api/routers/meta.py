@@ -9,6 +9,7 @@ from starlette.concurrency import run_in_threadpool
 from multion.api.config_io import config_ranges, env_config_to_dict
 from multion.api.deps import MsgpackResponse, Registry, Settings
 from multion.api.openapi import answers
+from multion.reference import DEFAULT_SOURCES
 from multion.sim.camera import RENDERERS, resolve_renderer
 from multion.task.env import SENSORS, EnvConfig, MultiONEnv, build_observation_space
 from multion.task.memory import mib
@@ -70,7 +71,8 @@ def env_metadata() -> dict[str, object]:
     SPEC_PATH,
     summary="Task and API description",
     description="The actions, goal categories and sensors, the default environment config "
-    "(the shape of `config` in a create request) and the allowed values of its fields, the "
+    "(the shape of `config` in a create request) and the allowed values of its fields, where "
+    "the defaults come from (the paper, or the reference code's file and line), the "
     "observation and action spaces of the default config, and this server's limits.",
     responses=answers(200, ServerSpec),
 )
@@ -102,5 +104,6 @@ async def spec(settings: Settings) -> MsgpackResponse:
             "worker_memory_mb": settings.worker_memory_mb,
             "workers": settings.workers,
         },
+        sources=dict(DEFAULT_SOURCES),
     )
     return MsgpackResponse(body.to_wire())
