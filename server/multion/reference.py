@@ -42,6 +42,9 @@ DEFAULT_SOURCES: dict[str, str] = {
     "(MapCNN(50, ...)), 465-466 (.view(bs, 50, 50, -1))",
     "maps.goal_cells": "reference: habitat/core/env.py line 279 (grid_loc ± 1: a 3 x 3 patch)",
     "maps.view_distance": "paper's supplement (5 m)",
+    "task.goal_set": "paper §3 (colours: 8 coloured cylinders); the supplement's 'Varying "
+    "target object shapes' (shapes)",
+    "task.shape_size": "paper's supplement (a horizontal length/diameter of 0.4 m)",
 }
 """Config field → where its default comes from."""
 

@@ -144,6 +144,8 @@ def test_baselines_take_their_environment_from_its_resolved_config() -> None:
     assert explorer.env_config["camera"]["hfov_deg"] == 90.0
     with pytest.raises(AgentError, match="turn_angle_deg=25 does not divide 360"):
         explorer.configure(resolve_config({"agent": {"turn_angle_deg": 25.0}}))
+    with pytest.raises(AgentError, match="tells goals apart by their colours"):
+        explorer.configure(resolve_config({"task": {"goal_set": "shapes"}}))
     planner = make_agent("oracle-planner")
     with pytest.raises(AgentError, match="maps.ego_size=50"):
         planner.configure(resolve_config({}))  # the default 0.8 m crop, not the planner's map

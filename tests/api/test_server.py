@@ -95,6 +95,8 @@ def test_health_spec_and_docs(api: TestClient) -> None:
     )
     assert spec["defaults"]["camera"]["max_depth"] == 10.0
     assert "default.py line 304" in spec["sources"]["camera.max_depth"]
+    assert spec["goal_sets"]["colours"] == spec["goal_categories"]
+    assert spec["goal_sets"]["shapes"][0] == "cone" and len(spec["goal_sets"]["shapes"]) == 8
     for name in spec["sources"]:  # every cited field is a config field
         section, key = name.split(".")
         assert key in spec["defaults"][section], name

@@ -105,6 +105,12 @@ class ExplorerAgent(Agent):
     def configure(self, config: EnvConfigDict) -> None:
         """The camera model and action magnitudes of the environment (``camera``, ``agent``)."""
         super().configure(config)
+        goal_set = config.get("task", {}).get("goal_set", "colours")
+        if goal_set != "colours":
+            raise AgentError(
+                f"explorer: it tells goals apart by their colours, and task.goal_set={goal_set!r} "
+                "draws goals of one colour; use task.goal_set=colours"
+            )
         try:
             motion = Motion.from_config(config["agent"])
         except ValueError as error:

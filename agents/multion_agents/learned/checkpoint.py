@@ -78,10 +78,14 @@ def restore_random_states(payload: dict[str, Any]) -> None:
     random.setstate(rng["python"])
 
 
-LEGACY_FIELDS: dict[str, dict[str, Any]] = {"maps": {"goal_cells": 1}}
+LEGACY_FIELDS: dict[str, dict[str, Any]] = {
+    "maps": {"goal_cells": 1},
+    "task": {"goal_set": "colours"},
+}
 """Config fields added after checkpoints were first written, with the value those checkpoints
-were trained with (issue 31 added ``maps.goal_cells``; goals were one cell before). A recorded
-config lacking one gets this value, not today's default."""
+were trained with (issue 31 added ``maps.goal_cells``, goals were one cell before, and
+``task.goal_set``, the cylinders were the only goals). A recorded config lacking one gets this
+value, not today's default."""
 
 
 def with_legacy_fields(env_config: dict[str, Any]) -> dict[str, Any]:
@@ -130,5 +134,8 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         section: dict(config[section]) for section in ("camera", "maps") if section in config
     }
     shaping.get("camera", {}).pop("renderer", None)
+    goal_set = config.get("task", {}).get("goal_set", "colours")
+    if goal_set != "colours":  # what the goals look like (the default set needs no override,
+        shaping["task"] = {"goal_set": goal_set}  # so the agent can still join a track)
     overrides = merge_overrides(shaping, model_spec(payload["agent"]).config_overrides)
     return policy, overrides, payload["agent"]

@@ -30,9 +30,12 @@ from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
 from multion_client.constants import (
     ACTIONS_TEXT,
+    DEFAULT_GOAL_SET,
     GOAL_RGBA,
+    GOAL_SETS,
     NUM_ACTIONS,
     NUM_CATEGORIES,
+    SHAPE_RGBA,
     Action,
     action_id,
 )
@@ -81,8 +84,18 @@ class TaskConfig:
     wrong_found_penalty: float = bounded(0.0, -1000.0, 1000.0)
     """Subtracted from the reward of a wrong FOUND (the reference code's FALSE_FOUND_PENALTY,
     off in the paper's runs)."""
+    goal_set: str = one_of(DEFAULT_GOAL_SET, tuple(GOAL_SETS))
+    """Which goal objects are drawn: ``colours``, the paper's 8 coloured cylinders
+    (``goal_radius``, ``goal_height``), or ``shapes``, the supplement's 8 red shapes on thin
+    supports (``shape_size``, ``shape_support_height``; names in
+    ``multion_client.constants.SHAPE_CATEGORIES``). Category ids, FOUND, rewards, ``goal_mask``
+    and the oracle maps do not depend on it: the same episodes serve both sets."""
     goal_radius: float = bounded(0.05, 0.01, 0.5)
     goal_height: float = bounded(0.75, 0.05, 3.0)
+    shape_size: float = bounded(0.4, 0.05, 1.0)
+    """Horizontal length or diameter of a shape goal, metres (supplement: 0.4)."""
+    shape_support_height: float = bounded(0.6, 0.0, 2.0)
+    """Height of a shape goal's support, metres: the shape sits on top of it."""
     goals_visible: bool = True
     """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
     ablation); they still count for FOUND, rewards and the oracle maps."""
@@ -297,11 +310,19 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         assert self.sim.world is not None
         self._distractor_fields = {}
         cylinders = (*episode.goals, *episode.distractors) if task.goals_visible else ()
-        self.sim.world.place_goals(
-            [(g.position, GOAL_RGBA[g.category]) for g in cylinders],
-            task.goal_radius,
-            task.goal_height,
-        )
+        if task.goal_set == "shapes":
+            self.sim.world.place_shape_goals(
+                [(g.position, g.category) for g in cylinders],
+                task.shape_size,
+                task.shape_support_height,
+                SHAPE_RGBA,
+            )
+        else:
+            self.sim.world.place_goals(
+                [(g.position, GOAL_RGBA[g.category]) for g in cylinders],
+                task.goal_radius,
+                task.goal_height,
+            )
         self.sim.set_agent(start, episode.start_yaw)
         self.episode = episode
         m = episode.num_goals
