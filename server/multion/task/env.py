@@ -159,10 +159,12 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
 
     ## Observation
     A dict with the configured sensors: ``rgb`` (H, W, 3) uint8; ``depth`` (H, W, 1) float32 in
-    [0, 1] (0.5–5 m); ``goal`` current goal category (0..7); ``goal_onehot`` (8,); ``gps`` (2,)
+    [0, 1] (0–10 m by default); ``goal`` current goal category (0..7, of ``task.goal_set``);
+    ``goal_onehot`` (8,); ``gps`` (2,)
     position relative to the start, in the start frame (x ahead, y left); ``compass`` (1,)
     heading relative to the start, radians; ``oracle_map`` / ``oracle_ego_map`` (S, S, 2) uint8
-    egocentric crops (occupancy, goal category + 1); ``goal_mask`` (H, W) uint8, goal category + 1
+    egocentric crops (occupancy, goal category + 1 on a 3 × 3 square per goal; S = 50 by
+    default); ``goal_mask`` (H, W) uint8, goal category + 1
     per pixel (for supervising recognisers). Distractors (``task.num_distractors``) appear in
     ``goal_mask`` and the oracle maps with their category + 1 too: their categories are never the
     episode's goals', so a recogniser learns categories and the current goal says which one counts; ``goal_distance`` (1,) oracle geodesic distance to the
