@@ -11,14 +11,19 @@ wide, narrowing to half its width; the tetrahedron is regular; the torus lies fl
 quarter of its width across. The default support (0.6 m) puts a 0.4 m shape's middle at 0.8 m,
 near the camera's 0.88 m (the supplement: goals "close to camera height").
 
-Every mesh is closed, with its triangles wound counter-clockwise seen from outside.
+Every mesh is closed, with its triangles wound counter-clockwise seen from outside. The world
+loads each from an OBJ file written once to a cache folder (:func:`goal_mesh_file`): PyBullet's
+EGL plugin draws meshes from files only, not from vertices passed in memory.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -155,3 +160,28 @@ def goal_mesh(category: int, size: float, support_height: float) -> Mesh:
         [(0.0, 0.0), (SUPPORT_RADIUS, 0.0), (SUPPORT_RADIUS, support_height), (0.0, support_height)]
     )
     return Mesh.join([support, shape])
+
+
+def goal_mesh_file(
+    category: int, size: float, support_height: float, folder: Path | None = None
+) -> Path:
+    """:func:`goal_mesh` as an OBJ file in the cache folder (written once, atomically)."""
+    folder = folder or Path(tempfile.gettempdir()) / "multion-goal-shapes"
+    folder.mkdir(parents=True, exist_ok=True)
+    name = SHAPE_CATEGORIES[category]
+    path = folder / f"{name}-{size:.3f}-{support_height:.3f}-{SEGMENTS}.obj"
+    if path.is_file():
+        return path
+    mesh = goal_mesh(category, size, support_height)
+    lines = [f"# {name} goal, {size} m across, on a {support_height} m support", f"o {name}"]
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in mesh.vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.indices.reshape(-1, 3)]
+    fd, tmp = tempfile.mkstemp(suffix=".obj", dir=folder)
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write("\n".join(lines) + "\n")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return path

@@ -17,7 +17,7 @@ from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion.sim.camera import attach_renderer, resolve_renderer
-from multion.sim.goal_shapes import goal_mesh
+from multion.sim.goal_shapes import goal_mesh_file
 from multion.sim.merged_visual import merged_visual
 
 # pybullet refuses ray batches above this size
@@ -256,14 +256,14 @@ class PyBulletWorld:
         supplement's shape goals, :mod:`multion.sim.goal_shapes`); hides the previous goals."""
 
         def shape(category: int) -> int:
-            mesh = goal_mesh(category, size, support_height)
-            return p.createVisualShape(
-                p.GEOM_MESH,
-                vertices=mesh.vertices.tolist(),
-                indices=mesh.indices.tolist(),
-                rgbaColor=rgba,
-                physicsClientId=self.client,
+            # from a file: the EGL plugin does not draw meshes given as vertices
+            path = goal_mesh_file(category, size, support_height)
+            visual = p.createVisualShape(
+                p.GEOM_MESH, fileName=str(path), rgbaColor=rgba, physicsClientId=self.client
             )
+            if visual < 0:
+                raise RuntimeError(f"PyBullet could not load the goal mesh {path}")
+            return visual
 
         return self._place(
             [
