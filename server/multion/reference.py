@@ -9,6 +9,8 @@ the navigable grid, the renderer) and say so in their docstrings.
 from __future__ import annotations
 
 REFERENCE_REPO = "saimwani/multiON"
+REFERENCE_COMMIT = "2ba4d25678dff9a990dc5e98ad81fd8c0a1bf15c"
+"""The commit whose lines are cited (the repository's HEAD when they were checked)."""
 
 DEFAULT_SOURCES: dict[str, str] = {
     "task.success_distance": "reference: configs/tasks/multinav_mp3d.yaml line 33 "
@@ -35,7 +37,7 @@ DEFAULT_SOURCES: dict[str, str] = {
     "habitat_baselines/rl/ppo/policy.py line 318 multiplies depth by 10 to get metres",
     "camera.normalize_depth": "reference: habitat/config/default.py line 305 "
     "(NORMALIZE_DEPTH = True)",
-    "maps.cell_size": "reference: habitat/core/env.py lines 215-233 (conv_grid: 300 cells over "
+    "maps.cell_size": "reference: habitat/core/env.py lines 214-233 (conv_grid: 300 cells over "
     "240.36 m, 0.801 m each); paper §4.2",
     "maps.ego_size": "reference: habitat/core/env.py lines 291-293 and 347-349 (the centre "
     "50 x 50 of a rotated 80 x 80 patch); habitat_baselines/rl/ppo/policy.py lines 412, 419 "

@@ -184,7 +184,7 @@ def test_hidden_goals_are_not_rendered_but_still_count():
 
 
 def test_oracle_map_crop_defaults_to_the_reference_50_cells_of_0_8_m():
-    """saimwani/multiON habitat/core/env.py: 0.8 m cells (conv_grid, lines 215-233), the centre
+    """saimwani/multiON habitat/core/env.py: 0.8 m cells (conv_grid, lines 214-233), the centre
     50 × 50 of a rotated 80 × 80 patch (lines 291-293, 347-349), goals as grid_loc ± 1 (279)."""
     assert MapConfig().ego_size == 50 and MapConfig().cell_size == 0.8
     assert MapConfig().goal_cells == 3

@@ -10,7 +10,7 @@ just behind and right of the centre point, with ``ego_size / 2`` cells ahead and
 one fewer behind and to the right (cell (25, 25) of the default 50 × 50 crop).
 
 The reference code (saimwani/multiON, ``habitat/core/env.py``) does the same: its global map has
-300 × 300 cells over [-120.32, 120.04] m, 0.801 m each (``conv_grid``, lines 215-233); each goal
+300 × 300 cells over [-120.32, 120.04] m, 0.801 m each (``conv_grid``, lines 214-233); each goal
 is written as ``grid_loc ± 1`` (line 279, a 3 × 3 patch); reset and step cut an 80 × 80 patch
 around the agent's cell, rotate it by the heading and keep its centre 50 × 50
 (``patch[40-25:40+25, 40-25:40+25]``, lines 291-293 and 347-349), which puts the agent at index
