@@ -3,7 +3,8 @@
 The reference code is saimwani/multiON (the paper's code, on habitat-lab); paths below are in
 that repository. ``GET /v1/spec`` answers this table as ``sources``, and the README's task table
 cites the same lines. Fields not listed are this project's own choices (the procedural houses,
-the navigable grid, the renderer) and say so in their docstrings.
+the navigable grid, the renderer) and say so in their docstrings. The learned agents' GRU size
+(768, ``ppo_multinav.yaml`` line 45) is cited in ``multion_agents.learned.policy``.
 """
 
 from __future__ import annotations
@@ -49,11 +50,3 @@ DEFAULT_SOURCES: dict[str, str] = {
     "task.shape_size": "paper's supplement (a horizontal length/diameter of 0.4 m)",
 }
 """Config field → where its default comes from."""
-
-LEARNED_SOURCES: dict[str, str] = {
-    "hidden_size": "reference: habitat_baselines/config/multinav/ppo_multinav.yaml line 45 "
-    "(hidden_size: 768)",
-    "map_cnn": "reference: habitat_baselines/rl/ppo/policy.py lines 412, 419 "
-    "(MapCNN(50, 256, ...)): the oracle maps' CNN reads the whole maps.ego_size crop",
-}
-"""Learned agents' settings (agents/multion_agents/learned) → where they come from."""
