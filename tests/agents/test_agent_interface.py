@@ -167,3 +167,16 @@ def test_eval_refuses_a_config_the_agent_cannot_use_before_playing() -> None:
     )  # fmt: skip
     with pytest.raises(AgentError, match="oracle-planner reads its oracle map as"):
         evaluate(settings, progress=False)
+
+
+def test_a_remote_session_config_takes_the_servers_defaults() -> None:
+    from multion_agents.evaluate import session_config
+
+    # a server whose defaults differ (another version): the agent learns what it will get
+    server = {"camera": {"max_depth": 5.0, "min_depth": 0.5, "unknown_field": 1}, "future": {}}
+    config = {"task": {"num_goals": 1}, "camera": {"min_depth": 0.2}, "sensors": ["goal"]}
+    resolved = session_config(config, server)
+    assert resolved["camera"]["max_depth"] == 5.0  # the server's default
+    assert resolved["camera"]["min_depth"] == 0.2  # the request's own value
+    assert resolved["maps"]["ego_size"] == 50  # not reported by that server: ours
+    assert session_config(config) == session_config(config, {})
