@@ -19,6 +19,8 @@ import numpy as np
 
 Observation = dict[str, np.ndarray]
 ConfigOverrides = dict[str, dict[str, Any]]
+EnvConfigDict = dict[str, Any]
+"""A resolved environment config as nested dicts (every field, defaults included)."""
 
 
 class AgentError(ValueError):
@@ -40,10 +42,24 @@ class Agent(ABC):
 
     def __init__(self, seed: int = 0) -> None:
         self.rng = np.random.default_rng(seed)
+        self.env_config: EnvConfigDict = {}
+        """The environment's resolved config (:meth:`configure`); empty until then."""
 
     def seed(self, seed: int) -> None:
         """Restart the agent's random stream (called by the evaluator before each episode)."""
         self.rng = np.random.default_rng(seed)
+
+    def configure(self, config: EnvConfigDict) -> None:
+        """Receive the resolved config of the environment the agent acts in, before its first
+        episode: every field with defaults filled in, as nested dicts (``camera``, ``agent``,
+        ``maps``, ``task``, ...; ``multion.api.config_io.env_config_to_dict``). ``multion eval``
+        passes the session's config, ``multion submit`` the run's.
+
+        An agent whose decisions depend on the environment (camera model, step length, turn
+        angle, map geometry) reads them here instead of copying defaults, and raises
+        :class:`AgentError` naming the field for a config it cannot use. The default keeps the
+        config in ``self.env_config``."""
+        self.env_config = config
 
     @abstractmethod
     def reset(self) -> None:

@@ -18,6 +18,7 @@ resizing the images here (nearest neighbour), for learned agents trained on smal
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 from typing import Any
 
@@ -101,6 +102,7 @@ def submit(args: argparse.Namespace, cls: type) -> Any:
         with Client(args.server, token=token) as client:
             track = _track(client.challenge(), args.track)
         _check_overrides(cls, track)
+        cls(seed=args.seed).configure(run_config(cls, track))  # refused before the run starts
         envs = RunEnv.lanes(
             args.server, args.track, args.phase, args.method or args.agent, token=token,
             sensors=list(cls.sensors), maps=oracle_maps(cls), paper_url=args.paper_url,
@@ -119,7 +121,10 @@ def submit(args: argparse.Namespace, cls: type) -> Any:
         ]
         with Client(args.server, token=token) as client:
             track = _track(client.challenge(), env.status().track)
-    play_lanes(envs, cls, args.seed, _target_size(camera, track), progress=not args.quiet)
+    play_lanes(
+        envs, cls, args.seed, _target_size(camera, track), progress=not args.quiet,
+        config=run_config(cls, track),
+    )  # fmt: skip
     status = env.status()
     for lane in envs:
         lane.close()
@@ -132,9 +137,11 @@ def play_lanes(
     seed: int = 0,
     image_size: tuple[int, int] | None = None,
     progress: bool = True,
+    config: dict[str, Any] | None = None,
 ) -> None:
     """Play the lanes of one run at once, a thread and a fresh agent each (agents are seeded
-    per episode number, so the lanes change no decision)."""
+    per episode number, so the lanes change no decision). ``config``: the run's resolved
+    environment config, given to every agent (:func:`run_config`)."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tqdm import tqdm
@@ -142,11 +149,12 @@ def play_lanes(
     total, started = envs[0].num_episodes, sum(env.episodes_started for env in envs)
     with tqdm(total=total, initial=started, unit="ep", disable=not progress) as bar:
         if len(envs) == 1:
-            play_run(envs[0], cls, seed, image_size, bar=bar)
+            play_run(envs[0], cls, seed, image_size, bar=bar, config=config)
             return
         with ThreadPoolExecutor(len(envs), thread_name_prefix="lane") as pool:
             for future in [
-                pool.submit(play_run, env, cls, seed, image_size, bar=bar) for env in envs
+                pool.submit(play_run, env, cls, seed, image_size, bar=bar, config=config)
+                for env in envs
             ]:
                 future.result()
 
@@ -158,6 +166,7 @@ def play_run(
     image_size: tuple[int, int] | None = None,
     progress: bool = True,
     bar: Any = None,
+    config: dict[str, Any] | None = None,
 ) -> None:
     """Play the remaining episodes of a ``RunEnv`` (one lane) with a fresh agent of class
     ``cls``; the agent is re-seeded per episode from ``(seed, episode number)``, as
@@ -168,6 +177,8 @@ def play_run(
     from multion_client.errors import RunOver
 
     agent = cls(seed=seed)
+    if config is not None:
+        agent.configure(copy.deepcopy(config))
     visible = set(cls.sensors)
     own_bar = bar is None
     if own_bar:
@@ -212,6 +223,27 @@ def _check_overrides(cls: type, track: dict[str, Any]) -> None:
     other = set(cls.config_overrides or {}) - {"maps", "camera"}
     if other:
         raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
+
+
+def run_config(cls: type, track: dict[str, Any]) -> dict[str, Any]:
+    """The resolved environment config a run of track ``track`` gives agent ``cls``: the track's
+    task and camera, the agent's oracle-map settings, every other field the server's default.
+    Images are resized to the agent's own camera size when it asks for one (``_resized``), so
+    the agent sees its own width and height."""
+    from multion_agents.evaluate import resolve_config
+
+    camera = {**track.get("camera", {})}
+    size = _target_size((cls.config_overrides or {}).get("camera", {}), track)
+    if size is not None:
+        camera["height"], camera["width"] = size
+    task = {"num_goals": track["num_goals"]}
+    if track.get("max_steps") is not None:
+        task["max_steps"] = track["max_steps"]
+    config = {"task": task, "camera": camera, "sensors": list(cls.sensors)}
+    maps = oracle_maps(cls)
+    if maps:
+        config["maps"] = dict(maps)
+    return resolve_config(config)
 
 
 def oracle_maps(cls: type) -> dict[str, Any] | None:

@@ -13,6 +13,7 @@ Each episode is reset by id on the server, and the agent's random stream is re-s
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import queue
@@ -165,6 +166,32 @@ def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
     return env_config_to_dict(env_config_from_dict(config))
 
 
+def session_config(
+    config: dict[str, Any], server_defaults: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The resolved config of a session created with ``config`` on a server whose defaults are
+    ``server_defaults`` (``GET /v1/spec``): the server's default for every field the request
+    leaves out (this package's default for a field the server does not report), so an agent
+    learns the camera and steps it will really get from a server of another version."""
+    base: dict[str, Any] = {}
+    for section, fields in resolve_config({}).items():
+        theirs = (server_defaults or {}).get(section)
+        if isinstance(fields, dict) and isinstance(theirs, dict):
+            base[section] = {key: theirs[key] for key in fields if key in theirs}
+    merged = {**base}
+    for key, value in config.items():
+        merged[key] = {**base.get(key, {}), **value} if isinstance(value, dict) else value
+    return resolve_config(merged)
+
+
+def configured_agent(cls: type[Agent], seed: int, resolved: dict[str, Any]) -> Agent:
+    """An agent of class ``cls`` that has been given its environment's resolved config
+    (:meth:`Agent.configure`); an AgentError when it cannot work with it."""
+    agent = cls(seed=seed)
+    agent.configure(copy.deepcopy(resolved))
+    return agent
+
+
 def resolve_agent(settings: EvalSettings) -> type[Agent]:
     """The agent class: a registered or import-path agent, or a learned one from a checkpoint."""
     if settings.checkpoint is None:
@@ -247,10 +274,14 @@ def play_all(
     episodes: Sequence[Episode],
     make_env: EnvFactory,
     progress: bool = True,
+    server_defaults: dict[str, Any] | None = None,
 ) -> tuple[dict[str, Any], list[EpisodeRecord]]:
-    """Play ``episodes`` with ``settings.workers`` threads, one env and one agent each."""
+    """Play ``episodes`` with ``settings.workers`` threads, one env and one agent each; each
+    agent is given the resolved config of its environments (with ``server_defaults``, the
+    server's ``GET /v1/spec`` defaults, for fields the config leaves out)."""
     cls = resolve_agent(settings)
     config = env_config(settings, cls)
+    resolved = session_config(config, server_defaults)
     # one (env, agent) pair per worker thread, created on first need and handed back after use
     idle: queue.SimpleQueue[tuple[gym.Env, Agent]] = queue.SimpleQueue()
     opened: list[gym.Env] = []
@@ -260,7 +291,8 @@ def play_all(
         try:
             env, agent = idle.get_nowait()
         except queue.Empty:
-            env, agent = make_env(config), cls(seed=settings.seed)
+            agent = configured_agent(cls, settings.seed, resolved)
+            env = make_env(config)
             with lock:
                 opened.append(env)
         try:
@@ -319,7 +351,9 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
 
     # fail on a bad agent, checkpoint or config before starting anything
     check_overrides(settings.env_overrides)
-    resolved = resolve_config(env_config(settings, resolve_agent(settings)))
+    cls = resolve_agent(settings)
+    resolved = resolve_config(env_config(settings, cls))
+    configured_agent(cls, settings.seed, resolved)  # an agent refuses a config it cannot use
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:
@@ -332,7 +366,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         with Client(settings.server, retries=1) as client:
             health, spec = client.health(), client.spec()
         config, records = play_all(
-            settings, episodes, remote_env_factory(settings.server), progress
+            settings, episodes, remote_env_factory(settings.server), progress, spec.get("defaults")
         )
         server = {"url": settings.server, "local": False, "api_version": health.get("api_version")}
         server["renderer"] = _served_renderer(config, spec)
@@ -348,7 +382,9 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         with LocalServer(workers=max(1, settings.workers), options=allow) as local:
             with Client(local.url) as client:
                 health, spec = client.health(), client.spec()
-            config, records = play_all(settings, episodes, remote_env_factory(local.url), progress)
+            config, records = play_all(
+                settings, episodes, remote_env_factory(local.url), progress, spec.get("defaults")
+            )
         server = {"url": None, "local": True, "api_version": health.get("api_version")}
         server["renderer"] = _served_renderer(config, spec)
     # Which dataset was played, and for which houses (kept with the server's details, which

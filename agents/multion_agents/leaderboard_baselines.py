@@ -66,7 +66,7 @@ def play_baselines(
     """Play the baselines on every (track, phase) of the server selected; returns the run ids.
 
     ``db`` must be the server's own database: the token is written there."""
-    from multion_agents.cli_submit import oracle_maps, play_run
+    from multion_agents.cli_submit import oracle_maps, play_run, run_config
     from multion_agents.registry import agent_class
     from multion_client.errors import Unauthorized
     from multion_client.run import RunEnv
@@ -110,7 +110,7 @@ def play_baselines(
                     # Each run's start and end are said even with --quiet (which only drops
                     # the progress bar): a run can take minutes.
                     print(f" (run {env.run_id})", flush=True)
-                    play_run(env, cls, 0, None, progress)
+                    play_run(env, cls, 0, None, progress, config=run_config(cls, track))
                     status = env.status()
                     env.close()
                     run_ids.append(env.run_id)

@@ -56,6 +56,33 @@ GOAL_RGBA: tuple[tuple[float, float, float, float], ...] = (
 )
 NUM_CATEGORIES = len(GOAL_CATEGORIES)
 
+# The supplement's shape goals ("Varying target object shapes"): 8 red shapes 0.4 m across on
+# thin supports; a category id is the index in this tuple.
+SHAPE_CATEGORIES: tuple[str, ...] = (
+    "cone",
+    "cube",
+    "cylinder",
+    "frustum",
+    "joined_frustums",
+    "sphere",
+    "tetrahedron",
+    "torus",
+)
+SHAPE_RGBA: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 1.0)
+"""Every shape goal is red (supplement)."""
+
+GOAL_SETS: dict[str, tuple[str, ...]] = {"colours": GOAL_CATEGORIES, "shapes": SHAPE_CATEGORIES}
+"""``task.goal_set`` → its category names: ``colours``, the paper's 8 cylinders (the default),
+or ``shapes``. Both have 8 categories, so the same episodes (category ids) serve both."""
+DEFAULT_GOAL_SET = "colours"
+
+
+def goal_categories(goal_set: str = DEFAULT_GOAL_SET) -> tuple[str, ...]:
+    """The category names of ``goal_set``; a ValueError naming the sets otherwise."""
+    if goal_set not in GOAL_SETS:
+        raise ValueError(f"unknown goal set {goal_set!r}; goal sets: {', '.join(GOAL_SETS)}")
+    return GOAL_SETS[goal_set]
+
 # Oracle-map cell values (channel 0: occupancy, channel 1: goal category + 1, 0 for none).
 MAP_UNKNOWN = 0  # outside the scene, or not yet discovered (ego map)
 MAP_FREE = 1

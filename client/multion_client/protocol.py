@@ -377,6 +377,20 @@ class ServerSpec:
         )
     )
     limits: dict[str, Any] = field(metadata=schema("this server's limits (sessions, envs, bytes)"))
+    goal_sets: dict[str, list[str]] = field(
+        default_factory=dict,
+        metadata=schema(
+            "`task.goal_set` → its category names (a category id is an index); "
+            "`goal_categories` are the default set's"
+        ),
+    )
+    sources: dict[str, str] = field(
+        default_factory=dict,
+        metadata=schema(
+            "config field (e.g. `maps.ego_size`) → where its default comes from: the paper, or "
+            "the reference code (saimwani/multiON) with file and line"
+        ),
+    )
 
     def to_wire(self) -> dict[str, Any]:
         wire = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

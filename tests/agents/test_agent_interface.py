@@ -131,3 +131,52 @@ def test_seeding_makes_random_agents_repeatable() -> None:
     assert [first.act(observation) for _ in range(50)] == [
         second.act(observation) for _ in range(50)
     ]
+
+
+def test_baselines_take_their_environment_from_its_resolved_config() -> None:
+    from multion_agents.evaluate import resolve_config
+
+    explorer = make_agent("explorer")
+    config = resolve_config({"camera": {"hfov_deg": 90.0}, "agent": {"forward_step": 0.2}})
+    explorer.configure(config)
+    assert explorer.camera.hfov_deg == 90.0 and explorer.camera.max_depth == 10.0  # type: ignore[attr-defined]
+    assert explorer.motion.forward_step == 0.2  # type: ignore[attr-defined]
+    assert explorer.env_config["camera"]["hfov_deg"] == 90.0
+    with pytest.raises(AgentError, match="turn_angle_deg=25 does not divide 360"):
+        explorer.configure(resolve_config({"agent": {"turn_angle_deg": 25.0}}))
+    with pytest.raises(AgentError, match="tells goals apart by their colours"):
+        explorer.configure(resolve_config({"task": {"goal_set": "shapes"}}))
+    planner = make_agent("oracle-planner")
+    with pytest.raises(AgentError, match="maps.ego_size=50"):
+        planner.configure(resolve_config({}))  # the default 0.8 m crop, not the planner's map
+    planner.configure(resolve_config({"maps": planner.config_overrides["maps"]}))
+
+
+def test_eval_refuses_a_config_the_agent_cannot_use_before_playing() -> None:
+    from multion_agents.evaluate import evaluate
+
+    settings = EvalSettings(
+        agent="explorer", in_process=True, episodes=1,
+        env_overrides={"agent": {"turn_angle_deg": 25.0}},
+    )  # fmt: skip
+    with pytest.raises(AgentError, match="explorer: agent.turn_angle_deg=25"):
+        evaluate(settings, progress=False)
+    settings = EvalSettings(
+        agent="oracle-planner", in_process=True, episodes=1,
+        env_overrides={"maps": {"ego_size": 50}},
+    )  # fmt: skip
+    with pytest.raises(AgentError, match="oracle-planner reads its oracle map as"):
+        evaluate(settings, progress=False)
+
+
+def test_a_remote_session_config_takes_the_servers_defaults() -> None:
+    from multion_agents.evaluate import session_config
+
+    # a server whose defaults differ (another version): the agent learns what it will get
+    server = {"camera": {"max_depth": 5.0, "min_depth": 0.5, "unknown_field": 1}, "future": {}}
+    config = {"task": {"num_goals": 1}, "camera": {"min_depth": 0.2}, "sensors": ["goal"]}
+    resolved = session_config(config, server)
+    assert resolved["camera"]["max_depth"] == 5.0  # the server's default
+    assert resolved["camera"]["min_depth"] == 0.2  # the request's own value
+    assert resolved["maps"]["ego_size"] == 50  # not reported by that server: ours
+    assert session_config(config) == session_config(config, {})

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multion.api.config_io import env_config_to_dict
 from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion_agents.registry import make_agent
@@ -33,16 +34,23 @@ CASES = (
 )
 
 
-def play(episode_id: str, image: int, max_steps: int) -> dict[str, object]:
-    """The explorer's actions on one (version 2) val episode, and digests of its final map."""
+def play(
+    episode_id: str, image: int, max_steps: int, depth: tuple[float, float] | None = None
+) -> dict[str, object]:
+    """The explorer's actions on one (version 2) val episode, and digests of its final map.
+    ``depth``: the sensor's (min, max) depth, metres (None: the default, [0, 10] m)."""
     episode = v2_episode(episode_id)
     num_goals = episode.num_goals
     agent = make_agent("explorer", seed=0)
+    camera = CameraConfig(width=image, height=image)
+    if depth is not None:
+        camera = CameraConfig(width=image, height=image, min_depth=depth[0], max_depth=depth[1])
     config = EnvConfig(
         task=TaskConfig(num_goals=num_goals, max_steps=max_steps),
-        camera=CameraConfig(width=image, height=image),
+        camera=camera,
         sensors=tuple(dict.fromkeys([*agent.sensors, "gps"])),
     )
+    agent.configure(env_config_to_dict(config))  # the camera and steps it acts with
     env = MultiONEnv(config, episodes=[episode])
     try:
         observation, _ = env.reset(options={"episode_id": episode_id})
@@ -85,6 +93,15 @@ def test_explorer_repeats_its_recorded_actions(episode_id: str, image: int, max_
     assert got_actions == want_actions, f"first different action at step {first}"
     assert got["obstacle_sha256"] == expected["obstacle_sha256"]
     assert got["free_sha256"] == expected["free_sha256"]
+
+
+def test_explorer_reads_the_depth_range_of_its_environment() -> None:
+    # the actions were recorded with the sensor's range of the time, [0.5, 5] m; the default is
+    # now [0, 10] m (the reference's). The explorer maps from 0.5-5 m either way, and decodes
+    # depth with the range its environment reports: the same decisions in both
+    episode_id, image, max_steps = CASES[3]
+    got = play(episode_id, image, max_steps, depth=(0.5, 5.0))
+    assert got["actions"] == _recorded()[(episode_id, image)]["actions"]
 
 
 if __name__ == "__main__":

@@ -89,6 +89,17 @@ def test_health_spec_and_docs(api: TestClient) -> None:
     assert spec["renderer"]["auto"] in ("tiny", "egl")
     assert space_from_wire(spec["observation_space"]) == build_observation_space(EnvConfig())
     assert spec["limits"]["max_sessions"] == 4
+    # the defaults that decide the map vs no-map comparison cite the reference code (issue 31)
+    assert (
+        spec["defaults"]["maps"]["ego_size"] == 50 and "env.py" in spec["sources"]["maps.ego_size"]
+    )
+    assert spec["defaults"]["camera"]["max_depth"] == 10.0
+    assert "default.py line 304" in spec["sources"]["camera.max_depth"]
+    assert spec["goal_sets"]["colours"] == spec["goal_categories"]
+    assert spec["goal_sets"]["shapes"][0] == "cone" and len(spec["goal_sets"]["shapes"]) == 8
+    for name in spec["sources"]:  # every cited field is a config field
+        section, key = name.split(".")
+        assert key in spec["defaults"][section], name
     paths = api.get("/openapi.json").json()["paths"]
     for path, method in [
         ("/v1/health", "get"),
@@ -238,7 +249,7 @@ def test_malformed_bodies(
             "maps.ego_size = 100001 is out of range: allowed an integer in [1, 1001]",
         ),
         ({"navgrid": {"cell_size": 1e-6}}, "navgrid.cell_size = 1e-06 is out of range"),
-        ({"camera": {"min_depth": 5.0}}, "camera.min_depth (5.0) must be below camera.max_depth"),
+        ({"camera": {"min_depth": 10.0}}, "camera.min_depth (10.0) must be below camera.max_depth"),
         # found by the worker; the message names the task, not the server's directories
         ({"episodes": None, "task": {"num_goals": 5}, "split": "test"}, "no packaged 5-on test"),
     ],

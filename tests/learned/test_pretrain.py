@@ -61,13 +61,14 @@ def test_pose_labels_turn_with_the_agent() -> None:
     )
 
 
-def _goal_cell(crop: np.ndarray, category: int) -> tuple[int, int] | None:
-    """The goal cell's (forward, left) offset in cells from the crop's centre."""
+def _goal_cell(crop: np.ndarray, category: int) -> tuple[float, float] | None:
+    """The goal's (forward, left) offset in cells from the agent's cell: the middle of its
+    square of cells (3 × 3 by default, ``maps.goal_cells``)."""
     rows, cols = np.nonzero(crop[..., 1] == category + 1)
-    if len(rows) != 1:
+    if not 1 <= len(rows) <= 9:
         return None
     half = crop.shape[0] // 2
-    return half - int(rows[0]), half - int(cols[0])
+    return half - float(rows.mean()), half - float(cols.mean())
 
 
 def test_crops_show_the_goal_where_the_labels_say() -> None:

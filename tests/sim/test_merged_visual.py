@@ -74,7 +74,9 @@ depends on TinyRenderer's exact pixels."""
 
 def test_tinyrenderer_images_are_bit_identical_to_before_the_merge() -> None:
     world = PyBulletWorld.from_layout(layout_for(HOUSE), "tiny")
-    camera = Camera(CameraConfig(width=64, height=64), world.client, world.renderer, world.lighting)
+    # the depth range the digest was taken with (the default is [0, 10] m since issue 31)
+    config = CameraConfig(width=64, height=64, min_depth=0.5, max_depth=5.0)
+    camera = Camera(config, world.client, world.renderer, world.lighting)
     digest = hashlib.sha256()
     try:
         for x, y, yaw in TINY_POSES:

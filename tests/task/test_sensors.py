@@ -27,21 +27,30 @@ def env_at(start, yaw, goals, sensors, camera=CameraConfig(), maps=MapConfig()):
 def test_depth_to_wall_within_2cm():
     # facing +x from x = 3: the wall is 3 m ahead; planar depth is 3 m across the image centre
     env, obs = env_at((3.0, 2.0), 0.0, [(0, (1.0, 1.0))], ("depth",))
-    depth_m = 0.5 + 4.5 * obs["depth"][:, :, 0]
+    depth_m = 10.0 * obs["depth"][:, :, 0]  # [0, 10] m, normalised (reference default)
     assert obs["depth"].dtype == np.float32 and obs["depth"].shape == (256, 256, 1)
     assert depth_m[128, 128] == pytest.approx(3.0, abs=0.02)
     assert depth_m[100, 60] == pytest.approx(3.0, abs=0.02)  # planar depth, not ray length
     # turning right by 90° (3 turns) faces the y = 0 wall, 2 m away
     for _ in range(3):
         obs, *_ = env.step(3)
-    depth_m = 0.5 + 4.5 * obs["depth"][:, :, 0]
+    depth_m = 10.0 * obs["depth"][:, :, 0]  # [0, 10] m, normalised (reference default)
     assert depth_m[128, 128] == pytest.approx(2.0, abs=0.02)
 
 
 def test_depth_is_clipped_and_normalised():
     env, obs = env_at((0.3, 2.0), math.pi, [(0, (4.0, 2.0))], ("depth",))  # 0.3 m from a wall
     assert obs["depth"].min() >= 0.0 and obs["depth"].max() <= 1.0
-    assert obs["depth"][128, 128, 0] == pytest.approx(0.0)  # below 0.5 m → clipped to 0
+    assert obs["depth"][128, 128, 0] == pytest.approx(0.03, abs=1e-4)  # 0.3 m of [0, 10] m
+    # the range before issue 31, [0.5, 5] m: below 0.5 m is clipped to 0
+    camera = CameraConfig(min_depth=0.5, max_depth=5.0)
+    env, obs = env_at((0.3, 2.0), math.pi, [(0, (4.0, 2.0))], ("depth",), camera=camera)
+    assert obs["depth"][128, 128, 0] == pytest.approx(0.0)
+    # facing the far wall, 5.7 m away: within [0, 10] m, clipped to 1 in [0.5, 5] m
+    env, obs = env_at((0.3, 2.0), 0.0, [(0, (4.0, 2.0))], ("depth",), camera=camera)
+    assert obs["depth"][128, 128, 0] == pytest.approx(1.0)
+    env, obs = env_at((0.3, 2.0), 0.0, [(0, (4.0, 2.0))], ("depth",))
+    assert obs["depth"][128, 128, 0] == pytest.approx(0.57, abs=3e-3)
 
 
 @pytest.mark.parametrize("category", range(8))
@@ -87,7 +96,7 @@ def test_goal_one_hot_gps_compass():
 
 def test_oracle_map_is_egocentric_and_rotated():
     # coarse 0.5 m cells to make the room's cells easy to reason about
-    maps = MapConfig(cell_size=0.5, ego_size=21)
+    maps = MapConfig(cell_size=0.5, ego_size=21, goal_cells=1)
     env, obs = env_at((1.0, 2.0), 0.0, [(2, (4.0, 2.0))], ("oracle_map",), maps=maps)
     occ, goal = obs["oracle_map"][..., 0], obs["oracle_map"][..., 1]
     c = 10
@@ -106,7 +115,7 @@ def test_oracle_map_is_egocentric_and_rotated():
 def test_the_goal_never_vanishes_from_a_rotated_oracle_map():
     """Sampling a rotated crop cell by cell skips some map cells; a goal is one cell and used to
     vanish at some headings (10 % of poses near goals in the v3 val houses)."""
-    maps = MapConfig(cell_size=0.8, ego_size=25)
+    maps = MapConfig(cell_size=0.8, ego_size=25, goal_cells=1)
     env, obs = env_at((1.0, 1.3), 0.0, [(4, (4.6, 2.9))], ("oracle_map",), maps=maps)
     oracle = env._oracle
     assert oracle is not None
@@ -174,8 +183,39 @@ def test_hidden_goals_are_not_rendered_but_still_count():
     assert info["metrics"]["success"] == 1.0
 
 
-def test_oracle_map_crop_defaults_to_the_reference_13_cells_of_0_8_m():
-    assert MapConfig().ego_size == 13 and MapConfig().cell_size == 0.8
+def test_oracle_map_crop_defaults_to_the_reference_50_cells_of_0_8_m():
+    """saimwani/multiON habitat/core/env.py: 0.8 m cells (conv_grid, lines 214-233), the centre
+    50 × 50 of a rotated 80 × 80 patch (lines 291-293, 347-349), goals as grid_loc ± 1 (279)."""
+    assert MapConfig().ego_size == 50 and MapConfig().cell_size == 0.8
+    assert MapConfig().goal_cells == 3
     env, obs = env_at((1.0, 2.0), 0.0, [(2, (4.0, 2.0))], ("oracle_map", "oracle_ego_map"))
-    assert obs["oracle_map"].shape == (13, 13, 2) == obs["oracle_ego_map"].shape
-    assert env.observation_space["oracle_map"].shape == (13, 13, 2)
+    assert obs["oracle_map"].shape == (50, 50, 2) == obs["oracle_ego_map"].shape
+    assert env.observation_space["oracle_map"].shape == (50, 50, 2)
+
+
+def test_even_crop_puts_the_agent_in_cell_half_half_and_goals_as_3x3_squares():
+    # the agent at cell (25, 25) of a 50-cell crop: 25 cells ahead (rows 0-24) and 24 behind,
+    # as index 25 of the reference's patch[40-25:40+25] around the agent's index 40
+    maps = MapConfig(cell_size=0.5, ego_size=50, goal_cells=3)
+    env, obs = env_at((1.0, 2.0), 0.0, [(2, (4.0, 2.0))], ("oracle_map",), maps=maps)
+    goal = obs["oracle_map"][..., 1]
+    c = 25
+    assert obs["oracle_map"][c, c, 0] == MAP_FREE
+    # 3 m ahead = 6 cells up; the goal is a 3 × 3 square of value 3 around its cell
+    rows, cols = np.nonzero(goal)
+    assert (goal[rows, cols] == 3).all() and len(rows) == 9
+    assert (rows.min(), rows.max(), cols.min(), cols.max()) == (c - 7, c - 5, c - 1, c + 1)
+    assert goal[c - 6, c] == 3
+
+
+def test_each_goal_keeps_its_own_cell_when_squares_overlap():
+    maps = MapConfig(cell_size=0.5, ego_size=21, goal_cells=3)
+    goals = [(2, (4.0, 2.0)), (5, (4.5, 2.0))]  # one cell apart: the squares overlap
+    env, obs = env_at((1.0, 2.0), 0.0, goals, ("oracle_map",), maps=maps)
+    goal, c = obs["oracle_map"][..., 1], 10
+    assert goal[c - 6, c] == 3 and goal[c - 7, c] == 6
+
+
+def test_goal_cells_must_be_odd():
+    with pytest.raises(ValueError, match="maps.goal_cells must be odd"):
+        MapConfig(goal_cells=2)

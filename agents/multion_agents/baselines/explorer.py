@@ -42,7 +42,7 @@ from typing import ClassVar
 import numpy as np
 from scipy import ndimage
 
-from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.field_steps import FieldSteps
 from multion_agents.baselines.mapping import (
     CameraModel,
@@ -100,6 +100,29 @@ class ExplorerAgent(Agent):
     def __init__(self, seed: int = 0) -> None:
         super().__init__(seed)
         self.times = StepTimes()  # over the agent's life, for `multion bench --only explorer`
+        self.reset()
+
+    def configure(self, config: EnvConfigDict) -> None:
+        """The camera model and action magnitudes of the environment (``camera``, ``agent``)."""
+        super().configure(config)
+        goal_set = config.get("task", {}).get("goal_set", "colours")
+        if goal_set != "colours":
+            raise AgentError(
+                f"explorer: it tells goals apart by their colours, and task.goal_set={goal_set!r} "
+                "draws goals of one colour; use task.goal_set=colours"
+            )
+        try:
+            motion = Motion.from_config(config["agent"])
+        except ValueError as error:
+            raise AgentError(f"explorer: {error}") from None
+        camera = CameraModel.from_config(config["camera"])
+        if camera.far <= camera.near:
+            raise AgentError(
+                f"explorer: the depth range [{camera.min_depth:g}, {camera.max_depth:g}] m "
+                f"(camera.min_depth, camera.max_depth) leaves nothing of the "
+                f"[{camera.near_limit:g}, {camera.far_limit:g}] m it maps from"
+            )
+        self.camera, self.motion = camera, motion
         self.reset()
 
     def reset(self) -> None:

@@ -166,10 +166,10 @@ class ReferenceSemanticMap(SemanticMap):
         for rows, cols in detections.values():
             goal_pixels[rows, cols] = True
         is_goal = goal_pixels[projector.rows][:, projector.cols]
-        saturated = z >= cam.max_depth - 1e-3
+        saturated = z >= cam.far - 1e-3
         # clipped at the near limit: the surface is somewhere closer than 0.5 m, not at 0.5 m;
         # taken at face value it draws a false wall in an arc around the agent (in doorways)
-        near = z <= cam.min_depth + 1e-3
+        near = z <= cam.near + 1e-3
         obstacle = (
             (height > cfg.obstacle_low)
             & (height < cfg.obstacle_high)

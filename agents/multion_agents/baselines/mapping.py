@@ -14,7 +14,9 @@ where GPS and compass place the agent exactly, so no SLAM is needed.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -25,20 +27,55 @@ from multion_client.constants import NUM_CATEGORIES
 
 @dataclass(frozen=True)
 class CameraModel:
-    """What the agent knows about its camera (SPEC §2)."""
+    """What the agent knows about its camera: the environment's ``camera`` config section
+    (:meth:`from_config`), and the depth range it trusts for mapping.
+
+    The sensor's range (``min_depth``, ``max_depth``) decodes a normalised depth value. The
+    mapper then clips depth to ``[near_limit, far_limit]``, the range it was tuned with
+    (0.5–5 m, the sensor's default range until issue 31): a surface at or beyond ``far`` counts
+    as "nothing seen up to there", one at or below ``near`` as "something closer". Beyond 5 m a
+    0.1 m map cell is under a pixel's footprint, and the floor is seen at a grazing angle."""
 
     hfov_deg: float = 79.0
     height: float = 0.88
-    min_depth: float = 0.5
-    max_depth: float = 5.0
+    min_depth: float = 0.0
+    max_depth: float = 10.0
+    normalized: bool = True
+    """Depth observations in [0, 1] over ``[min_depth, max_depth]`` (else metres)."""
+    near_limit: float = 0.5
+    far_limit: float = 5.0
+
+    @classmethod
+    def from_config(cls, camera: Mapping[str, Any]) -> CameraModel:
+        """From the ``camera`` section of a resolved environment config (nested dicts)."""
+        return cls(
+            hfov_deg=float(camera["hfov_deg"]),
+            height=float(camera["sensor_height"]),
+            min_depth=float(camera["min_depth"]),
+            max_depth=float(camera["max_depth"]),
+            normalized=bool(camera["normalize_depth"]),
+        )
+
+    @property
+    def near(self) -> float:
+        """Depths at or below this (metres) were clipped: the surface is somewhere closer."""
+        return max(self.near_limit, self.min_depth)
+
+    @property
+    def far(self) -> float:
+        """Depths at or above this (metres) were clipped: nothing seen up to there."""
+        return min(self.far_limit, self.max_depth)
 
     def focal(self, width: int) -> float:
         """Focal length in pixels of an image ``width`` pixels wide (square pixels)."""
         return (width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
 
     def metres(self, depth: np.ndarray | float) -> np.ndarray | float:
-        """Planar depth in metres from the normalised sensor value(s) in [0, 1]."""
-        return self.min_depth + (self.max_depth - self.min_depth) * depth
+        """Planar depth in metres, clipped to ``[near, far]``, from depth observation(s)."""
+        metres = depth
+        if self.normalized:
+            metres = self.min_depth + (self.max_depth - self.min_depth) * depth
+        return np.clip(metres, self.near, self.far)
 
 
 # goal colour → category id, by which channels are "on": (red, green, blue)
@@ -254,10 +291,10 @@ class SemanticMap:
             for rows, cols in detections.values():
                 goal_pixels[rows, cols] = True
             is_goal = goal_pixels[projector.rows][:, projector.cols]
-        saturated = z >= cam.max_depth - 1e-3
+        saturated = z >= cam.far - 1e-3
         # clipped at the near limit: the surface is somewhere closer than 0.5 m, not at 0.5 m;
         # taken at face value it draws a false wall in an arc around the agent (in doorways)
-        near = z <= cam.min_depth + 1e-3
+        near = z <= cam.near + 1e-3
         obstacle = (
             (height > cfg.obstacle_low)
             & (height < cfg.obstacle_high)
@@ -320,7 +357,7 @@ class SemanticMap:
         placed = []
         for category, (rows, cols) in detections.items():
             z = cam.metres(depth[rows, cols, 0])
-            reliable = z < cam.max_depth - 1e-3
+            reliable = z < cam.far - 1e-3
             if reliable.sum() < 3:
                 continue  # too far to place; it will be seen again from closer
             z, cols = z[reliable], cols[reliable]

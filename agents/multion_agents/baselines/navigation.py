@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import skfmm
@@ -182,10 +183,25 @@ def nearest_free(free: np.ndarray, sources: np.ndarray, radius_cells: int) -> np
 
 @dataclass(frozen=True)
 class Motion:
-    """The agent's action magnitudes (paper §3)."""
+    """The agent's action magnitudes (paper §3; the ``agent`` config section, see
+    :meth:`from_config`)."""
 
     forward_step: float = 0.25
     turn_angle: float = math.radians(30.0)
+
+    @classmethod
+    def from_config(cls, agent: Mapping[str, Any]) -> Motion:
+        """From the ``agent`` section of a resolved environment config (nested dicts); a
+        ValueError when the turn angle does not divide a full turn (the planners snap headings
+        to whole turns from the start)."""
+        degrees = float(agent["turn_angle_deg"])
+        turns = round(360.0 / degrees)
+        if abs(turns * degrees - 360.0) > 1e-6:
+            raise ValueError(
+                f"agent.turn_angle_deg={degrees:g} does not divide 360°: the planner snaps "
+                "headings to whole turns from the start"
+            )
+        return cls(float(agent["forward_step"]), math.radians(degrees))
 
     @property
     def headings(self) -> int:

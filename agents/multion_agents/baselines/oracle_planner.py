@@ -31,7 +31,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
+from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.lattice_search import LatticeSearch, key_of
 from multion_agents.baselines.navigation import (
     Motion,
@@ -48,6 +48,8 @@ from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
 
 CELL_SIZE = 0.1
 EGO_SIZE = 601
+GOAL_CELLS = 1
+"""Each goal is its own 0.1 m cell: the planner measures its distance to the goal's cells."""
 
 
 class OraclePlannerAgent(Agent):
@@ -55,7 +57,7 @@ class OraclePlannerAgent(Agent):
 
     sensors: ClassVar[tuple[str, ...]] = ("goal", "gps", "compass", "oracle_map")
     config_overrides: ClassVar[ConfigOverrides] = {
-        "maps": {"cell_size": CELL_SIZE, "ego_size": EGO_SIZE}
+        "maps": {"cell_size": CELL_SIZE, "ego_size": EGO_SIZE, "goal_cells": GOAL_CELLS}
     }
     found_distance: float = 1.0
     cut_off_found: float = 0.5
@@ -69,6 +71,25 @@ class OraclePlannerAgent(Agent):
 
     def __init__(self, seed: int = 0) -> None:
         super().__init__(seed)
+        self.reset()
+
+    def configure(self, config: EnvConfigDict) -> None:
+        """Checks the oracle map's geometry; takes the action magnitudes (``agent``)."""
+        super().configure(config)
+        maps = config["maps"]
+        wanted = self.config_overrides["maps"]
+        wrong = {k: maps.get(k) for k, v in wanted.items() if maps.get(k) != v}
+        if wrong:
+            have = ", ".join(f"maps.{k}={v}" for k, v in wrong.items())
+            need = ", ".join(f"maps.{k}={v}" for k, v in wanted.items())
+            raise AgentError(
+                f"oracle-planner reads its oracle map as {need}, but this environment has "
+                f"{have}: leave the agent's maps settings as they are"
+            )
+        try:
+            self.motion = Motion.from_config(config["agent"])
+        except ValueError as error:
+            raise AgentError(f"oracle-planner: {error}") from None
         self.reset()
 
     def reset(self) -> None:
@@ -133,7 +154,7 @@ class OraclePlannerAgent(Agent):
         maps = self.config_overrides["maps"]
         cell = float(maps["cell_size"])
         if size != maps["ego_size"]:
-            # a smaller map (a track's default 13 cells of 0.8 m) read as 0.1 m cells would be
+            # a smaller map (a track's default 50 cells of 0.8 m) read as 0.1 m cells would be
             # wrong everywhere, and the agent would walk off it
             raise AgentError(
                 f"oracle-planner needs an oracle map of {maps['ego_size']} cells of {cell} m "

@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 import torch
 
-from multion_agents.agent import Agent, ConfigOverrides, Observation
+from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
 from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
 
 
@@ -28,6 +28,29 @@ class LearnedAgent(Agent):
         self._state: State = {}
         self._prev_action = 0
         self._start = True
+
+    def configure(self, config: dict[str, Any]) -> None:
+        """Refuses an environment that differs from the checkpoint's in a field that shapes the
+        observations (``camera``, ``maps``: what ``config_overrides`` holds) or in its goal set
+        (``task.goal_set``, an override only when it is not the default ``colours``)."""
+        super().configure(config)
+        wrong = []
+        goal_set = config.get("task", {}).get("goal_set", "colours")
+        trained = self.config_overrides.get("task", {}).get("goal_set", "colours")
+        if goal_set != trained:
+            wrong.append(f"task.goal_set={goal_set!r} (trained with {trained!r})")
+        wrong += [
+            f"{section}.{key}={config.get(section, {}).get(key)!r} (trained with {value!r})"
+            for section, values in self.config_overrides.items()
+            for key, value in values.items()
+            if config.get(section, {}).get(key) != value and key != "goal_set"
+        ]
+        if wrong:
+            raise AgentError(
+                f"this {self.model or 'learned'} checkpoint cannot act in this environment: "
+                + ", ".join(wrong)
+                + "; leave these fields as the checkpoint recorded them"
+            )
 
     def reset(self) -> None:
         assert self.policy is not None

@@ -18,7 +18,7 @@ import torch
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.map_ops import MapGeometry
 from multion_agents.learned.models import model_spec
-from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy, hidden_size_of
 
 FORMAT_VERSION = 1
 
@@ -78,31 +78,64 @@ def restore_random_states(payload: dict[str, Any]) -> None:
     random.setstate(rng["python"])
 
 
-def build_policy(agent: str, env_config: dict[str, Any]) -> RecurrentPolicy:
-    """The (untrained) policy of model ``agent`` for environments configured by ``env_config``."""
+LEGACY_FIELDS: dict[str, dict[str, Any]] = {
+    "maps": {"goal_cells": 1},
+    "task": {"goal_set": "colours"},
+}
+"""Config fields added after checkpoints were first written, with the value those checkpoints
+were trained with (issue 31 added ``maps.goal_cells``, goals were one cell before, and
+``task.goal_set``, the cylinders were the only goals). A recorded config lacking one gets this
+value, not today's default."""
+
+
+def with_legacy_fields(env_config: dict[str, Any]) -> dict[str, Any]:
+    """``env_config`` (a checkpoint's) with the fields it predates set to their old values."""
+    config = {k: (dict(v) if isinstance(v, dict) else v) for k, v in env_config.items()}
+    for section, values in LEGACY_FIELDS.items():
+        if isinstance(config.get(section), dict):
+            config[section] = {**values, **config[section]}
+    return config
+
+
+def build_policy(
+    agent: str, env_config: dict[str, Any], hidden_size: int = HIDDEN_SIZE
+) -> RecurrentPolicy:
+    """The (untrained) policy of model ``agent`` for environments configured by ``env_config``,
+    with a GRU of ``hidden_size`` units (768, the reference's, by default)."""
     from multion.api.config_io import env_config_from_dict
     from multion.task.env import build_observation_space
 
     config = env_config_from_dict(env_config)
     space = build_observation_space(config)
-    return model_spec(agent).build(space, MapGeometry.from_env_config(config))
+    return model_spec(agent).build(space, MapGeometry.from_env_config(config), hidden_size)
 
 
 def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str]:
     """The trained policy in ``path``, the env overrides it needs (camera size, model
-    overrides) and its model name."""
+    overrides) and its model name. The checkpoint's own config is used (a checkpoint records
+    every field), and its GRU size is read from its weights: checkpoints made with older
+    defaults (13-cell crops, [0.5, 5] m depth, 512 GRU units) keep acting as trained."""
     payload = load_checkpoint(path)
-    policy = build_policy(payload["agent"], payload["env_config"])
+    config = with_legacy_fields(payload["env_config"])
+    try:
+        hidden_size = hidden_size_of(payload["model"])
+    except ValueError as error:
+        raise CheckpointError(f"{path}: {error}") from None
+    policy = build_policy(payload["agent"], config, hidden_size)
     try:
         policy.load_state_dict(payload["model"])
     except RuntimeError as error:
         raise CheckpointError(
             f"{path}: weights do not fit model {payload['agent']!r}: {error}"
         ) from None
-    config = payload["env_config"]
     # the sections that shape observations; rewards and episode sources do not matter to eval,
     # nor does the renderer (the evaluating machine picks its own)
-    shaping = {section: dict(config[section]) for section in ("camera", "maps") if section in config}
+    shaping = {
+        section: dict(config[section]) for section in ("camera", "maps") if section in config
+    }
     shaping.get("camera", {}).pop("renderer", None)
+    goal_set = config.get("task", {}).get("goal_set", "colours")
+    if goal_set != "colours":  # what the goals look like (the default set needs no override,
+        shaping["task"] = {"goal_set": goal_set}  # so the agent can still join a track)
     overrides = merge_overrides(shaping, model_spec(payload["agent"]).config_overrides)
     return policy, overrides, payload["agent"]

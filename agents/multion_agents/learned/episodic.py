@@ -191,9 +191,13 @@ def policy_query_dim(observation_space: spaces.Dict) -> int:
     return IMAGE_EMBED_DIM * sees + GOAL_EMBED_DIM + ACTION_EMBED_DIM
 
 
-def build_frmqn(observation_space: spaces.Dict, geometry: object = None) -> FRMQN:
-    return FRMQN(policy_query_dim(observation_space), HIDDEN_SIZE)
+def build_frmqn(
+    observation_space: spaces.Dict, geometry: object = None, hidden_size: int = HIDDEN_SIZE
+) -> FRMQN:
+    return FRMQN(policy_query_dim(observation_space), hidden_size)
 
 
-def build_smt(observation_space: spaces.Dict, geometry: object = None) -> SMT:
+def build_smt(
+    observation_space: spaces.Dict, geometry: object = None, hidden_size: int = HIDDEN_SIZE
+) -> SMT:
     return SMT(policy_query_dim(observation_space))

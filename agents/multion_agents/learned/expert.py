@@ -12,11 +12,13 @@ in the training worker processes, and only during training.
 from __future__ import annotations
 
 import sys
+from dataclasses import asdict
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
+from multion.api.config_io import env_config_to_dict
 from multion.task.env import MultiONEnv
 from multion.task.maps import MapConfig, OracleMap
 from multion_agents.baselines.oracle_planner import OraclePlannerAgent
@@ -44,7 +46,9 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
         # of the state and the map
         self.planner.stuck_visits = sys.maxsize
         maps = OraclePlannerAgent.config_overrides["maps"]
-        self._map_config = MapConfig(cell_size=maps["cell_size"], ego_size=maps["ego_size"])
+        self._map_config = MapConfig(**maps)
+        # the planner acts in this env, with its own oracle map (the env's may be coarser)
+        self.planner.configure({**env_config_to_dict(env.config), "maps": asdict(self._map_config)})
         self._oracle: OracleMap | None = None
         self._start_map = np.zeros((0, 0, 2), dtype=np.uint8)
 

@@ -261,19 +261,27 @@ class EgoMap(ProjNeuralMap):
         return self.out(torch.cat([self.cnn(crop), read], dim=1)), {"map": grid}
 
 
-def obj_recog_map(dynamic: bool = False) -> Callable[[spaces.Dict, MapGeometry], ObjRecogMap]:
+def obj_recog_map(
+    dynamic: bool = False,
+) -> Callable[[spaces.Dict, MapGeometry, int], ObjRecogMap]:
     """Builder of an :class:`ObjRecogMap` (``dynamic``: DynamicObjRecogMap) for models.py."""
 
-    def build(observation_space: spaces.Dict, geometry: MapGeometry) -> ObjRecogMap:
+    def build(
+        observation_space: spaces.Dict, geometry: MapGeometry, hidden_size: int = HIDDEN_SIZE
+    ) -> ObjRecogMap:
         return ObjRecogMap(observation_space, geometry, dynamic=dynamic)
 
     return build
 
 
-def build_proj_neural_map(observation_space: spaces.Dict, geometry: MapGeometry) -> ProjNeuralMap:
+def build_proj_neural_map(
+    observation_space: spaces.Dict, geometry: MapGeometry, hidden_size: int = HIDDEN_SIZE
+) -> ProjNeuralMap:
     return ProjNeuralMap(observation_space, geometry)
 
 
-def build_ego_map(observation_space: spaces.Dict, geometry: MapGeometry) -> EgoMap:
-    query_dim = policy_query_dim(observation_space) + HIDDEN_SIZE
+def build_ego_map(
+    observation_space: spaces.Dict, geometry: MapGeometry, hidden_size: int = HIDDEN_SIZE
+) -> EgoMap:
+    query_dim = policy_query_dim(observation_space) + hidden_size
     return EgoMap(observation_space, geometry, query_dim)

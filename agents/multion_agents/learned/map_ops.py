@@ -11,15 +11,18 @@ of view and depth range, crop size); numbers below are for the default 0.8 m cel
   ``c = G // 2``. At compass 0 the global map and the egocentric crop are drawn alike.
 * ``gps`` (B, 2) is (ahead, left) in metres in the start frame; ``compass`` (B, 1) is the
   heading relative to the start, counter-clockwise positive (a left turn increases it).
-* An **egocentric crop** (S × S, S odd) is rotated so that ahead is up: row 0 ahead, column 0
-  left, the agent in the centre cell.
+* An **egocentric crop** (S × S) is rotated so that ahead is up: row 0 ahead, column 0
+  left, the agent in cell ``(S // 2, S // 2)``: the centre cell for an odd S; for an even S
+  (the default 50) S / 2 cells ahead and to the left, one fewer behind and to the right, as
+  in the oracle maps and the reference's ``patch[40-25:40+25]``.
 * The **egocentric projection grid** of ProjNeuralMap/EgoMap is ``EGO_ROWS`` × ``EGO_COLS``
   (7 × 13 cells) with the agent at the centre of the bottom-middle cell: it is the part of a
   13 × 13 egocentric crop ahead of the agent. Row ``EGO_ROWS - 1 - k`` holds points
   ``(k ± 0.5)·0.8 m`` ahead, column ``EGO_COLS // 2 + j`` points ``(j ± 0.5)·0.8 m`` to the right
   (lower columns: left). It spans 5.2 m ahead and ±5.2 m sideways. (The supplement says
   5.6 m ahead, the agent at the mid-bottom; centring the agent in its cell aligns the grid with
-  the global map's cells at the start pose, and the depth sensor only reaches 5 m anyway.)
+  the global map's cells at the start pose; points seen farther than the grid reaches, up to
+  the depth sensor's 10 m, are dropped: :func:`project_egocentric`.)
 """
 
 from __future__ import annotations
@@ -52,7 +55,7 @@ class MapGeometry:
     cell_size: float
     """Map cell side, metres (``maps.cell_size``; paper 0.8)."""
     crop_size: int
-    """Side of the egocentric crop read by the map CNN, cells (``maps.ego_size``, odd)."""
+    """Side of the egocentric crop read by the map CNN, cells (``maps.ego_size``)."""
     hfov_deg: float
     """Camera horizontal field of view (``camera.hfov_deg``)."""
     min_depth: float

@@ -18,10 +18,11 @@ from multion_agents.learned.episodic import build_frmqn, build_smt
 from multion_agents.learned.learned_maps import build_ego_map, build_proj_neural_map, obj_recog_map
 from multion_agents.learned.map_ops import MapGeometry, default_geometry
 from multion_agents.learned.oracle_maps import OracleMapMemory
-from multion_agents.learned.policy import Memory, RecurrentPolicy
+from multion_agents.learned.policy import HIDDEN_SIZE, Memory, RecurrentPolicy
 
-MemoryBuilder = Callable[[spaces.Dict, MapGeometry], Memory | None]
-"""Builds a memory from the env's observation space and map geometry (both from its config)."""
+MemoryBuilder = Callable[[spaces.Dict, MapGeometry, int], Memory | None]
+"""Builds a memory from the env's observation space and map geometry (both from its config)
+and the GRU's hidden size (memories that read the GRU state need it)."""
 
 
 @dataclass(frozen=True)
@@ -49,22 +50,27 @@ class ModelSpec:
         return tuple(dict.fromkeys(self.sensors + self.train_only_sensors))
 
     def build(
-        self, observation_space: spaces.Dict, geometry: MapGeometry | None = None
+        self,
+        observation_space: spaces.Dict,
+        geometry: MapGeometry | None = None,
+        hidden_size: int = HIDDEN_SIZE,
     ) -> RecurrentPolicy:
         """The policy for an env with ``observation_space`` whose config gives ``geometry``
-        (None: the default env config's, for tests)."""
-        memory = self.build_memory(observation_space, geometry or default_geometry())
-        return RecurrentPolicy(observation_space, memory, self.use_rgb, self.use_depth)
+        (None: the default env config's, for tests), with a GRU of ``hidden_size`` units."""
+        memory = self.build_memory(observation_space, geometry or default_geometry(), hidden_size)
+        return RecurrentPolicy(
+            observation_space, memory, self.use_rgb, self.use_depth, hidden_size=hidden_size
+        )
 
 
 def _oracle(sensor: str, channels: str = "occ+obj", dynamic: bool = False) -> MemoryBuilder:
-    def build(observation_space: spaces.Dict, geometry: MapGeometry) -> Memory:
+    def build(observation_space: spaces.Dict, geometry: MapGeometry, hidden_size: int) -> Memory:
         return OracleMapMemory(observation_space, geometry.crop_size, sensor, channels, dynamic)
 
     return build
 
 
-def _no_memory(observation_space: spaces.Dict, geometry: MapGeometry) -> None:
+def _no_memory(observation_space: spaces.Dict, geometry: MapGeometry, hidden_size: int) -> None:
     return None
 
 

@@ -31,7 +31,11 @@ from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
 State = dict[str, Tensor]
 Batch = dict[str, Tensor]
 
-HIDDEN_SIZE = 512
+HIDDEN_SIZE = 768
+"""GRU units: ``hidden_size: 768`` in the reference's ``ppo_multinav.yaml`` (saimwani/multiON
+``habitat_baselines/config/multinav/ppo_multinav.yaml`` line 45). 512 until issue 31: a
+checkpoint's GRU size is read from its weights (:func:`hidden_size_of`)."""
+MAX_HIDDEN_SIZE = 4096
 GOAL_EMBED_DIM = 32
 ACTION_EMBED_DIM = 32
 NO_ACTION = NUM_ACTIONS
@@ -100,8 +104,12 @@ class RecurrentPolicy(nn.Module):
         memory: Memory | None,
         use_rgb: bool = True,
         use_depth: bool = True,
+        hidden_size: int = HIDDEN_SIZE,
     ) -> None:
         super().__init__()
+        if not 1 <= hidden_size <= MAX_HIDDEN_SIZE:
+            raise ValueError(f"hidden_size must be in [1, {MAX_HIDDEN_SIZE}], got {hidden_size}")
+        self.hidden_size = hidden_size
         self.use_rgb = use_rgb and "rgb" in observation_space.spaces
         self.use_depth = use_depth and "depth" in observation_space.spaces
         self.image_encoder: ImageEncoder | None = None
@@ -116,9 +124,9 @@ class RecurrentPolicy(nn.Module):
         self.action_embedding = nn.Embedding(NUM_ACTIONS + 1, ACTION_EMBED_DIM)
         self.query_dim = image_dim + GOAL_EMBED_DIM + ACTION_EMBED_DIM
         memory_dim = memory.out_dim if memory is not None else 0
-        self.gru = nn.GRU(self.query_dim + memory_dim, HIDDEN_SIZE)
-        self.actor = _layer(nn.Linear(HIDDEN_SIZE, NUM_ACTIONS), std=0.01)
-        self.critic = _layer(nn.Linear(HIDDEN_SIZE, 1), std=1.0)
+        self.gru = nn.GRU(self.query_dim + memory_dim, hidden_size)
+        self.actor = _layer(nn.Linear(hidden_size, NUM_ACTIONS), std=0.01)
+        self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -141,7 +149,7 @@ class RecurrentPolicy(nn.Module):
     def initial_state(self, batch: int) -> State:
         """The empty state of ``batch`` environments, on the policy's device."""
         device = self.device
-        state = {"hidden": torch.zeros(batch, HIDDEN_SIZE, device=device)}
+        state = {"hidden": torch.zeros(batch, self.hidden_size, device=device)}
         if self.memory is not None:
             memory = self.memory.initial_state(batch, device)
             state.update({f"memory.{k}": v for k, v in memory.items()})
@@ -282,6 +290,14 @@ def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...])
 def _clear(memory_state: State, keep: Tensor) -> State:
     """Empty the memory of environments whose ``keep`` (B,) is 0 (an all-zero state is empty)."""
     return {k: v * keep.view(-1, *[1] * (v.dim() - 1)) for k, v in memory_state.items()}
+
+
+def hidden_size_of(weights: dict[str, Tensor]) -> int:
+    """The GRU size of a policy's saved weights (``gru.weight_hh_l0`` is 3H × H)."""
+    gate = weights.get("gru.weight_hh_l0")
+    if gate is None or gate.dim() != 2:
+        raise ValueError("the weights hold no GRU (gru.weight_hh_l0)")
+    return int(gate.shape[1])
 
 
 def _layer(layer: nn.Linear, std: float) -> nn.Linear:

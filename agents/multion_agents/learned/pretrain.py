@@ -43,7 +43,7 @@ class MapPretraining:
     steps: int = bounded(0, 0, 20_000)
     """Gradient steps (the v3 recipe: 1,200)."""
     samples: int = bounded(12_000, 200, 100_000)
-    """Training crops, drawn once (about 1.3 kB each with 25-cell crops)."""
+    """Training crops, drawn once (5 kB each with the default 50-cell crops, 1.3 kB with 25)."""
     held_out: int = bounded(1_000, 100, 10_000)
     """Crops to report the accuracy on, drawn from ``held_out_split``."""
     held_out_split: str = one_of("val", ("val", "train"))

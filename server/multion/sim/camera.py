@@ -46,10 +46,15 @@ class CameraConfig:
     """Horizontal field of view, degrees."""
     sensor_height: float = bounded(0.88, 0.05, 3.0)
     """Camera height above the floor, metres."""
-    min_depth: float = bounded(0.5, 0.0, 100.0)
-    max_depth: float = bounded(5.0, 0.0, 100.0, low_open=True)
+    min_depth: float = bounded(0.0, 0.0, 100.0)
+    max_depth: float = bounded(10.0, 0.0, 100.0, low_open=True)
     normalize_depth: bool = True
-    """Depth in metres clipped to ``[min_depth, max_depth]``, then mapped to ``[0, 1]``."""
+    """Depth in metres clipped to ``[min_depth, max_depth]``, then mapped to ``[0, 1]``.
+    [0, 10] m, normalised, is habitat's default, which the reference code keeps
+    (saimwani/multiON ``habitat/config/default.py`` lines 303-305: ``MIN_DEPTH 0.0``,
+    ``MAX_DEPTH 10.0``, ``NORMALIZE_DEPTH True``; ``configs/tasks/multinav_mp3d.yaml`` does not
+    change them, and ``habitat_baselines/rl/ppo/policy.py`` line 318 multiplies depth by 10 to get
+    metres back). The default was [0.5, 5] m until issue 31."""
     near: float = bounded(0.02, 0.001, 1.0)
     """Near clipping plane, metres."""
     far: float = bounded(60.0, 1.0, 1000.0)

@@ -6,7 +6,8 @@ rules and metrics live in the task; nothing here knows about episodes or network
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Sequence
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion.sim.camera import attach_renderer, resolve_renderer
+from multion.sim.goal_shapes import goal_mesh_file
 from multion.sim.merged_visual import merged_visual
 
 # pybullet refuses ray batches above this size
@@ -48,7 +50,7 @@ class PyBulletWorld:
         """The renderer cameras of this world use: "tiny" or "egl" (see ``sim.camera``)."""
         self.visual_bodies: list[int] = []
         """Visual-only bodies of the scene (the merged mesh under EGL), drawn, never hit."""
-        self._goal_bodies: dict[tuple[int, float, float], list[int]] = {}
+        self._goal_bodies: dict[Hashable, list[int]] = {}
         self._goal_in_use: list[int] = []
         self.lighting: tuple[float, float] = DEFAULT_LIGHTING
         """(ambient, diffuse) light coefficients of the camera in this scene."""
@@ -222,30 +224,80 @@ class PyBulletWorld:
 
         Bodies are reused across episodes (moving a body is far cheaper than creating one).
         """
+
+        def cylinder(rgba: tuple[float, float, float, float]) -> int:
+            return p.createVisualShape(
+                p.GEOM_CYLINDER,
+                radius=radius,
+                length=height,
+                rgbaColor=rgba,
+                physicsClientId=self.client,
+            )
+
+        return self._place(
+            [
+                (
+                    (hash(tuple(rgba)), radius, height),
+                    (x, y, z + height / 2),
+                    partial(cylinder, rgba),
+                )
+                for (x, y, z), rgba in goals
+            ]
+        )
+
+    def place_shape_goals(
+        self,
+        goals: Sequence[tuple[tuple[float, float, float], int]],
+        size: float,
+        support_height: float,
+        rgba: tuple[float, float, float, float],
+    ) -> list[int]:
+        """Show one shape on its support per ``(base_position, shape category)`` (the
+        supplement's shape goals, :mod:`multion.sim.goal_shapes`); hides the previous goals."""
+
+        def shape(category: int) -> int:
+            # from a file: the EGL plugin does not draw meshes given as vertices
+            path = goal_mesh_file(category, size, support_height)
+            visual = p.createVisualShape(
+                p.GEOM_MESH, fileName=str(path), rgbaColor=rgba, physicsClientId=self.client
+            )
+            if visual < 0:
+                raise RuntimeError(f"PyBullet could not load the goal mesh {path}")
+            return visual
+
+        return self._place(
+            [
+                (
+                    ("shape", category, size, support_height, rgba),
+                    position,
+                    partial(shape, category),
+                )
+                for position, category in goals
+            ]
+        )
+
+    def _place(
+        self, goals: Sequence[tuple[Hashable, tuple[float, float, float], Callable[[], int]]]
+    ) -> list[int]:
+        """Move one body per ``(key, position, make_visual)`` to ``position``, reusing an idle
+        body of the same ``key`` or creating one from ``make_visual()``; the bodies of the
+        previous call that are not reused are hidden."""
         for body in self._goal_in_use:
             p.resetBasePositionAndOrientation(
                 body, HIDDEN_POSITION, (0, 0, 0, 1), physicsClientId=self.client
             )
         free = {key: list(bodies) for key, bodies in self._goal_bodies.items()}
         used: list[int] = []
-        for (x, y, z), rgba in goals:
-            key = (hash(tuple(rgba)), radius, height)
+        for key, position, make_visual in goals:
             if free.get(key):
                 body = free[key].pop()
             else:
-                vis = p.createVisualShape(
-                    p.GEOM_CYLINDER,
-                    radius=radius,
-                    length=height,
-                    rgbaColor=rgba,
-                    physicsClientId=self.client,
-                )
                 body = p.createMultiBody(
-                    0, -1, vis, basePosition=HIDDEN_POSITION, physicsClientId=self.client
+                    0, -1, make_visual(), basePosition=HIDDEN_POSITION, physicsClientId=self.client
                 )
                 self._goal_bodies.setdefault(key, []).append(body)
             p.resetBasePositionAndOrientation(
-                body, (x, y, z + height / 2), (0, 0, 0, 1), physicsClientId=self.client
+                body, position, (0, 0, 0, 1), physicsClientId=self.client
             )
             used.append(body)
         self._goal_in_use = used

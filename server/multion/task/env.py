@@ -30,9 +30,12 @@ from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
 from multion_client.constants import (
     ACTIONS_TEXT,
+    DEFAULT_GOAL_SET,
     GOAL_RGBA,
+    GOAL_SETS,
     NUM_ACTIONS,
     NUM_CATEGORIES,
+    SHAPE_RGBA,
     Action,
     action_id,
 )
@@ -81,8 +84,18 @@ class TaskConfig:
     wrong_found_penalty: float = bounded(0.0, -1000.0, 1000.0)
     """Subtracted from the reward of a wrong FOUND (the reference code's FALSE_FOUND_PENALTY,
     off in the paper's runs)."""
+    goal_set: str = one_of(DEFAULT_GOAL_SET, tuple(GOAL_SETS))
+    """Which goal objects are drawn: ``colours``, the paper's 8 coloured cylinders
+    (``goal_radius``, ``goal_height``), or ``shapes``, the supplement's 8 red shapes on thin
+    supports (``shape_size``, ``shape_support_height``; names in
+    ``multion_client.constants.SHAPE_CATEGORIES``). Category ids, FOUND, rewards, ``goal_mask``
+    and the oracle maps do not depend on it: the same episodes serve both sets."""
     goal_radius: float = bounded(0.05, 0.01, 0.5)
     goal_height: float = bounded(0.75, 0.05, 3.0)
+    shape_size: float = bounded(0.4, 0.05, 1.0)
+    """Horizontal length or diameter of a shape goal, metres (supplement: 0.4)."""
+    shape_support_height: float = bounded(0.6, 0.0, 2.0)
+    """Height of a shape goal's support, metres: the shape sits on top of it."""
     goals_visible: bool = True
     """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
     ablation); they still count for FOUND, rewards and the oracle maps."""
@@ -146,10 +159,12 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
 
     ## Observation
     A dict with the configured sensors: ``rgb`` (H, W, 3) uint8; ``depth`` (H, W, 1) float32 in
-    [0, 1] (0.5–5 m); ``goal`` current goal category (0..7); ``goal_onehot`` (8,); ``gps`` (2,)
+    [0, 1] (0–10 m by default); ``goal`` current goal category (0..7, of ``task.goal_set``);
+    ``goal_onehot`` (8,); ``gps`` (2,)
     position relative to the start, in the start frame (x ahead, y left); ``compass`` (1,)
     heading relative to the start, radians; ``oracle_map`` / ``oracle_ego_map`` (S, S, 2) uint8
-    egocentric crops (occupancy, goal category + 1); ``goal_mask`` (H, W) uint8, goal category + 1
+    egocentric crops (occupancy, goal category + 1 on a 3 × 3 square per goal; S = 50 by
+    default); ``goal_mask`` (H, W) uint8, goal category + 1
     per pixel (for supervising recognisers). Distractors (``task.num_distractors``) appear in
     ``goal_mask`` and the oracle maps with their category + 1 too: their categories are never the
     episode's goals', so a recogniser learns categories and the current goal says which one counts; ``goal_distance`` (1,) oracle geodesic distance to the
@@ -299,11 +314,19 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         assert self.sim.world is not None
         self._distractor_fields = {}
         cylinders = (*episode.goals, *episode.distractors) if task.goals_visible else ()
-        self.sim.world.place_goals(
-            [(g.position, GOAL_RGBA[g.category]) for g in cylinders],
-            task.goal_radius,
-            task.goal_height,
-        )
+        if task.goal_set == "shapes":
+            self.sim.world.place_shape_goals(
+                [(g.position, g.category) for g in cylinders],
+                task.shape_size,
+                task.shape_support_height,
+                SHAPE_RGBA,
+            )
+        else:
+            self.sim.world.place_goals(
+                [(g.position, GOAL_RGBA[g.category]) for g in cylinders],
+                task.goal_radius,
+                task.goal_height,
+            )
         self.sim.set_agent(start, episode.start_yaw)
         self.episode = episode
         m = episode.num_goals

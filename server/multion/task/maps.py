@@ -2,10 +2,27 @@
 
 The global oracle map is a coarse grid (0.8 m cells) with two channels: occupancy
 (``MAP_UNKNOWN`` outside the scene, ``MAP_FREE``, ``MAP_OCCUPIED``) and goal category + 1 (0 for
-no goal). Agents receive an egocentric crop rotated to their heading: row 0 is ahead, column 0 is
-to the left, the agent is in the centre cell. The oracle *ego* map holds only the cells the agent
-has seen: within the field of view, within ``view_distance``, and not hidden behind geometry at
-the camera's height (the line of sight is traced on the fine grid, so walls occlude).
+no goal), each goal marked as a ``goal_cells`` × ``goal_cells`` square of cells (3 × 3 by
+default). Agents receive an ``ego_size`` × ``ego_size`` crop (50 × 50 by default) rotated to their
+heading: row 0 is ahead, column 0 is to the left, and the agent is in cell
+``(ego_size // 2, ego_size // 2)``: the centre cell for an odd size; for an even size the cell
+just behind and right of the centre point, with ``ego_size / 2`` cells ahead and to the left and
+one fewer behind and to the right (cell (25, 25) of the default 50 × 50 crop).
+
+The reference code (saimwani/multiON, ``habitat/core/env.py``) does the same: its global map has
+300 × 300 cells over [-120.32, 120.04] m, 0.801 m each (``conv_grid``, lines 214-233); each goal
+is written as ``grid_loc ± 1`` (line 279, a 3 × 3 patch); reset and step cut an 80 × 80 patch
+around the agent's cell, rotate it by the heading and keep its centre 50 × 50
+(``patch[40-25:40+25, 40-25:40+25]``, lines 291-293 and 347-349), which puts the agent at index
+25 of the crop; ``policy.py`` reads it as ``MapCNN(50, ...)`` and ``.view(bs, 50, 50, -1)``
+(lines 412, 419, 465-466). Our ``oracle_ego_map`` keeps both channels with 0 for unseen cells
+(occupancy ``MAP_UNKNOWN``); the reference's OracleEgoMap reads the object channel alone, offset
+by one more (1 = seen, no goal; goal category + 2, line 278 and ``mapCache += 1``, lines 137-139),
+which carries the same information.
+
+The oracle *ego* map holds only the cells the agent has seen: within the field of view, within
+``view_distance``, and not hidden behind geometry at the camera's height (the line of sight is
+traced on the fine grid, so walls occlude).
 """
 
 from __future__ import annotations
@@ -28,10 +45,17 @@ class MapConfig:
 
     cell_size: float = bounded(0.8, 0.05, 5.0)
     """Side of an oracle-map cell, metres (paper: 0.8)."""
-    ego_size: int = bounded(13, 1, 1001)
-    """Side of the egocentric crop, cells (odd, so the agent has a centre cell). 13 cells of
-    0.8 m (about 10 m) is the reference configuration's crop: large enough to plan the next few
-    rooms, too small to show a whole house, so an agent must remember what it has seen."""
+    ego_size: int = bounded(50, 1, 1001)
+    """Side of the egocentric crop, cells. 50 cells of 0.8 m (40 m × 40 m) is the reference
+    code's oracle crop (``habitat/core/env.py`` lines 291-293; ``MapCNN(50, ...)`` in
+    ``habitat_baselines/rl/ppo/policy.py`` lines 412, 419). For an even size the agent is in cell
+    ``(ego_size // 2, ego_size // 2)``, as in the reference (module docstring). The default was 13
+    until issue 31 (the reference's ``egocentric_map_size: 13`` is the learned maps'
+    projection grid, not this crop); checkpoints record the size they were trained with."""
+    goal_cells: int = bounded(3, 1, 15)
+    """Side of the square of cells marking each goal object, cells (odd: the goal's cell in the
+    middle). 3 is the reference's ``grid_loc ± 1`` (``habitat/core/env.py`` line 279); 1 marks
+    the goal's cell alone (the default until issue 31)."""
     free_fraction: float = bounded(0.5, 0.0, 1.0)
     """A coarse cell is free when at least this fraction of its fine cells is navigable."""
     view_distance: float = bounded(5.0, 0.1, 50.0)
@@ -41,7 +65,7 @@ class MapConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, "maps")
-        require(self.ego_size % 2 == 1, f"maps.ego_size must be odd, got {self.ego_size}")
+        require(self.goal_cells % 2 == 1, f"maps.goal_cells must be odd, got {self.goal_cells}")
 
 
 class OracleMap:
@@ -71,11 +95,21 @@ class OracleMap:
         self._left = (half - c).astype(np.float64) * self.coarse_size
 
     def set_goals(self, goals: Sequence[Goal]) -> None:
+        """Mark each goal as a ``goal_cells`` square of category + 1, in order (a later goal's
+        square covers an earlier one's, as in the reference); then every goal's own cell once
+        more, so that no goal loses its centre to a neighbour's square."""
         self.layers[..., 1] = 0
-        for goal in goals:
-            row, col = self.coarse_cell(np.asarray(goal.position[:2]))
-            if 0 <= row < self.layers.shape[0] and 0 <= col < self.layers.shape[1]:
-                self.layers[row, col, 1] = goal.category + 1
+        rows, cols = self.layers.shape[:2]
+        half = self.config.goal_cells // 2
+        centres = [(self.coarse_cell(np.asarray(g.position[:2])), g.category + 1) for g in goals]
+        for (row, col), value in centres:
+            r0, r1 = max(0, int(row) - half), min(rows, int(row) + half + 1)
+            c0, c1 = max(0, int(col) - half), min(cols, int(col) + half + 1)
+            if r0 < r1 and c0 < c1:
+                self.layers[r0:r1, c0:c1, 1] = value
+        for (row, col), value in centres:
+            if 0 <= row < rows and 0 <= col < cols:
+                self.layers[row, col, 1] = value
 
     def coarse_cell(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         xy = np.asarray(xy, dtype=np.float64)
@@ -87,9 +121,10 @@ class OracleMap:
         """Crop ``layers`` (rows, cols, C) around the agent, rotated so that ahead is up.
 
         Each crop cell takes the map cell under its centre. At angles other than multiples of
-        90° that sampling skips some map cells, so an object (channel 1, one cell each) would
-        vanish from the crop at some poses (10 % of poses within 8 m of the goal in the v3 val
-        houses): object cells are therefore placed by their centres instead, and never skipped.
+        90° that sampling skips some map cells, so an object cell (channel 1) would vanish from
+        the crop at some poses (10 % of poses within 8 m of the goal in the v3 val houses, with
+        one cell per goal): object cells are therefore placed by their centres instead, and never
+        skipped.
         """
         cos, sin = math.cos(yaw), math.sin(yaw)
         x = position[0] + self._forward * cos - self._left * sin

@@ -9,10 +9,11 @@ from starlette.concurrency import run_in_threadpool
 from multion.api.config_io import config_ranges, env_config_to_dict
 from multion.api.deps import MsgpackResponse, Registry, Settings
 from multion.api.openapi import answers
+from multion.reference import DEFAULT_SOURCES
 from multion.sim.camera import RENDERERS, resolve_renderer
 from multion.task.env import SENSORS, EnvConfig, MultiONEnv, build_observation_space
 from multion.task.memory import mib
-from multion_client.constants import GOAL_CATEGORIES, NUM_ACTIONS, Action
+from multion_client.constants import GOAL_CATEGORIES, GOAL_SETS, NUM_ACTIONS, Action
 from multion_client.protocol import (
     API_VERSION,
     HEALTH_PATH,
@@ -69,8 +70,9 @@ def env_metadata() -> dict[str, object]:
 @router.get(
     SPEC_PATH,
     summary="Task and API description",
-    description="The actions, goal categories and sensors, the default environment config "
-    "(the shape of `config` in a create request) and the allowed values of its fields, the "
+    description="The actions, goal categories (of each goal set) and sensors, the default environment config "
+    "(the shape of `config` in a create request) and the allowed values of its fields, where "
+    "the defaults come from (the paper, or the reference code's file and line), the "
     "observation and action spaces of the default config, and this server's limits.",
     responses=answers(200, ServerSpec),
 )
@@ -102,5 +104,7 @@ async def spec(settings: Settings) -> MsgpackResponse:
             "worker_memory_mb": settings.worker_memory_mb,
             "workers": settings.workers,
         },
+        goal_sets={name: list(names) for name, names in GOAL_SETS.items()},
+        sources=dict(DEFAULT_SOURCES),
     )
     return MsgpackResponse(body.to_wire())
