@@ -65,6 +65,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=defaults.image_size,
         help="camera width = height (paper 256)",
     )
+    parser.add_argument(
+        "--hidden-size",
+        type=int,
+        default=defaults.hidden_size,
+        help=f"GRU units, 1-4096 (default {defaults.hidden_size}, the reference's)",
+    )
     parser.add_argument("--seed", type=int, default=defaults.seed)
     parser.add_argument(
         "--out",
@@ -225,6 +231,7 @@ def run(args: argparse.Namespace) -> int:
         envs=args.envs,
         servers=tuple(args.server),
         image_size=args.image_size,
+        hidden_size=args.hidden_size,
         seed=args.seed,
         out=args.out,
         resume=args.resume,

@@ -416,3 +416,19 @@ def test_train_cli_rejects_a_bad_curriculum(
 def test_a_curriculum_needs_online_episodes(tmp_path: Path, room_dataset: Path) -> None:
     with pytest.raises(ValueError, match="cannot be used with --dataset"):
         train(tiny_args(tmp_path, room_dataset, curriculum=((128, 3.0),)))
+
+
+def test_the_gru_size_is_a_setting_and_a_resume_must_keep_it(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint
+    from multion_agents.learned.policy import hidden_size_of
+
+    args = tiny_args(tmp_path, room_dataset, frames=64, hidden_size=64)
+    train(args)
+    assert hidden_size_of(load_checkpoint(tmp_path / "run" / "checkpoint.pt")["model"]) == 64
+    with pytest.raises(CheckpointError, match="GRU of 64 units; this run asks for 768"):
+        train(tiny_args(tmp_path, room_dataset, frames=128, resume=True))
+    train(tiny_args(tmp_path, room_dataset, frames=128, resume=True, hidden_size=64))
+    with pytest.raises(ValueError, match=r"--hidden-size must be in \[1, 4096\], got 0"):
+        train(tiny_args(tmp_path / "zero", room_dataset, hidden_size=0))

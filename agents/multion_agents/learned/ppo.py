@@ -43,7 +43,7 @@ from multion_agents.learned.distributed import (
 from multion_agents.learned.env_groups import make_env_groups
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
-from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy, hidden_size_of
 from multion_agents.learned.pretrain import MapPretraining, check_map_pretraining, pretrain_map
 from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import (
@@ -78,6 +78,8 @@ class Args:
     """MultiON server URLs to step the environments on; empty: local simulator processes."""
     image_size: int = 256
     """Camera width = height (the paper: 256)."""
+    hidden_size: int = HIDDEN_SIZE
+    """GRU units (the reference: 768, ``ppo_multinav.yaml``), 1–4096."""
     seed: int = 1
     out: str = "runs/train"
     """Directory for checkpoint.pt, progress.csv, eval.csv, TensorBoard and learning_curve.png."""
@@ -305,7 +307,9 @@ def train(args: Args) -> dict[str, Any]:
         raise ValueError(f"--imitation-coef must be in [0, 100], got {args.imitation_coef}")
     check_map_pretraining(args.pretrain_map, args.agent, spec.sensors)
     torch.manual_seed(args.seed)  # identical initial weights on every rank
-    policy = build_policy(args.agent, env_config).to(device)
+    if not 1 <= args.hidden_size <= 4096:
+        raise ValueError(f"--hidden-size must be in [1, 4096], got {args.hidden_size}")
+    policy = build_policy(args.agent, env_config, args.hidden_size).to(device)
     if args.found_prior is not None:
         set_found_prior(policy, args.found_prior)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
@@ -318,6 +322,12 @@ def train(args: Args) -> dict[str, Any]:
             raise CheckpointError(
                 f"{checkpoint_path} was trained with agent {payload['agent']!r} and env config "
                 f"{payload['env_config']}; this run asks for {args.agent!r} and {env_config}"
+            )
+        trained_with = hidden_size_of(payload["model"])
+        if trained_with != args.hidden_size:
+            raise CheckpointError(
+                f"{checkpoint_path} was trained with a GRU of {trained_with} units; this run "
+                f"asks for {args.hidden_size} (resume with --hidden-size {trained_with})"
             )
         policy.load_state_dict(payload["model"])
         optimizer.load_state_dict(payload["optimizer"])
