@@ -148,3 +148,36 @@ def test_chart_labels_stay_apart_and_readable(
         svg = chart.bounding_box()
         assert svg is not None
         assert all(t["right"] <= svg["x"] + svg["width"] + 0.5 for t in labels)
+
+
+def _axe_core() -> str | None:
+    """axe-core's script, if installed (optional): ``$MULTION_AXE_CORE``, or ``npm install
+    axe-core`` at the repository's root."""
+    import os
+    from pathlib import Path
+
+    for candidate in (
+        os.environ.get("MULTION_AXE_CORE", ""),
+        str(Path(__file__).resolve().parents[2] / "node_modules" / "axe-core" / "axe.min.js"),
+    ):
+        if candidate and Path(candidate).is_file():
+            return Path(candidate).read_text(encoding="utf-8")
+    return None
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_axe_finds_no_violations(
+    visit: Any, played: dict[str, PlayedRun], long_named: str, width: str
+) -> None:
+    axe = _axe_core()
+    if axe is None:
+        pytest.skip("axe-core is optional: npm install axe-core (or set MULTION_AXE_CORE)")
+    v = visit(**WIDTHS[width])
+    found = {}
+    for path in [*_pages(played, long_named), "/leaderboard/guide"]:
+        page = v.goto(path)
+        page.evaluate(axe)  # through the DevTools protocol: the page's CSP allows no inline script
+        result = page.evaluate("axe.run(document).then(r => r.violations.map(v => [v.id, v.impact, v.nodes.length]))")
+        if result:
+            found[path] = result
+    assert found == {}, found

@@ -7,6 +7,7 @@ the introduction, "For participants" and "The protocol". They are rendered with 
 
 from __future__ import annotations
 
+import itertools
 import re
 
 from markdown_it import MarkdownIt
@@ -30,7 +31,23 @@ def participant_markdown(text: str) -> str:
     return "\n\n".join(kept) + "\n"
 
 
+def _scrolling(html: str, tag: str, label: str) -> str:
+    """Wrap every ``<tag>`` block in a focusable, named region that scrolls sideways (the
+    pages' own tables do the same): code and tables are wider than a phone."""
+    count = itertools.count(1)
+
+    def region(_: re.Match[str]) -> str:  # numbered: a page's regions need distinct names
+        return (
+            f'<div class="scroll" role="region" tabindex="0" aria-label="{label} {next(count)} '
+            f'(scrolls sideways when wider than the screen)"><{tag}>'
+        )
+
+    return re.sub(f"<{tag}>", region, html).replace(f"</{tag}>", f"</{tag}></div>")
+
+
 def render_guide(text: str) -> str:
-    """HTML of the participant parts of the guide (raw HTML in the Markdown is escaped)."""
+    """HTML of the participant parts of the guide (raw HTML in the Markdown is escaped, so the
+    only ``<pre>`` and ``<table>`` tags are the renderer's)."""
     md = MarkdownIt("commonmark", {"html": False, "linkify": False}).enable("table")
-    return md.render(participant_markdown(text))
+    html = md.render(participant_markdown(text))
+    return _scrolling(_scrolling(html, "pre", "Example"), "table", "Table")
