@@ -2,7 +2,7 @@
 // the page); this adds a visible note above such a box while it overflows, so sighted readers
 // know more columns are there too. Rechecked when the window is resized.
 "use strict";
-const NOTE = "Scroll the table sideways for more columns →";
+const NOTE = "This box scrolls sideways: more to the right →";
 function markOverflow() {
   for (const box of document.querySelectorAll("div.scroll")) {
     const wide = box.scrollWidth > box.clientWidth + 1;
