@@ -72,11 +72,11 @@ def episode_picture(
         if own:
             sim.close()
     layout = None if is_mesh_scene(episode.scene_id) else layout_for(episode.scene_id)
+    frame = picture_frame(grid.navigable, grid.origin, grid.cell_size, pixels_per_metre)
     image = scene_picture(
         layout, grid.navigable, grid.origin, grid.cell_size, pixels_per_metre,
-        caption=label is None,
+        caption=label is None, keep_clear=_marker_boxes(episode, frame),
     )  # fmt: skip
-    frame = picture_frame(grid.navigable, grid.origin, grid.cell_size, pixels_per_metre)
     draw = ImageDraw.Draw(image)
     width = max(2, round(pixels_per_metre * 0.06))
     for leg in route:
@@ -97,6 +97,17 @@ def _polyline(
     pixels = [world_to_pixel(float(x), float(y), frame) for x, y in points]
     if len(pixels) >= 2:
         draw.line(pixels, fill=colour, width=width, joint="curve")
+
+
+def _marker_boxes(episode: Episode, frame: PictureFrame) -> list[list[float]]:
+    """Pixel boxes of the start and goal markers (with a small margin): room labels avoid them."""
+    reach = frame.pixels_per_metre * 0.25
+    points = [episode.start_position[:2], *(g.position[:2] for g in episode.goals)]
+    boxes = []
+    for point in points:
+        x, y = world_to_pixel(float(point[0]), float(point[1]), frame)
+        boxes.append([x - reach, y - reach, x + reach, y + reach])
+    return boxes
 
 
 def _start(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame) -> None:

@@ -20,6 +20,9 @@ from multion.scenes.layout import SceneLayout
 
 NAVIGABLE = (236, 232, 222)
 BLOCKED = (120, 118, 114)
+OUTSIDE = (250, 250, 248)
+"""Where no floor is (cut corners, the margin): the page's white rather than a grey block, so a
+picture of an L-shaped house does not look half empty."""
 WALL = (48, 48, 52)
 FURNITURE_EDGE = (150, 95, 60)
 DOOR = (70, 140, 200)
@@ -70,8 +73,14 @@ def _rect_pixels(x0: float, y0: float, x1: float, y1: float, frame: PictureFrame
     return [px0, py0, px1, py1]
 
 
-def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFrame) -> None:
-    """Draw walls (filled), furniture (outlined), room types and doors of ``layout`` onto ``draw``."""
+def draw_layout(
+    draw: ImageDraw.ImageDraw,
+    layout: SceneLayout,
+    frame: PictureFrame,
+    keep_clear: Sequence[Sequence[float]] = (),
+) -> None:
+    """Draw walls (filled), furniture (outlined), room types and doors of ``layout`` onto ``draw``;
+    room labels avoid the pixel boxes ``keep_clear`` (markers drawn on top later)."""
     furniture = [b for b in layout.boxes if b.kind == "furniture"]
     # Large boxes first so small parts (legs, handles) stay visible on top.
     furniture.sort(key=lambda b: -b.half_extents[0] * b.half_extents[1])
@@ -84,7 +93,7 @@ def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFr
             (x0, y0, _), (x1, y1, _) = box.min_corner, box.max_corner
             draw.rectangle(_rect_pixels(x0, y0, x1, y1, frame), fill=WALL)
     font = label_font(frame)
-    for text, box in room_labels(draw, layout, frame, font):
+    for text, box in room_labels(draw, layout, frame, font, keep_clear):
         left, top, _, _ = draw.textbbox((0, 0), text, font=font)
         draw.rectangle(box, fill=LABEL_PATCH)
         draw.text((box[0] + 2 - left, box[1] + 2 - top), text, fill=ROOM_LABEL, font=font)
@@ -93,6 +102,20 @@ def draw_layout(draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFr
         dx, dy = (door.width / 2, 0.0) if door.axis == "x" else (0.0, door.width / 2)
         a, b = world_to_pixel(cx - dx, cy - dy, frame), world_to_pixel(cx + dx, cy + dy, frame)
         draw.line([a, b], fill=DOOR, width=max(1, round(frame.pixels_per_metre * 0.04)))
+
+
+def _under_floor(
+    layout: SceneLayout, shape: tuple[int, ...], origin: tuple[float, float], cell_size: float
+) -> np.ndarray:
+    """Grid cells whose centre lies on one of the layout's floor slabs."""
+    xs = origin[0] + (np.arange(shape[1]) + 0.5) * cell_size
+    ys = origin[1] + (np.arange(shape[0]) + 0.5) * cell_size
+    under = np.zeros(shape[:2], dtype=bool)
+    for box in layout.boxes:
+        if box.kind == "floor":
+            (x0, y0, _), (x1, y1, _) = box.min_corner, box.max_corner
+            under |= ((ys >= y0) & (ys <= y1))[:, None] & ((xs >= x0) & (xs <= x1))[None, :]
+    return under
 
 
 def furniture_pixels(layout: SceneLayout, frame: PictureFrame) -> list[list[float]]:
@@ -105,17 +128,22 @@ def furniture_pixels(layout: SceneLayout, frame: PictureFrame) -> list[list[floa
 
 
 def room_labels(
-    draw: ImageDraw.ImageDraw, layout: SceneLayout, frame: PictureFrame, font: Any
+    draw: ImageDraw.ImageDraw,
+    layout: SceneLayout,
+    frame: PictureFrame,
+    font: Any,
+    keep_clear: Sequence[Sequence[float]] = (),
 ) -> list[tuple[str, list[float]]]:
     """Each room's type and the pixel box of its label: where it covers the least furniture,
-    clear of the labels placed before it."""
+    clear of the labels placed before it and of the boxes ``keep_clear`` (goal markers)."""
     obstacles = furniture_pixels(layout, frame)
     labels: list[tuple[str, list[float]]] = []
     for room in layout.rooms:
         text = room.room_type.replace("_", " ")
         left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
         size = (right - left + 4, bottom - top + 4)
-        box = place_label(_rect_pixels(*room.rect, frame), size, obstacles, [b for _, b in labels])
+        avoid = [*keep_clear, *(b for _, b in labels)]
+        box = place_label(_rect_pixels(*room.rect, frame), size, obstacles, avoid)
         labels.append((text, box))
     return labels
 
@@ -189,6 +217,7 @@ def scene_picture(
     cell_size: float,
     pixels_per_metre: float = 40,
     caption: bool = True,
+    keep_clear: Sequence[Sequence[float]] = (),
 ) -> Image.Image:
     """A top-down RGB picture: navigable cells light, the rest darker, the layout drawn on top
     (with the scene id in a corner if ``caption``).
@@ -201,13 +230,15 @@ def scene_picture(
         raise ValueError(f"navigable must be a 2-D array, got shape {grid.shape}")
     frame = picture_frame(grid, origin, cell_size, pixels_per_metre)
     colours = np.where(grid[..., None], np.array(NAVIGABLE, np.uint8), np.array(BLOCKED, np.uint8))
+    if layout is not None:
+        colours[~_under_floor(layout, grid.shape, origin, cell_size) & ~grid] = OUTSIDE
     # Row 0 is the lowest y, so flip it to the bottom of the picture.
     image = Image.fromarray(np.ascontiguousarray(colours[::-1]), mode="RGB")
     image = image.resize(frame.image_size, Image.Resampling.NEAREST)
     draw = ImageDraw.Draw(image)
     font = label_font(frame)
     if layout is not None:
-        draw_layout(draw, layout, frame)
+        draw_layout(draw, layout, frame, keep_clear)
         if caption:
             _caption(draw, frame, layout.scene_id, font)
     _scale_bar(draw, frame, font)

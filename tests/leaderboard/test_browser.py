@@ -301,9 +301,11 @@ def test_a_phone_sees_the_ranking_metric_and_dates_say_utc(
     heading = board.locator("thead th.primary").bounding_box()
     assert heading is not None and heading["x"] + heading["width"] <= 390
     assert board.locator("tbody td.secondary").first.is_hidden()
-    assert board.locator(".phone-only").is_visible()
+    assert board.locator("p.phone-only").is_visible()
     long_row = board.locator(f'tr[data-run="{ties["long"]}"]')
     assert long_row.locator("a.run").is_visible()
+    # the team column is stacked under the method (issue 33: the score stays on screen)
+    assert long_row.locator("td.method .sub", has_text="by omega").is_visible()
 
     desktop = visit(viewport={"width": 1280, "height": 900})
     page = desktop.goto("/leaderboard")

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from multion.leaderboard.challenge import Challenge
+    from multion.task.episode import Episode
 
 DEFAULT_DATABASE = "sqlite:///leaderboard.db"
 
@@ -155,33 +156,54 @@ def _check(args: argparse.Namespace) -> int:
     for warning in challenge.warnings(utcnow()):
         print(f"  warning: {warning}")
     if args.generate:
-        _generate(challenge)
+        return _generate(challenge)
     return 0
 
 
-def _generate(challenge: Challenge) -> None:
-    """Build every phase's hidden houses and episodes; their statistics beside val's."""
+def _generate(challenge: Challenge) -> int:
+    """Build every phase's hidden houses and episodes; their statistics beside val's. Refuses
+    (exit status 1) a challenge whose houses or episodes are unsound (issue 33)."""
     from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
     from multion.leaderboard.house_stats import HEADER, house_stats, val_stats
 
     hidden = HiddenEpisodes(challenge, in_subprocess=False)
     rows = [val_stats().row("packaged val (calibrated)")]
+    problems: list[str] = []
     for track in challenge.tracks:
         for phase in track.phases:
             houses = hidden.houses[(track.name, phase.name)]
             if phase.episode_set == "fixed":
-                count = len(hidden.phase_set(track, phase))
-                what = f"{count} episodes (one fixed set)"
+                episodes = hidden.phase_set(track, phase)
+                what = f"{len(episodes)} episodes (one fixed set)"
             else:  # a probe run's first episodes: each run draws its own
                 probe = RunDraw("check", "fresh", tuple(range(phase.episodes)))
                 count = min(phase.episodes, 10)
-                for position in range(count):
-                    hidden.episode(track, phase, probe, position)
+                episodes = [hidden.episode(track, phase, probe, k) for k in range(count)]
                 what = f"{count} of a probe run's {phase.episodes} fresh episodes drawn"
             print(f"  {track.name}/{phase.name}: {what} in {len(houses)} hidden houses")
-            rows.append(house_stats(houses).row(f"{track.name}/{phase.name}"))
+            stats = house_stats(houses)
+            rows.append(stats.row(f"{track.name}/{phase.name}"))
+            problems += list(stats.problems) + _episode_problems(episodes)
     print(HEADER)
     print("\n".join(rows))
+    if problems:
+        print(f"error: {_count(len(problems), 'problem')} in the hidden houses or episodes:")
+        print("\n".join(f"  {p}" for p in problems[:20]))
+        return 1
+    return 0
+
+
+def _episode_problems(episodes: list[Episode]) -> list[str]:
+    """Starts and goals that are not inside a room (or a doorway)."""
+    from multion.scenes.registry import layout_for
+    from multion.sim.house_check import points_outside_rooms
+
+    problems = []
+    for e in episodes:
+        points = [e.start_position[:2]] + [g.position[:2] for g in e.goals]
+        if points_outside_rooms(layout_for(e.scene_id), points).any():
+            problems.append(f"{e.scene_id}: episode {e.episode_id} starts or has a goal outside")
+    return problems
 
 
 def _count(n: int, noun: str) -> str:

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from multion.scenes.registry import scene_ids
+from multion.scenes.registry import layout_for, scene_ids
+from multion.sim.house_check import geometry_problems, grid_problems
 from multion.sim.house_measure import measure_house
 from multion.sim.simulator import Simulator
 
@@ -27,6 +28,8 @@ class HouseStats:
     """min, max, mean footprint area."""
     navigable: float
     """Mean navigable share of the footprint."""
+    problems: tuple[str, ...] = ()
+    """Unsound houses (:mod:`multion.sim.house_check`): "house: what is wrong"."""
 
     def row(self, name: str) -> str:
         r, f = self.rooms, self.footprint_m2
@@ -42,8 +45,17 @@ HEADER = f"{'houses of':<28}{'count':>7}{'rooms':>10}{'mean':>6}{'m² mean (rang
 def house_stats(houses: Sequence[str]) -> HouseStats:
     """Rooms, footprint and navigable share of ``houses`` (builds them: seconds each)."""
     simulator = Simulator()
+    problems: list[str] = []
     try:
-        measures = [measure_house(simulator, house) for house in houses]
+        measures = []
+        for house in houses:
+            measures.append(measure_house(simulator, house))
+            layout, grid = layout_for(house), simulator.load_scene(house)
+            agent = simulator.agent_config
+            found = geometry_problems(layout) + grid_problems(
+                layout, grid, agent.radius, agent.height
+            )
+            problems += [f"{house}: {p}" for p in found]
     finally:
         simulator.close()
     rooms = [h.rooms for h in measures]
@@ -53,6 +65,7 @@ def house_stats(houses: Sequence[str]) -> HouseStats:
         (min(rooms), max(rooms), float(np.mean(rooms))),
         (min(areas), max(areas), float(np.mean(areas))),
         float(np.mean([h.navigable_share for h in measures])),
+        tuple(problems),
     )
 
 

@@ -24,6 +24,11 @@ import numpy as np
 from multion.scenes.layout import Door
 
 Cell = tuple[int, int, int, int]  # (x0, y0, x1, y1) in grid steps
+MIN_KEPT_SHARE = 0.6
+"""Corner cuts must leave at least this share of the footprint's rectangle (the ceiling spans
+the whole rectangle). Houses of few rooms drew cuts that left one room in a plate three times its
+size: the navigable grid then took the roof for the floor (issue 33). Every default house keeps
+more than 70 %, so none of them changes."""
 
 
 @dataclass(frozen=True)
@@ -265,6 +270,8 @@ def make_plan(
             if split is None:
                 continue
             cells, corridors = cut_corners(rng, *split, width, depth, cuts, cfg)
+            if sum(map(_area, cells)) < MIN_KEPT_SHARE * width * depth:
+                break  # the cut corners would dwarf the rooms: build this house without cuts
             doors = choose_doors(rng, cells, corridors, cfg)
             if doors is not None:
                 return Plan(tuple(cells), frozenset(corridors), tuple(doors), width, depth)

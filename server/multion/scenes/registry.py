@@ -31,6 +31,10 @@ GENERATOR_VERSION = 2
 datasets made for other houses are refused and navigable grids cached on disk are rebuilt
 (``multion.sim.grid_cache``). 1: the small 3–8 room houses;
 2: Matterport3D-calibrated houses (issue 12)."""
+SIZED_HOUSE_REVISION = 1
+"""Revision of the ``house-N-rK`` houses alone, in the grid cache's key: they can change while
+the default houses (and ``GENERATOR_VERSION``) stay. 1: corner cuts keep 60 % of the footprint,
+and grids take the layout's floor height (issue 33: small houses walked on their roofs)."""
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 MAX_SIZED_ROOMS = 16
 """``house-N-rK`` takes K in 1..this (the generator's calibrated maximum)."""
@@ -93,6 +97,11 @@ def scene_split(scene_id: str) -> str | None:
         if start <= seed < start + SPLIT_SIZES[split]:
             return split
     return None
+
+
+def is_sized_house(scene_id: str) -> bool:
+    """True for ``house-N-rK`` ids (a house built with exactly K rooms)."""
+    return _SIZED_HOUSE.fullmatch(scene_id) is not None
 
 
 def is_mesh_scene(scene_id: str) -> bool:

@@ -23,7 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from multion.scenes.registry import GENERATOR_VERSION, is_mesh_scene
+from multion.scenes.registry import (
+    GENERATOR_VERSION,
+    SIZED_HOUSE_REVISION,
+    is_mesh_scene,
+    is_sized_house,
+)
 from multion.sim.navgrid import NAVGRID_VERSION, NavGrid, NavGridConfig
 
 CACHE_ENV = "MULTION_NAVGRID_CACHE"
@@ -51,6 +56,8 @@ def cache_key(scene_id: str, config: NavGridConfig) -> str:
     """The key a cached grid must match: everything its cells depend on, as canonical JSON.
     Mesh scenes are identified by their resolved path, size and modification time."""
     scene: dict[str, object] = {"id": scene_id}
+    if is_sized_house(scene_id):  # changed alone; the default houses' keys stay as they were
+        scene["sized_revision"] = SIZED_HOUSE_REVISION
     if is_mesh_scene(scene_id):
         path = Path(scene_id).resolve()
         stat = path.stat()

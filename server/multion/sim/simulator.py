@@ -7,6 +7,7 @@ counts as a collision (no sliding, SPEC §2).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -58,7 +59,13 @@ def navgrid_for(scene_id: str, world: PyBulletWorld, config: NavGridConfig) -> N
         return _GRID_CACHE[key]
     grid, path, disk_key = grid_cache.cached_grid(scene_id, config)
     if grid is None:
-        grid = build_navgrid(world, config)
+        build = config
+        if config.floor_z is None and not is_mesh_scene(scene_id):
+            # A procedural scene knows its floor: finding it by ray casts could take a large
+            # roof for the floor (issue 33). Where the search was right the grid is the same,
+            # so the cache key stays that of the searched floor.
+            build = dataclasses.replace(config, floor_z=layout_for(scene_id).floor_z)
+        grid = build_navgrid(world, build)
         grid_cache.store(path, grid, disk_key)
     _GRID_CACHE[key] = grid
     while len(_GRID_CACHE) > _GRID_CACHE_SIZE:

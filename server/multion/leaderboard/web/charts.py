@@ -1,8 +1,11 @@
 """A team's best score over time, drawn on the server as an inline SVG (no script, no request).
 
 One chart per track: a dot per run that has a score (filled: finished, hollow: ended early, its
-missing episodes counted as failures) and a step line per phase, the best score so far. Round
-ticks on the score axis, UTC times on the time axis, the legend below the plot.
+missing episodes counted as failures) and a step line per phase, the best score so far (per
+phase and method for the organisers' baselines, which are ranked per method). Round ticks on
+the score axis, UTC times on the time axis (the date under the time), the legend below the plot.
+The chart is drawn 560 units wide and shown 360–640 px wide: text and the number of time ticks
+are sized so that labels stay apart and readable on a phone (see ``PHONE_TEXT``).
 """
 
 from __future__ import annotations
@@ -16,8 +19,15 @@ from multion.leaderboard.web.queries import TeamRun
 
 WIDTH = 560
 PLOT_HEIGHT = 200
-LEFT, RIGHT, TOP, AXIS = 48, 16, 12, 40
-LEGEND_ROW = 20
+LEFT, RIGHT, TOP, AXIS = 52, 16, 12, 62
+LEGEND_ROW = 24
+PAD = 10
+"""Units between the axes and the nearest dot: a 0 % run or the first run sits off the axes."""
+PHONE_TEXT = 17
+"""Font size (units) of the chart's text on a phone (style.css): about 11 px once the chart is
+shrunk to a phone's width. Tick labels are spaced for it."""
+CHAR_WIDTH = 0.6
+"""Width of a character of the system sans-serif fonts, in ems (digits; generous)."""
 PHASE_COLOURS = ("#1f6fb2", "#d9731a", "#2a9d55", "#8e44ad", "#c0392b")
 SCORE_STEPS = (1, 2, 5, 10, 20, 25)
 """Percent between score ticks: the smallest giving at most 5 intervals."""
@@ -29,6 +39,8 @@ TIME_STEPS = tuple(
         {"days": 14}, {"days": 30}, {"days": 91}, {"days": 365},
     )
 )  # fmt: skip
+KEY_X = 8
+"""The legend starts at the chart's left edge: its lines are the longest text."""
 EPOCH = dt.datetime(2000, 1, 3, tzinfo=dt.timezone.utc)  # a Monday: weekly ticks on Mondays
 
 
@@ -40,12 +52,12 @@ def score_ticks(top: float) -> list[float]:
     return [k * step for k in range(count + 1)]
 
 
-def time_ticks(t0: dt.datetime, t1: dt.datetime) -> list[dt.datetime]:
-    """Round UTC times in [t0, t1], at most 5 (just t0 if they are equal)."""
+def time_ticks(t0: dt.datetime, t1: dt.datetime, at_most: int = 5) -> list[dt.datetime]:
+    """Round UTC times in [t0, t1], at most ``at_most`` (just t0 if they are equal)."""
     span = t1 - t0
     if span <= dt.timedelta(0):
         return [t0]
-    step = next((s for s in TIME_STEPS if span / s <= 5), TIME_STEPS[-1])
+    step = next((s for s in TIME_STEPS if span / s <= at_most), TIME_STEPS[-1])
     first = EPOCH + math.ceil((t0 - EPOCH) / step) * step
     ticks = []
     while first <= t1:
@@ -54,15 +66,34 @@ def time_ticks(t0: dt.datetime, t1: dt.datetime) -> list[dt.datetime]:
     return ticks or [t0]
 
 
-def _time_label(t: dt.datetime, previous: dt.datetime | None, span: dt.timedelta) -> str:
-    """Dates for long spans, times (with seconds under 5 minutes) for short ones; the date
-    is written on the first tick of each day."""
+def _time_label(
+    t: dt.datetime, previous: dt.datetime | None, span: dt.timedelta
+) -> tuple[str, str]:
+    """(first line, second line): dates for long spans, times (with seconds under 5 minutes)
+    for short ones, with the date under the first tick of each day."""
     if span >= dt.timedelta(days=2):
-        return f"{t:%Y-%m-%d}" if previous is None or previous.year != t.year else f"{t:%m-%d}"
+        return (f"{t:%Y-%m-%d}" if previous is None or previous.year != t.year else f"{t:%m-%d}", "")
     clock = f"{t:%H:%M:%S}" if span < dt.timedelta(minutes=5) else f"{t:%H:%M}"
     if previous is None or previous.date() != t.date():
-        return f"{t:%m-%d} {clock}"
-    return clock
+        return clock, f"{t:%Y-%m-%d}"
+    return clock, ""
+
+
+def _spaced_ticks(t0: dt.datetime, t1: dt.datetime) -> list[dt.datetime]:
+    """Time ticks whose labels, at the phone's text size, never run together."""
+    room = WIDTH - LEFT - RIGHT - 2 * PAD
+    for at_most in range(5, 1, -1):
+        ticks = time_ticks(t0, t1, at_most)
+        longest = max(len(max(_time_label(t, None, t1 - t0), key=len)) for t in ticks)
+        if len(ticks) * (longest * CHAR_WIDTH * PHONE_TEXT + 12) <= room:
+            return ticks
+    return time_ticks(t0, t1, 2)
+
+
+def _series(run: TeamRun) -> tuple[str, str]:
+    """Which best-so-far line a run belongs to: its phase, and its method for a baseline (the
+    baselines team plays several methods, each ranked on its own)."""
+    return (run.phase, run.method if run.baseline else "")
 
 
 def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
@@ -80,15 +111,15 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
     span = (t1 - t0).total_seconds()
     ticks = score_ticks(max(r.primary.mean for r in scored if r.primary is not None))
     top = ticks[-1] / 100
-    phases = list(dict.fromkeys(r.phase for r in scored))
-    height = TOP + PLOT_HEIGHT + AXIS + LEGEND_ROW * (len(phases) + 1)
+    series = list(dict.fromkeys(_series(r) for r in scored))
+    height = TOP + PLOT_HEIGHT + AXIS + LEGEND_ROW * (len(series) + 2)
     bottom = TOP + PLOT_HEIGHT
 
     def x(t: dt.datetime) -> float:
-        return LEFT + (WIDTH - LEFT - RIGHT) * (t - t0).total_seconds() / span
+        return LEFT + PAD + (WIDTH - LEFT - RIGHT - 2 * PAD) * (t - t0).total_seconds() / span
 
     def y(v: float) -> float:
-        return bottom - PLOT_HEIGHT * (v / top if top > 0 else 0)
+        return bottom - PAD - (PLOT_HEIGHT - PAD) * (v / top if top > 0 else 0)
 
     parts = [
         f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {WIDTH} {height}" role="img" '
@@ -102,32 +133,36 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
         )
     parts.append(f'<line x1="{LEFT}" y1="{bottom}" x2="{WIDTH - RIGHT}" y2="{bottom}" class="axis"/>')
     parts.append(f'<line x1="{LEFT}" y1="{TOP}" x2="{LEFT}" y2="{bottom}" class="axis"/>')
-    marks = [times[0]] if single else time_ticks(t0, t1)
+    marks = [times[0]] if single else _spaced_ticks(t0, t1)
     previous = None
     for t in marks:
         tx = x(t)
         parts.append(f'<line x1="{tx:.1f}" y1="{bottom}" x2="{tx:.1f}" y2="{bottom + 4}" class="axis"/>')
-        label = _time_label(t, previous, t1 - t0)
+        first, second = _time_label(t, previous, t1 - t0)
         # a long label near an edge starts (or ends) at its tick rather than leaving the chart
-        anchor = "middle"
-        if len(label) > 6 and tx < LEFT + 60:
-            anchor, tx = "start", tx - 4
-        elif len(label) > 6 and tx > WIDTH - RIGHT - 60:
-            anchor, tx = "end", tx + 4
-        parts.append(
-            f'<text x="{tx:.1f}" y="{bottom + 16}" text-anchor="{anchor}" class="tick">{label}</text>'
-        )
+        anchor, width = "middle", max(len(first), len(second)) * CHAR_WIDTH * PHONE_TEXT
+        if tx - width / 2 < 0:
+            anchor, tx = "start", max(tx - 4, 2)
+        elif tx + width / 2 > WIDTH:
+            anchor, tx = "end", min(tx + 4, WIDTH - 2)
+        for line, text in enumerate((first, second)):
+            if text:
+                parts.append(
+                    f'<text x="{tx:.1f}" y="{bottom + 18 + 18 * line}" text-anchor="{anchor}" '
+                    f'class="tick">{text}</text>'
+                )
         previous = t
     parts.append(
-        f'<text x="{(LEFT + WIDTH - RIGHT) / 2:.0f}" y="{bottom + 32}" text-anchor="middle" '
+        f'<text x="{(LEFT + WIDTH - RIGHT) / 2:.0f}" y="{bottom + 56}" text-anchor="middle" '
         f'class="tick">when the run ended (UTC)</text>'
     )
     legend_y = bottom + AXIS + LEGEND_ROW - 4
-    for index, phase in enumerate(phases):
+    for index, key in enumerate(series):
+        phase, method = key
         colour = PHASE_COLOURS[index % len(PHASE_COLOURS)]
         points: list[tuple[float, float]] = []
         best = -1.0
-        for run in (r for r in scored if r.phase == phase):
+        for run in (r for r in scored if _series(r) == key):
             assert run.primary is not None
             px, value = x(_when(run)), run.primary.mean
             fill = colour if run.state == "finished" else "#fff"
@@ -141,23 +176,28 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
                     points.append((px, points[-1][1]))
                 best = value
                 points.append((px, y(best)))
-        points.append((WIDTH - RIGHT, points[-1][1]))
+        points.append((WIDTH - RIGHT - PAD, points[-1][1]))
         path = " ".join(f"{px:.1f},{py:.1f}" for px, py in points)
         parts.append(
             f'<polyline points="{path}" fill="none" stroke="{colour}" stroke-width="2" '
             'class="best-line"/>'
         )
         ly = legend_y + LEGEND_ROW * index
+        name = f"{phase} · {method}" if method else phase
         parts.append(
-            f'<line x1="{LEFT}" y1="{ly - 4}" x2="{LEFT + 22}" y2="{ly - 4}" stroke="{colour}" stroke-width="2"/>'
-            f'<circle cx="{LEFT + 11}" cy="{ly - 4}" r="3.5" fill="{colour}"/>'
-            f'<text x="{LEFT + 30}" y="{ly}" class="legend">{escape(phase)}: best {escape(metric_label)} '
-            "so far (line), each run (dot)</text>"
+            f'<line x1="{KEY_X}" y1="{ly - 5}" x2="{KEY_X + 22}" y2="{ly - 5}" stroke="{colour}" stroke-width="2"/>'
+            f'<circle cx="{KEY_X + 11}" cy="{ly - 5}" r="3.5" fill="{colour}"/>'
+            f'<text x="{KEY_X + 30}" y="{ly}" class="legend">{escape(name)}</text>'
         )
-    ly = legend_y + LEGEND_ROW * len(phases)
+    ly = legend_y + LEGEND_ROW * len(series)
     parts.append(
-        f'<circle cx="{LEFT + 11}" cy="{ly - 4}" r="3.5" fill="#fff" stroke="#5d6873" stroke-width="1.5"/>'
-        f'<text x="{LEFT + 30}" y="{ly}" class="legend">hollow: ended early (missed episodes '
+        f'<text x="{KEY_X + 30}" y="{ly}" class="legend">best {escape(metric_label)} so far '
+        "(line), each run (dot)</text>"
+    )
+    ly += LEGEND_ROW
+    parts.append(
+        f'<circle cx="{KEY_X + 11}" cy="{ly - 5}" r="3.5" fill="#fff" stroke="#5d6873" stroke-width="1.5"/>'
+        f'<text x="{KEY_X + 30}" y="{ly}" class="legend">hollow: ended early (missed episodes '
         "failed)</text>"
     )
     parts.append("</svg>")

@@ -17,12 +17,14 @@ from fastapi import APIRouter, FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
+from markupsafe import Markup
 
 from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import EpisodePicture, EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
 from multion.leaderboard.web.charts import best_over_time
+from multion.leaderboard.web.guide import render_guide
 from multion.leaderboard.web.pictures import (
     DISPLAY_SCALE,
     picture_png,
@@ -66,6 +68,19 @@ def _date(value: dt.datetime | None) -> str:
     return f"{value:%Y-%m-%d %H:%M} UTC"
 
 
+LONGEST_UNBROKEN = 24
+"""A name's words up to this long never break inside (longer ones must, on a phone)."""
+
+
+def _words(name: str) -> Markup:
+    """A method or team name that breaks only between words: "random-oracle-found" and
+    "2026-12-01" stay whole, where a browser would break after a hyphen or mid-word."""
+    return Markup(" ").join(
+        Markup('<span class="word">{}</span>').format(w) if len(w) <= LONGEST_UNBROKEN else w
+        for w in name.split(" ")
+    )
+
+
 def _duration(seconds: float) -> str:
     """A time budget as people say it: "60 s", "90 minutes", "24 hours", "7 days"."""
 
@@ -84,6 +99,7 @@ def _duration(seconds: float) -> str:
 templates.env.filters["percent"] = _percent
 templates.env.filters["duration"] = _duration
 templates.env.filters["date"] = _date
+templates.env.filters["words"] = _words
 templates.env.globals["metric_names"] = queries.METRIC_NAMES
 templates.env.globals["static"] = STATIC_PATH
 
@@ -133,11 +149,11 @@ async def rules(request: Request) -> HTMLResponse:
 
 @router.api_route("/leaderboard/guide", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def guide(request: Request) -> HTMLResponse:
-    """docs/leaderboard.md as it is (Markdown reads as text), where the server runs from a
+    """The participant parts of docs/leaderboard.md, rendered, where the server runs from a
     source tree; elsewhere the organisers set MULTION_LEADERBOARD_DOCS_URL."""
     if not GUIDE.is_file():
         return _not_found(request, "copy of the guide on this server")
-    return _page(request, "guide.html", text=GUIDE.read_text(encoding="utf-8"))
+    return _page(request, "guide.html", html=render_guide(GUIDE.read_text(encoding="utf-8")))
 
 
 @router.api_route("/leaderboard/runs/{run_id}", methods=PAGE_METHODS, response_class=HTMLResponse)

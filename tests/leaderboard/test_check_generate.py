@@ -1,0 +1,56 @@
+"""``multion leaderboard check --generate`` builds the hidden houses and episodes, prints their
+statistics beside val's and refuses a challenge whose houses or episodes are unsound (issue 33).
+
+val's statistics (eleven 8–16 room houses, about a minute) are stubbed: what is under test is the
+hidden houses'."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from multion.cli import main
+from multion.leaderboard import house_stats
+from multion.leaderboard.house_stats import HouseStats
+
+FIXTURE_ROOMS = "rooms = [1, 1]"
+
+
+@pytest.fixture
+def small_houses(challenge_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setattr(
+        house_stats, "val_stats", lambda: HouseStats(11, (8, 16, 12.0), (150, 400, 250), 0.55)
+    )
+    monkeypatch.setenv("MULTION_NAVGRID_CACHE", "off")
+    text = challenge_file.read_text()
+    # one track, one phase, rooms 1–2: the houses that walked on their roofs
+    path = tmp_path / "small.toml"
+    path.write_text(
+        text[: text.index('[[tracks.phases]]\nname = "test-standard"')].replace(
+            FIXTURE_ROOMS, "rooms = [1, 2]"
+        )
+    )
+    return path
+
+
+def test_small_hidden_houses_pass_and_their_navigable_share_is_below_the_footprint(
+    small_houses: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["leaderboard", "check", "--challenge", str(small_houses), "--generate"]) == 0
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("1-on/minival"))
+    assert 0 < float(row.split()[-1]) <= 100, row
+    assert "error" not in out
+
+
+def test_unsound_houses_are_refused(
+    small_houses: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(
+        house_stats, "grid_problems", lambda *a: ["navigable 40 m² exceeds the footprint's 12 m²"]
+    )
+    assert main(["leaderboard", "check", "--challenge", str(small_houses), "--generate"]) == 1
+    out = capsys.readouterr().out
+    assert "error: 1 problem in the hidden houses or episodes" in out
+    assert "exceeds the footprint" in out
