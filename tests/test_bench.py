@@ -26,3 +26,14 @@ def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_two() -> None:
     figures = run_lanes_bench(size=16, episodes=4, max_steps=5, rooms=1, verbose=False)
     assert figures["steps"] == 4 * 5  # every episode to its step limit, nothing lost
     assert figures["one_lane_s"] > 0 and figures["two_lanes_s"] > 0 and figures["ratio"] > 0
+
+
+def test_the_participants_bench_plays_every_run_to_its_end() -> None:
+    from multion.leaderboard.bench_participants import run_participants_bench
+
+    figures = run_participants_bench(
+        participants=3, size=16, episodes=2, max_steps=5, rooms=1, verbose=False
+    )
+    assert figures["steps"] == 3 * 2 * 5  # every participant's episodes, nothing lost
+    assert figures["steps_per_s"] > 0
+    assert 0 < figures["latency_p50_ms"] <= figures["latency_p90_ms"] <= figures["latency_p99_ms"]

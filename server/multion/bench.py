@@ -16,6 +16,7 @@ import dataclasses
 import functools
 import math
 import os
+import sys
 import tempfile
 import time
 
@@ -37,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--only",
         choices=[
             *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
-            *("explorer", "reset"),
+            *("explorer", "reset", "participants"),
         ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
@@ -76,6 +77,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     train.add_argument("--train-envs", type=int, help="local environments (4; v3: 8)")
     train.add_argument(
         "--train-updates", type=int, help="PPO updates, the first one not timed (default 4)"
+    )
+    parser.add_argument(
+        "--participants",
+        type=int,
+        default=8,
+        help="participants playing at once in the participants bench (1-64, default 8)",
     )
     parser.add_argument(
         "--device",
@@ -120,6 +127,14 @@ def run(args: argparse.Namespace) -> int:
         from multion.leaderboard.bench_lanes import run_lanes_bench
 
         run_lanes_bench()
+    if "participants" in parts:
+        from multion.leaderboard.bench_participants import run_participants_bench
+
+        try:
+            run_participants_bench(args.participants)
+        except ValueError as error:
+            print(f"multion bench: --participants: {error}", file=sys.stderr)
+            return 2
     if "leaderboard" in parts:
         from multion.leaderboard.bench import run_leaderboard_bench
 
