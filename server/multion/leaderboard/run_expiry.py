@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import datetime as dt
 import logging
+from abc import ABC, abstractmethod
 from typing import Any
 
 from sqlalchemy import select
@@ -23,28 +24,28 @@ RESTART_GRACE = dt.timedelta(minutes=5)
 clients cannot act while the server restarts."""
 
 
-class RunExpiry:
+class RunExpiry(ABC):
     """Expires late episodes (``step_timeout_s``), too many in a row in a lane
-    (``max_consecutive_timeouts``) and runs past ``run_timeout_s``."""
+    (``max_consecutive_timeouts``) and runs past ``run_timeout_s``. The storage it needs is
+    :class:`~multion.leaderboard.runs.RunService`'s (the abstract methods below)."""
 
     challenge: Challenge
     live: dict[str, LiveRun]
 
-    # Supplied by RunService.
-    async def _db(self, work: Any) -> Any:
-        raise NotImplementedError
+    @abstractmethod
+    async def _db(self, work: Any) -> Any: ...
 
-    async def _get_live(self, team_id: int, run_id: str) -> LiveRun:
-        raise NotImplementedError
+    @abstractmethod
+    async def _get_live(self, team_id: int, run_id: str) -> LiveRun: ...
 
-    async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None: ...
 
+    @abstractmethod
     async def _finish(
         self, live: LiveRun, results: list[EpisodeResult], outcome: str, reason: str | None,
         refunded: bool = False,
-    ) -> None:  # fmt: skip
-        raise NotImplementedError
+    ) -> None: ...  # fmt: skip
 
     async def expire_forever(self, interval_s: float) -> None:
         """Expire late episodes of running runs, also of clients that never come back."""
