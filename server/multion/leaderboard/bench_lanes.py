@@ -48,6 +48,26 @@ feedback = "aggregate"
 """
 
 
+def bench_server_options(
+    directory: Path, teams: list[str], size: int, episodes: int, max_steps: int, rooms: int
+) -> tuple[list[str], list[str]]:
+    """Write the bench's challenge file and SQLite database (``teams`` added, without quotas)
+    into ``directory``: the server's options and each team's token."""
+    path = directory / "challenge.toml"
+    path.write_text(
+        CHALLENGE.format(
+            secret=secrets.token_urlsafe(24), size=size, rooms=rooms, episodes=episodes,
+            max_steps=max_steps,
+        )
+    )  # fmt: skip
+    database = f"sqlite:///{directory / 'bench.db'}"
+    db = Database.open(database)
+    with db.sessions.begin() as session:
+        tokens = [add_team(session, name)[1] for name in teams]
+    db.close()
+    return ["--challenge", str(path), "--database", database], tokens
+
+
 def play_lane(env: RunEnv, seed: int) -> int:
     """Play a lane to its end with random moves; returns its steps."""
     rng = np.random.default_rng(seed)
@@ -89,19 +109,9 @@ def run_lanes_bench(
 ) -> dict[str, Any]:
     """Print and return the wall time of a run with one lane and with two, and their ratio."""
     with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
-        path = Path(directory) / "challenge.toml"
-        path.write_text(
-            CHALLENGE.format(
-                secret=secrets.token_urlsafe(24), size=size, rooms=rooms, episodes=episodes,
-                max_steps=max_steps,
-            )
-        )  # fmt: skip
-        database = f"sqlite:///{Path(directory) / 'bench.db'}"
-        db = Database.open(database)
-        with db.sessions.begin() as session:
-            token = add_team(session, "baselines")[1]  # no quota
-        db.close()
-        options = ["--challenge", str(path), "--database", database]
+        options, (token,) = bench_server_options(
+            Path(directory), ["baselines"], size, episodes, max_steps, rooms
+        )
         with LocalServer(workers=2, options=options) as server:
             timed_run(server.url, token, 2)  # warm up: houses built, workers' scenes loaded
             one, steps_one = timed_run(server.url, token, 1)

@@ -10,7 +10,6 @@ what the server gives a crowd, not an agent's thinking time.
 from __future__ import annotations
 
 import os
-import secrets
 import tempfile
 import threading
 import time
@@ -20,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from multion.api.local_server import LocalServer
-from multion.leaderboard.bench_lanes import CHALLENGE
-from multion.leaderboard.storage import Database, add_team
+from multion.leaderboard.bench_lanes import bench_server_options
 from multion_client.run import RunEnv
 
 MAX_PARTICIPANTS = 64
@@ -55,19 +53,10 @@ def run_participants_bench(
     if not 1 <= participants <= MAX_PARTICIPANTS:
         raise ValueError(f"participants must be in [1, {MAX_PARTICIPANTS}], got {participants}")
     with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
-        path = Path(directory) / "challenge.toml"
-        path.write_text(
-            CHALLENGE.format(
-                secret=secrets.token_urlsafe(24), size=size, rooms=rooms, episodes=episodes,
-                max_steps=max_steps,
-            )
-        )  # fmt: skip
-        database = f"sqlite:///{Path(directory) / 'bench.db'}"
-        db = Database.open(database)
-        with db.sessions.begin() as session:
-            tokens = [add_team(session, f"participant {k}")[1] for k in range(participants)]
-        db.close()
-        options = ["--challenge", str(path), "--database", database]
+        names = [f"participant {k}" for k in range(participants)]
+        options, tokens = bench_server_options(
+            Path(directory), names, size, episodes, max_steps, rooms
+        )
         with LocalServer(workers=2, options=options) as server:
             latencies: list[list[float]] = [[] for _ in range(participants)]
             counts = [0] * participants
