@@ -246,7 +246,8 @@ def bench_processes(renderer: str, size: int, steps: int) -> dict[str, float]:
         sensors=("rgb", "depth", "goal"),
     )
     results: dict[str, float] = {}
-    where = "per GPU" if renderer == "egl" else "in all"
+    # Mesa's EGL renders on the CPU: only on a GPU machine is the total the GPU's
+    where = "in all (per GPU on a one-GPU machine)" if renderer == "egl" else "in all"
     for count in counts:
         vector = gym.vector.AsyncVectorEnv(
             [functools.partial(MultiONEnv, config) for _ in range(count)], context="spawn"

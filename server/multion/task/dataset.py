@@ -264,13 +264,15 @@ def sample_episode(
     ``num_distractors`` more cylinders then take categories that are not the goals' and navigable
     cells at least ``min_distractor_separation`` from every goal (and ``min_goal_separation`` from
     each other). With no distractors the random stream is the same as before they existed.
-    ``fields``, when given, keeps the goals' distance fields for the episode's reset.
+    ``fields``, when given, keeps the goals' distance fields for the episode's reset (the
+    caller's env reads them there).
     """
     if not 0 <= num_distractors <= NUM_CATEGORIES - num_goals:
         raise ValueError(
             f"num_distractors must be in 0..{NUM_CATEGORIES - num_goals} for {num_goals} goals, "
             f"got {num_distractors}"
         )
+    fields = fields if fields is not None else FieldCache()
     rows, cols = np.nonzero(grid.navigable)
     cells = grid.cell_to_world(rows, cols)
     z = grid.floor_z
@@ -293,11 +295,7 @@ def sample_episode(
                 break
             pick = candidates[rng.integers(len(candidates))]
             goal_xy = np.round(cells[pick], 4)
-            field = (
-                fields.get(grid, goal_xy, goal_radius)
-                if fields is not None
-                else distance_field(grid, goal_xy, goal_radius)
-            )
+            field = fields.get(grid, goal_xy, goal_radius)
             goal_fields.append(field)
             measured.append(float(grid.lookup(field, points[-1], outside=np.inf)))
             points.append(goal_xy)
