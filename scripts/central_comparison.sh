@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# The paper's central comparison (map vs no map, Table 3 at 1-ON) at the reference's defaults
+# (50-cell oracle crop, goals as 3 x 3 cells, depth 0-10 m, 768-unit GRU) on the version 3
+# houses, with the one-hour recipe's budget: 720k frames per agent, the same seeds, then 100 val
+# episodes each with sampled actions (as the reference's `_eval_checkpoint`,
+# habitat_baselines/rl/ppo/ppo_trainer.py l. 629 and 1430 of saimwani/multiON: deterministic=False)
+# and a paired report. Resumable: run it again and finished steps are skipped, an interrupted
+# training continues from its last checkpoint (every 10 updates).
+#   bash scripts/central_comparison.sh                 # every stage, in the order below
+#   STAGES="core" bash scripts/central_comparison.sh   # only the first four agents
+#   OUT=runs/central FRAMES=720000 bash scripts/central_comparison.sh
+#   MULTION='python -m multion.cli' ...             # another installation of the command
+# Stages: core (oracle-map, no-map, oracle-ego-map, random-oracle-found), pretrain (oracle-map
+# after map pretraining), learned (proj-neural-map, obj-recog-map), shapes (NoMap with the
+# supplement's shapes as goals). The report goes to $OUT/report (`multion report`).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${OUT:-runs/central}
+frames=${FRAMES:-720000}
+episodes=${EPISODES:-100}
+stages=${STAGES:-core pretrain learned shapes}
+multion=${MULTION:-.venv/bin/multion}
+recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
+  --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard)
+evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0)
+
+# train_and_eval NAME AGENT [TRAIN ARGS...]: $out/NAME/checkpoint.pt, then $out/NAME/eval-val
+train_and_eval() {
+  local name=$1 agent=$2 dir=$out/$1
+  shift 2
+  [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
+  local resume=()
+  [ -f "$dir/checkpoint.pt" ] && resume=(--resume)
+  echo "== train $name ($agent, $frames frames) $(date -u +%FT%TZ)"
+  $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "$@"
+  echo "== eval $name $(date -u +%FT%TZ)"
+  rm -rf "$dir/eval-val"
+  $multion eval --agent "$agent" --checkpoint "$dir/checkpoint.pt" "${evaluation[@]}" \
+    --out "$dir/eval-val"
+}
+
+for stage in $stages; do
+  case $stage in
+    core)
+      train_and_eval oracle-map oracle-map
+      train_and_eval no-map no-map
+      train_and_eval oracle-ego-map oracle-ego-map
+      if [ ! -f "$out/random-oracle-found/eval-val/metrics.json" ]; then
+        $multion eval --agent random-oracle-found "${evaluation[@]}" \
+          --out "$out/random-oracle-found/eval-val"
+      fi ;;
+    pretrain) train_and_eval oracle-map-pretrained oracle-map --pretrain-map 1200 ;;
+    learned)
+      train_and_eval proj-neural-map proj-neural-map
+      train_and_eval obj-recog-map obj-recog-map ;;
+    shapes) train_and_eval no-map-shapes no-map --set task.goal_set=shapes ;;
+    *) echo "unknown stage $stage (core, pretrain, learned, shapes)" >&2; exit 2 ;;
+  esac
+done
+mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)
+$multion report "${runs[@]}" --out "$out/report"
