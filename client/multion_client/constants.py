@@ -55,6 +55,16 @@ GOAL_RGBA: tuple[tuple[float, float, float, float], ...] = (
     (1.0, 1.0, 1.0, 1.0),
 )
 NUM_CATEGORIES = len(GOAL_CATEGORIES)
+REFERENCE_CATEGORY_NAMES: tuple[str, ...] = (
+    "red", "green", "blue", "yellow", "white", "pink", "black", "cyan"
+)
+"""The reference code's goal order and names (saimwani/multiON ``habitat/core/env.py`` l. 252-253,
+``cylinder_<name>``): MultiON episode files and habitat agents' ``multiobjectgoal`` use it."""
+REFERENCE_TO_CATEGORY: tuple[int, ...] = tuple(
+    GOAL_CATEGORIES.index("magenta" if name == "pink" else name)
+    for name in REFERENCE_CATEGORY_NAMES
+)
+"""The category id here of each reference index (the reference's pink is our magenta)."""
 
 # The supplement's shape goals ("Varying target object shapes"): 8 red shapes 0.4 m across on
 # thin supports; a category id is the index in this tuple.

@@ -23,6 +23,21 @@ def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
     gen.add_argument("--out", required=True, type=Path, help="output file (.json.gz)")
     check = sub.add_parser("check", help="validate a dataset file and print a summary")
     check.add_argument("path", type=Path)
+    imp = sub.add_parser(
+        "import-multion",
+        help="convert an original MultiON episode file (MultiNav-v1) to a dataset on your scans",
+    )
+    imp.add_argument("path", type=Path, metavar="FILE", help="MultiNav-v1 episodes (.json or .json.gz)")
+    imp.add_argument("--scenes", required=True, type=Path, metavar="DIR",
+                     help="directory holding the scans the file's scene ids name "
+                     "(e.g. mp3d/<scan>/<scan>.glb)")
+    imp.add_argument("--out", required=True, type=Path, help="output dataset (.json.gz); the "
+                     "scans are converted to z-up OBJs in a scenes/ directory beside it")
+    imp.add_argument("--up", default="y", choices=["y", "z"],
+                     help="the scans' up axis: y (glTF, HM3D, habitat exports; default) or z "
+                     "(Matterport3D's own meshes)")
+    imp.add_argument("--split", default="val", choices=["train", "val", "test"],
+                     help="split recorded in the dataset (default val)")
 
 
 def run_dataset(args: argparse.Namespace) -> int:
@@ -43,6 +58,8 @@ def run_dataset(args: argparse.Namespace) -> int:
         )
         print(f"wrote {path}")
         return 0
+    if args.action == "import-multion":
+        return _import_multion(args)
     from multion.task.dataset import load_dataset
 
     try:
@@ -57,6 +74,34 @@ def run_dataset(args: argparse.Namespace) -> int:
     if lengths:
         print(f"total geodesic length: mean {sum(lengths) / len(lengths):.2f} m, "
               f"min {min(lengths):.2f} m, max {max(lengths):.2f} m")
+    return 0
+
+
+def _import_multion(args: argparse.Namespace) -> int:
+    from multion.task.multion_import import import_multion
+
+    if not args.path.is_file():
+        print(f"episode file not found: {args.path}", file=sys.stderr)
+        return 2
+    if not args.scenes.is_dir():
+        print(f"--scenes {args.scenes} is not a directory", file=sys.stderr)
+        return 2
+    try:
+        result = import_multion(args.path, args.scenes, args.out, up=args.up, split=args.split)
+    except DatasetError as error:
+        print(f"cannot import: {error}", file=sys.stderr)
+        return 1
+    first = result.episodes[0]
+    print(f"wrote {result.path}: {len(result.episodes)} episodes ({first.num_goals} goals, "
+          f"{len(first.distractors)} distractors each) in {len(result.scenes)} scans")
+    if result.skipped:
+        print(f"left out {len(result.skipped)} episodes: " + "; ".join(result.skipped[:5]))
+    if result.geodesic_errors:
+        errors = sorted(abs(e) for e in result.geodesic_errors)
+        print(f"total geodesic measured here vs the file's info.geodesic_distance: median "
+              f"difference {errors[len(errors) // 2]:.2f} m, largest {errors[-1]:.2f} m")
+    print(f"play it: multion eval --dataset {result.path} --task {first.num_goals}-on "
+          "--agent oracle-planner")
     return 0
 
 
