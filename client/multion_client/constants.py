@@ -81,9 +81,26 @@ SHAPE_CATEGORIES: tuple[str, ...] = (
 SHAPE_RGBA: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 1.0)
 """Every shape goal is red (supplement)."""
 
-GOAL_SETS: dict[str, tuple[str, ...]] = {"colours": GOAL_CATEGORIES, "shapes": SHAPE_CATEGORIES}
+# MultiON 2.0's real-object goals, from the models PyBullet ships (multion.sim.goal_objects).
+OBJECT_CATEGORIES: tuple[str, ...] = (
+    "teddy_bear",
+    "soccer_ball",
+    "mug",
+    "toy_car",
+    "toy_robot",
+    "toy_rover",
+    "toy_brick",
+    "tray",
+)
+
+GOAL_SETS: dict[str, tuple[str, ...]] = {
+    "colours": GOAL_CATEGORIES,
+    "shapes": SHAPE_CATEGORIES,
+    "objects": OBJECT_CATEGORIES,
+}
 """``task.goal_set`` → its category names: ``colours``, the paper's 8 cylinders (the default),
-or ``shapes``. Both have 8 categories, so the same episodes (category ids) serve both."""
+``shapes`` (the supplement's) or ``objects`` (everyday objects, MultiON 2.0's REAL-OBJECTS
+track). All have 8 categories, so the same episodes (category ids) serve every set."""
 DEFAULT_GOAL_SET = "colours"
 
 

@@ -6,6 +6,7 @@ rules and metrics live in the task; nothing here knows about episodes or network
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Hashable, Sequence
 from functools import partial
 from pathlib import Path
@@ -17,8 +18,10 @@ from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion.sim.camera import attach_renderer, resolve_renderer
+from multion.sim.goal_objects import MODELS, scaled_urdf
 from multion.sim.goal_shapes import goal_mesh_file
 from multion.sim.merged_visual import merged_visual
+from multion_client.constants import OBJECT_CATEGORIES
 
 # pybullet refuses ray batches above this size
 RAY_BATCH_LIMIT = 16_384
@@ -51,6 +54,7 @@ class PyBulletWorld:
         self.visual_bodies: list[int] = []
         """Visual-only bodies of the scene (the merged mesh under EGL), drawn, never hit."""
         self._goal_bodies: dict[Hashable, list[int]] = {}
+        self._object_offsets: dict[str, tuple[float, ...]] = {}
         self._goal_in_use: list[int] = []
         self.lighting: tuple[float, float] = DEFAULT_LIGHTING
         """(ambient, diffuse) light coefficients of the camera in this scene."""
@@ -226,13 +230,14 @@ class PyBulletWorld:
         """
 
         def cylinder(rgba: tuple[float, float, float, float]) -> int:
-            return p.createVisualShape(
+            visual = p.createVisualShape(
                 p.GEOM_CYLINDER,
                 radius=radius,
                 length=height,
                 rgbaColor=rgba,
                 physicsClientId=self.client,
             )
+            return self._visual_body(visual)
 
         return self._place(
             [
@@ -263,7 +268,7 @@ class PyBulletWorld:
             )
             if visual < 0:
                 raise RuntimeError(f"PyBullet could not load the goal mesh {path}")
-            return visual
+            return self._visual_body(visual)
 
         return self._place(
             [
@@ -276,29 +281,83 @@ class PyBulletWorld:
             ]
         )
 
-    def _place(
-        self, goals: Sequence[tuple[Hashable, tuple[float, float, float], Callable[[], int]]]
+    def place_object_goals(
+        self, goals: Sequence[tuple[tuple[float, float, float], int, float]]
     ) -> list[int]:
-        """Move one body per ``(key, position, make_visual)`` to ``position``, reusing an idle
-        body of the same ``key`` or creating one from ``make_visual()``; the bodies of the
-        previous call that are not reused are hidden."""
+        """Show one everyday object per ``(floor_position, object category, yaw)``
+        (:mod:`multion.sim.goal_objects`); hides the previous goals."""
+        entries, turns = [], []
+        for (x, y, z), category, yaw in goals:
+            name = OBJECT_CATEGORIES[category]
+            upright = MODELS[name].upright
+            turns.append(p.getQuaternionFromEuler((upright[0], upright[1], upright[2] + yaw)))
+            dx, dy, dz = self._object_offset(name)
+            c, s = math.cos(yaw), math.sin(yaw)
+            base = (x - (c * dx - s * dy), y - (s * dx + c * dy), z - dz)
+            entries.append((("object", name), base, partial(self._load_object, name)))
+        return self._place(entries, turns)
+
+    def _visual_body(self, visual: int) -> int:
+        """A static body showing ``visual`` (no collision shape: it blocks neither agent nor
+        rays), parked out of sight."""
+        return p.createMultiBody(
+            0, -1, visual, basePosition=HIDDEN_POSITION, physicsClientId=self.client
+        )
+
+    def _load_object(self, name: str) -> int:
+        """A new body of object ``name``, scaled and without collisions, parked out of sight;
+        records where the middle of its footprint's bottom lies from its base (PyBullet moves a
+        body by its centre of mass, which the URDFs put off centre)."""
+        model = MODELS[name]
+        upright = p.getQuaternionFromEuler(model.upright)
+        with c_output_silenced():  # URDFs without inertia make PyBullet complain
+            body = p.loadURDF(str(scaled_urdf(model)), HIDDEN_POSITION, upright,
+                              useFixedBase=True, physicsClientId=self.client)  # fmt: skip
+        for link in range(-1, p.getNumJoints(body, physicsClientId=self.client)):
+            p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)
+        low, high = self._body_bounds(body)
+        base = np.asarray(p.getBasePositionAndOrientation(body, physicsClientId=self.client)[0])
+        bottom = np.array([(low[0] + high[0]) / 2, (low[1] + high[1]) / 2, low[2]])
+        self._object_offsets[name] = tuple(float(v) for v in bottom - base)
+        return body
+
+    def _object_offset(self, name: str) -> tuple[float, ...]:
+        """The bottom centre of object ``name`` from its base, upright at yaw 0."""
+        if name not in self._object_offsets:  # measured on a body kept for the first goal
+            self._goal_bodies.setdefault(("object", name), []).append(self._load_object(name))
+        return self._object_offsets[name]
+
+    def _body_bounds(self, body: int) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds of every link of ``body``."""
+        boxes = [
+            p.getAABB(body, link, physicsClientId=self.client)
+            for link in range(-1, p.getNumJoints(body, physicsClientId=self.client))
+        ]
+        return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+    def _place(
+        self,
+        goals: Sequence[tuple[Hashable, tuple[float, float, float], Callable[[], int]]],
+        orientations: Sequence[tuple[float, float, float, float]] | None = None,
+    ) -> list[int]:
+        """Move one body per ``(key, position, make_body)`` to ``position``, reusing an idle
+        body of the same ``key`` or creating one with ``make_body()``; the bodies of the
+        previous call that are not reused are hidden. ``orientations``: one quaternion per goal
+        (default upright)."""
         for body in self._goal_in_use:
             p.resetBasePositionAndOrientation(
                 body, HIDDEN_POSITION, (0, 0, 0, 1), physicsClientId=self.client
             )
         free = {key: list(bodies) for key, bodies in self._goal_bodies.items()}
         used: list[int] = []
-        for key, position, make_visual in goals:
+        turns = orientations or [(0.0, 0.0, 0.0, 1.0)] * len(goals)
+        for (key, position, make_body), turn in zip(goals, turns, strict=True):
             if free.get(key):
                 body = free[key].pop()
             else:
-                body = p.createMultiBody(
-                    0, -1, make_visual(), basePosition=HIDDEN_POSITION, physicsClientId=self.client
-                )
+                body = make_body()
                 self._goal_bodies.setdefault(key, []).append(body)
-            p.resetBasePositionAndOrientation(
-                body, position, (0, 0, 0, 1), physicsClientId=self.client
-            )
+            p.resetBasePositionAndOrientation(body, position, turn, physicsClientId=self.client)
             used.append(body)
         self._goal_in_use = used
         return used

@@ -15,6 +15,7 @@ from multion.ranges import bounded, check_fields, one_of, require
 from multion.scenes.registry import SPLITS, scene_ids
 from multion.sim.camera import CameraConfig
 from multion.sim.geodesic import FieldCache, distance_field
+from multion.sim.goal_objects import goal_yaw
 from multion.sim.navgrid import NavGridConfig
 from multion.sim.simulator import AgentConfig, Simulator
 from multion.task.dataset import (
@@ -88,7 +89,9 @@ class TaskConfig:
     """Which goal objects are drawn: ``colours``, the paper's 8 coloured cylinders
     (``goal_radius``, ``goal_height``), or ``shapes``, the supplement's 8 red shapes on thin
     supports (``shape_size``, ``shape_support_height``; names in
-    ``multion_client.constants.SHAPE_CATEGORIES``). Category ids, FOUND, rewards, ``goal_mask``
+    ``multion_client.constants.SHAPE_CATEGORIES``), or ``objects``, 8 everyday objects 0.35-0.9 m
+    across from the models PyBullet ships, each at a yaw drawn from the episode id (MultiON 2.0's
+    REAL-OBJECTS track; ``OBJECT_CATEGORIES``, :mod:`multion.sim.goal_objects`). Category ids, FOUND, rewards, ``goal_mask``
     and the oracle maps do not depend on it: the same episodes serve both sets."""
     goal_radius: float = bounded(0.05, 0.01, 0.5)
     goal_height: float = bounded(0.75, 0.05, 3.0)
@@ -314,7 +317,12 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         assert self.sim.world is not None
         self._distractor_fields = {}
         cylinders = (*episode.goals, *episode.distractors) if task.goals_visible else ()
-        if task.goal_set == "shapes":
+        if task.goal_set == "objects":
+            self.sim.world.place_object_goals(
+                [(g.position, g.category, goal_yaw(episode.episode_id, i))
+                 for i, g in enumerate(cylinders)]
+            )  # fmt: skip
+        elif task.goal_set == "shapes":
             self.sim.world.place_shape_goals(
                 [(g.position, g.category) for g in cylinders],
                 task.shape_size,

@@ -1,0 +1,104 @@
+"""Real-object goals (``task.goal_set = "objects"``): everyday models from ``pybullet_data``,
+upright on the floor, 0.3-0.9 m, at a yaw fixed by the episode, visible, never blocking."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pybullet_data
+import pytest
+
+from multion.scenes.registry import layout_for
+from multion.sim.camera import CameraConfig, resolve_renderer
+from multion.sim.goal_objects import MODELS, goal_yaw
+from multion.sim.world import PyBulletWorld
+from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.episode import Episode, Goal
+from multion.task.maps import MapConfig
+from multion_client.constants import OBJECT_CATEGORIES, goal_categories
+
+EXCLUDED = ("duck", "bunny", "bicycle", "domino", "laikago")
+"""Models with terms of their own (the duck's, Stanford's, CC BY-SA, own licence files)."""
+
+
+def test_the_set_and_its_models() -> None:
+    assert goal_categories("objects") == OBJECT_CATEGORIES and len(OBJECT_CATEGORIES) == 8
+    root = Path(pybullet_data.getDataPath())
+    for name, model in MODELS.items():
+        assert (root / model.urdf).is_file(), name
+        assert not any(word in model.urdf for word in EXCLUDED), name
+        assert 0.3 <= model.size <= 0.9
+    assert goal_yaw("ep-1", 0) == goal_yaw("ep-1", 0) != goal_yaw("ep-1", 1)
+    assert 0.0 <= goal_yaw("ep-2", 3) < 2 * math.pi
+
+
+def test_objects_stand_on_the_floor_at_their_size_and_block_nothing() -> None:
+    world = PyBulletWorld.from_layout(layout_for("room-6x4"))
+    try:
+        goals = [((1.0 + 0.6 * c, 2.0, 0.0), c, 0.3 * c) for c in range(8)]
+        bodies = world.place_object_goals(goals)
+        for body, ((x, y, _), category, _) in zip(bodies, goals, strict=True):
+            low, high = world._body_bounds(body)
+            assert low[2] == pytest.approx(0.0, abs=0.01), OBJECT_CATEGORIES[category]
+            # centred on its goal point whatever its yaw (PyBullet moves bodies by their centre
+            # of mass, which some models have off centre)
+            assert (low[:2] + high[:2]) / 2 == pytest.approx((x, y), abs=0.08)
+            # its largest extent is its size (a turned footprint's box is up to sqrt(2) wider)
+            size = MODELS[OBJECT_CATEGORIES[category]].size
+            assert high[2] - low[2] <= size + 0.01
+            assert 0.9 * size <= max(high - low) <= math.sqrt(2) * size + 0.01  # hull margins
+            # visual only: a ray through the object, above the floor, hits nothing before the wall
+            hit, fraction, _ = world.cast_rays(
+                np.array([[x, y - 0.5, 0.1]]), np.array([[x, y + 0.5, 0.1]])
+            )
+            assert not hit[0], OBJECT_CATEGORIES[category]
+        # placed again (next episode): the same bodies are reused, not new ones
+        assert world.place_object_goals(goals) == bodies
+    finally:
+        world.close()
+
+
+def scene(goal_set: str, episode_id: str = "o", renderer: str = "tiny") -> dict[str, np.ndarray]:
+    goals = tuple(Goal(c, (0.7 + 0.6 * c, 3.4, 0.0)) for c in range(8))
+    episode = Episode(episode_id, "room-6x4", (3.0, 0.6, 0.0), math.pi / 2, goals)
+    config = EnvConfig(
+        task=TaskConfig(num_goals=8, goal_set=goal_set),
+        camera=CameraConfig(width=128, height=128, hfov_deg=120.0, renderer=renderer),
+        maps=MapConfig(cell_size=0.5, ego_size=21),
+        sensors=("rgb", "goal_mask", "oracle_map"),
+    )
+    env = MultiONEnv(config, episodes=[episode])
+    try:
+        obs, _ = env.reset(seed=0)
+    finally:
+        env.close()
+    return obs
+
+
+def test_every_object_is_seen_and_masked_with_its_category() -> None:
+    obs = scene("objects")
+    counts = [int((obs["goal_mask"] == c + 1).sum()) for c in range(8)]
+    assert min(counts) > 10, counts
+    # the oracle map marks them like cylinders: category + 1
+    assert set(np.unique(obs["oracle_map"][..., 1])) - {0} <= set(range(1, 9))
+    # they look like objects, not one flat colour: textures and several materials
+    colours = {tuple(px) for px in obs["rgb"][obs["goal_mask"] > 0][::7]}
+    assert len(colours) > 20
+
+
+def test_yaw_is_reproducible_and_comes_from_the_episode() -> None:
+    first, again, other = scene("objects", "a"), scene("objects", "a"), scene("objects", "b")
+    assert np.array_equal(first["rgb"], again["rgb"])
+    assert not np.array_equal(first["goal_mask"], other["goal_mask"])
+
+
+@pytest.mark.skipif(resolve_renderer("auto") != "egl", reason="the EGL plugin does not load here")
+def test_egl_draws_the_objects_at_the_same_size() -> None:
+    # the EGL plugin keeps the first size it draws of a mesh file: the models are scaled in
+    # their URDF copies, never by loadURDF's globalScaling (which it ignores)
+    egl, tiny = scene("objects", renderer="egl"), scene("objects")
+    for c in range(8):
+        a, b = int((egl["goal_mask"] == c + 1).sum()), int((tiny["goal_mask"] == c + 1).sum())
+        assert a > 10 and abs(a - b) <= max(6, 0.3 * b), (OBJECT_CATEGORIES[c], a, b)
