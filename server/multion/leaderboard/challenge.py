@@ -192,6 +192,15 @@ class Track:
     max_steps: int = 2500
     metric: str = "ppl"
     """The ranking metric: ppl (the MultiON challenge's), progress, success or spl."""
+    num_distractors: int = 0
+    """Distractor objects per episode (``task.num_distractors``, 0..8 - num_goals; the MultiON
+    2.0 tracks have some)."""
+    success_distance: float = 1.5
+    """FOUND succeeds within this geodesic distance, metres (the paper's 1.5; MultiON 2.0: 1.0)."""
+    found_budget: int = 0
+    """Wrong FOUNDs allowed before one ends the episode (``task.found_budget``)."""
+    goal_set: str = "colours"
+    """``colours`` (cylinders), ``shapes`` or ``objects`` (everyday objects)."""
     phases: tuple[Phase, ...] = ()
 
     def __post_init__(self) -> None:
@@ -221,6 +230,16 @@ class Track:
             raise ChallengeError(f"{where}: {error}") from None
 
     @property
+    def rules(self) -> dict[str, Any]:
+        """The task rules a track may set beside m and the step limit (TaskConfig fields)."""
+        return {
+            "num_distractors": self.num_distractors,
+            "success_distance": self.success_distance,
+            "found_budget": self.found_budget,
+            "goal_set": self.goal_set,
+        }
+
+    @property
     def allowed_sensors(self) -> tuple[str, ...]:
         return self.sensors or TRACK_KINDS[self.kind]
 
@@ -235,7 +254,11 @@ class Track:
     ) -> dict[str, Any]:
         """The environment config of a run (EnvConfig as nested dicts, no episodes yet)."""
         return {
-            "task": {"num_goals": self.num_goals, "max_steps": phase.max_steps or self.max_steps},
+            "task": {
+                "num_goals": self.num_goals,
+                "max_steps": phase.max_steps or self.max_steps,
+                **self.rules,
+            },
             "camera": dict(self.camera),
             "maps": {**self.maps, **(maps or {})},
             "sensors": list(sensors if sensors is not None else self.allowed_sensors),
@@ -297,6 +320,7 @@ class Challenge:
                     "camera": dict(t.camera),
                     "metric": t.metric,
                     "max_steps": t.max_steps,
+                    **t.rules,
                     "phases": [
                         {
                             "name": p.name,
@@ -381,6 +405,10 @@ def _track(raw: Any, index: int) -> Track:
         "maps",
         "max_steps",
         "metric",
+        "num_distractors",
+        "success_distance",
+        "found_budget",
+        "goal_set",
         "phases",
     )
     d = _section(raw, f"tracks[{index}]", fields, ("name", "num_goals", "phases"))
@@ -397,9 +425,13 @@ def _track(raw: Any, index: int) -> Track:
             for s in _typed(d["sensors"], list, f"{where}.sensors")
         )
     _typed(d["name"], str, f"{where}.name")
-    for key in ("num_goals", "max_steps"):
+    for key in ("num_goals", "max_steps", "num_distractors", "found_budget"):
         if key in d:
             _typed(d[key], int, f"{where}.{key}")
+    if "success_distance" in d:
+        d["success_distance"] = float(_typed(d["success_distance"], (int, float), f"{where}.success_distance"))
+    if "goal_set" in d:
+        _typed(d["goal_set"], str, f"{where}.goal_set")
     return Track(
         **d, phases=tuple(_phase(p, f"{where}.phases[{i}]") for i, p in enumerate(phases_raw))
     )

@@ -113,6 +113,7 @@ def generate_hidden_episodes(challenge: Challenge, track: Track, phase: Phase) -
         seed=seed,
         scenes=hidden_houses(challenge, track, phase),
         progress=False,
+        num_distractors=track.num_distractors,
     )
 
 
@@ -155,12 +156,14 @@ def fresh_episode(
     grid = _grid(scene)
     for _ in range(SAMPLE_TRIES):
         episode = sample_episode(
-            grid, scene, track.num_goals, rng, fresh_episode_id(run_id, position)
+            grid, scene, track.num_goals, rng, fresh_episode_id(run_id, position),
+            num_distractors=track.num_distractors,
         )  # fmt: skip
         if episode is not None:
             return episode
     raise RuntimeError(
-        f"cannot place {variant_name(track.num_goals, 0)} goals in a hidden house of "
+        f"cannot place {variant_name(track.num_goals, track.num_distractors)} goals in a hidden "
+        "house of "
         f"{track.name}/{phase.name}"
     )
 

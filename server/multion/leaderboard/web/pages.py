@@ -31,6 +31,7 @@ from multion.leaderboard.web.pictures import (
     pictured,
     stored_pictures,
 )
+from multion_client.constants import GOAL_SETS
 
 HERE = Path(__file__).resolve().parent
 GUIDE = HERE.parents[3] / "docs" / "leaderboard.md"
@@ -96,11 +97,19 @@ def _duration(seconds: float) -> str:
     return f"{seconds:g} s"
 
 
+GOAL_SET_NAMES = {
+    "colours": "8 coloured cylinders (" + ", ".join(GOAL_SETS["colours"]) + ")",
+    "shapes": "8 red shapes on supports (" + ", ".join(GOAL_SETS["shapes"]).replace("_", " ") + ")",
+    "objects": "8 everyday objects (" + ", ".join(GOAL_SETS["objects"]).replace("_", " ") + ")",
+}
+"""How the rules page names each ``goal_set``."""
+
 templates.env.filters["percent"] = _percent
 templates.env.filters["duration"] = _duration
 templates.env.filters["date"] = _date
 templates.env.filters["words"] = _words
 templates.env.globals["metric_names"] = queries.METRIC_NAMES
+templates.env.globals["goal_set_names"] = GOAL_SET_NAMES
 templates.env.globals["static"] = STATIC_PATH
 
 
