@@ -93,14 +93,22 @@ OBJECT_CATEGORIES: tuple[str, ...] = (
     "tray",
 )
 
+# Unseen objects (the 2023 edition's zero-shot classes): random shapes from pybullet_data's
+# random_urdfs, models 0-7 to train with and 500-507, never seen in training, to test on.
+UNSEEN_TRAIN_CATEGORIES: tuple[str, ...] = tuple(f"random_{i:03d}" for i in range(8))
+UNSEEN_TEST_CATEGORIES: tuple[str, ...] = tuple(f"random_{i:03d}" for i in range(500, 508))
+
 GOAL_SETS: dict[str, tuple[str, ...]] = {
     "colours": GOAL_CATEGORIES,
     "shapes": SHAPE_CATEGORIES,
     "objects": OBJECT_CATEGORIES,
+    "unseen_train": UNSEEN_TRAIN_CATEGORIES,
+    "unseen_test": UNSEEN_TEST_CATEGORIES,
 }
 """``task.goal_set`` → its category names: ``colours``, the paper's 8 cylinders (the default),
-``shapes`` (the supplement's) or ``objects`` (everyday objects, MultiON 2.0's REAL-OBJECTS
-track). All have 8 categories, so the same episodes (category ids) serve every set."""
+``shapes`` (the supplement's), ``objects`` (everyday objects, MultiON 2.0's REAL-OBJECTS
+track), or ``unseen_train`` / ``unseen_test`` (disjoint random objects: train on one, test on the
+other). All have 8 categories, so the same episodes (category ids) serve every set."""
 DEFAULT_GOAL_SET = "colours"
 
 

@@ -23,8 +23,11 @@ EXCLUDED = ("duck", "bunny", "bicycle", "domino", "laikago")
 """Models with terms of their own (the duck's, Stanford's, CC BY-SA, own licence files)."""
 
 
-def test_the_set_and_its_models() -> None:
+def test_the_sets_and_their_models() -> None:
     assert goal_categories("objects") == OBJECT_CATEGORIES and len(OBJECT_CATEGORIES) == 8
+    train, test = goal_categories("unseen_train"), goal_categories("unseen_test")
+    assert len(train) == len(test) == 8 and not set(train) & set(test)
+    assert {MODELS[n].urdf for n in train}.isdisjoint(MODELS[n].urdf for n in test)
     root = Path(pybullet_data.getDataPath())
     for name, model in MODELS.items():
         assert (root / model.urdf).is_file(), name
@@ -92,6 +95,14 @@ def test_yaw_is_reproducible_and_comes_from_the_episode() -> None:
     first, again, other = scene("objects", "a"), scene("objects", "a"), scene("objects", "b")
     assert np.array_equal(first["rgb"], again["rgb"])
     assert not np.array_equal(first["goal_mask"], other["goal_mask"])
+
+
+def test_unseen_objects_are_drawn_and_differ_between_train_and_test() -> None:
+    train, test = scene("unseen_train"), scene("unseen_test")
+    for obs in (train, test):  # flat random shapes, 3 m away in a 128-pixel, 120-degree view
+        counts = [int((obs["goal_mask"] == c + 1).sum()) for c in range(8)]
+        assert min(counts) > 2, counts
+    assert not np.array_equal(train["rgb"], test["rgb"])
 
 
 @pytest.mark.skipif(resolve_renderer("auto") != "egl", reason="the EGL plugin does not load here")

@@ -15,6 +15,11 @@ scaling is written into a copy of the URDF (:func:`scaled_urdf`): PyBullet's EGL
 is visual only: collisions are filtered out, so it neither blocks the agent nor the rays that
 build the navigable grid, like the cylinders. A goal's yaw is drawn per episode and goal from a
 hash of the episode id (reproducible: the same episode shows the same poses).
+
+Unseen objects (``unseen_train``, ``unseen_test``), beyond the 2022 challenge, as the 2023
+edition's zero-shot classes: random shapes of ``pybullet_data/random_urdfs`` (procedurally made
+for PyBullet), models 0-7 for training and 500-507 for testing, so an agent evaluated on
+``unseen_test`` has never seen its goals.
 """
 
 from __future__ import annotations
@@ -34,7 +39,11 @@ import pybullet_data
 
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
-from multion_client.constants import OBJECT_CATEGORIES
+from multion_client.constants import (
+    OBJECT_CATEGORIES,
+    UNSEEN_TEST_CATEGORIES,
+    UNSEEN_TRAIN_CATEGORIES,
+)
 
 
 @dataclass(frozen=True)
@@ -47,7 +56,7 @@ class ObjectModel:
     """Euler angles (roll, pitch, yaw) that stand the model up."""
 
 
-MODELS: dict[str, ObjectModel] = {
+EVERYDAY_MODELS: dict[str, ObjectModel] = {
     "teddy_bear": ObjectModel("teddy_vhacd.urdf", 0.8, (math.pi / 2, 0.0, 0.0)),
     "soccer_ball": ObjectModel("soccerball.urdf", 0.4),
     "mug": ObjectModel("objects/mug.urdf", 0.35),
@@ -57,7 +66,19 @@ MODELS: dict[str, ObjectModel] = {
     "toy_brick": ObjectModel("lego/lego.urdf", 0.4),
     "tray": ObjectModel("tray/tray_textured2.urdf", 0.6),
 }
-assert tuple(MODELS) == OBJECT_CATEGORIES
+assert tuple(EVERYDAY_MODELS) == OBJECT_CATEGORIES
+RANDOM_OBJECT_SIZE = 0.6
+"""Largest extent of the unseen-object goals (``random_urdfs``), metres."""
+MODELS: dict[str, ObjectModel] = {
+    **EVERYDAY_MODELS,
+    **{
+        name: ObjectModel(f"random_urdfs/{name[7:]}/{name[7:]}.urdf", RANDOM_OBJECT_SIZE)
+        for name in (*UNSEEN_TRAIN_CATEGORIES, *UNSEEN_TEST_CATEGORIES)
+    },
+}
+"""Every object model by category name (the goal sets ``objects``, ``unseen_train`` and
+``unseen_test``)."""
+OBJECT_GOAL_SETS = ("objects", "unseen_train", "unseen_test")
 
 
 def goal_yaw(episode_id: str, index: int) -> float:

@@ -282,13 +282,15 @@ class PyBulletWorld:
         )
 
     def place_object_goals(
-        self, goals: Sequence[tuple[tuple[float, float, float], int, float]]
+        self,
+        goals: Sequence[tuple[tuple[float, float, float], int, float]],
+        names: Sequence[str] = OBJECT_CATEGORIES,
     ) -> list[int]:
-        """Show one everyday object per ``(floor_position, object category, yaw)``
-        (:mod:`multion.sim.goal_objects`); hides the previous goals."""
+        """Show one object per ``(floor_position, category, yaw)``, category ``k`` being the
+        model ``names[k]`` (:mod:`multion.sim.goal_objects`); hides the previous goals."""
         entries, turns = [], []
         for (x, y, z), category, yaw in goals:
-            name = OBJECT_CATEGORIES[category]
+            name = names[category]
             upright = MODELS[name].upright
             turns.append(p.getQuaternionFromEuler((upright[0], upright[1], upright[2] + yaw)))
             dx, dy, dz = self._object_offset(name)

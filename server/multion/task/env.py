@@ -15,7 +15,7 @@ from multion.ranges import bounded, check_fields, one_of, require
 from multion.scenes.registry import SPLITS, scene_ids
 from multion.sim.camera import CameraConfig
 from multion.sim.geodesic import FieldCache, distance_field
-from multion.sim.goal_objects import goal_yaw
+from multion.sim.goal_objects import OBJECT_GOAL_SETS, goal_yaw
 from multion.sim.navgrid import NavGridConfig
 from multion.sim.simulator import AgentConfig, Simulator
 from multion.task.dataset import (
@@ -39,6 +39,7 @@ from multion_client.constants import (
     SHAPE_RGBA,
     Action,
     action_id,
+    goal_categories,
 )
 from multion_client.protocol import MAX_SEED
 
@@ -317,10 +318,11 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         assert self.sim.world is not None
         self._distractor_fields = {}
         cylinders = (*episode.goals, *episode.distractors) if task.goals_visible else ()
-        if task.goal_set == "objects":
+        if task.goal_set in OBJECT_GOAL_SETS:
             self.sim.world.place_object_goals(
                 [(g.position, g.category, goal_yaw(episode.episode_id, i))
-                 for i, g in enumerate(cylinders)]
+                 for i, g in enumerate(cylinders)],
+                goal_categories(task.goal_set),
             )  # fmt: skip
         elif task.goal_set == "shapes":
             self.sim.world.place_shape_goals(

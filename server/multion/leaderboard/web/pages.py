@@ -101,6 +101,8 @@ GOAL_SET_NAMES = {
     "colours": "8 coloured cylinders (" + ", ".join(GOAL_SETS["colours"]) + ")",
     "shapes": "8 red shapes on supports (" + ", ".join(GOAL_SETS["shapes"]).replace("_", " ") + ")",
     "objects": "8 everyday objects (" + ", ".join(GOAL_SETS["objects"]).replace("_", " ") + ")",
+    "unseen_train": "8 random objects (pybullet_data random_urdfs 0-7)",
+    "unseen_test": "8 random objects never seen in training (pybullet_data random_urdfs 500-507)",
 }
 """How the rules page names each ``goal_set``."""
 
