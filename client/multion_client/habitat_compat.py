@@ -27,7 +27,8 @@ leaderboard) and ``MULTION_TOKEN``; ``Challenge(...)`` keywords override them.
 
 Observations use the reference's names and conventions: ``rgb`` (H, W, 3) uint8, ``depth``
 (H, W, 1) float32 in [0, 1] of 0-10 m, ``multiobjectgoal`` an int64 array of shape (1,) in the
-reference's category order (red, green, blue, yellow, white, pink, black, cyan), ``gps``
+reference's category order (red, green, blue, yellow, white, pink, black, cyan; on tracks with
+other goal objects, their ids here), ``gps``
 [forward, right] metres from the start, ``compass`` (1,) radians, counter-clockwise, and on tracks
 that allow an oracle map ``semMap`` (S, S, 2): occupancy, then object ids in the reference's order
 + 1 (``oracle_map``) or + 2 (``oracle_ego_map``) as the reference's ``habitat/core/env.py``
@@ -112,18 +113,26 @@ class DepthRange:
         return (np.clip(metres, 0.0, REFERENCE_MAX_DEPTH) / REFERENCE_MAX_DEPTH).astype(np.float32)
 
 
-def reference_map(crop: np.ndarray, offset: int) -> np.ndarray:
-    """An oracle map crop with its object ids in the reference's order, + ``offset``."""
+IDENTITY = tuple(range(len(CATEGORY_TO_REFERENCE)))
+"""The order of the goal sets other than ``colours``, which the reference does not have."""
+
+
+def reference_map(crop: np.ndarray, offset: int, order: Sequence[int] = CATEGORY_TO_REFERENCE) -> np.ndarray:
+    """An oracle map crop with its object ids in ``order`` (the reference's), + ``offset``."""
     out = np.array(crop, copy=True)
     objects = out[..., 1]
     marked = objects > 0
-    lookup = np.array(CATEGORY_TO_REFERENCE, dtype=np.int64)
+    lookup = np.array(order, dtype=np.int64)
     objects[marked] = (lookup[objects[marked].astype(np.int64) - 1] + offset).astype(out.dtype)
     return out
 
 
-def habitat_observations(obs: Mapping[str, np.ndarray], depth: DepthRange) -> Observations:
-    """This project's observation as the reference's (see the module docstring)."""
+def habitat_observations(
+    obs: Mapping[str, np.ndarray], depth: DepthRange, order: Sequence[int] = CATEGORY_TO_REFERENCE
+) -> Observations:
+    """This project's observation as the reference's (see the module docstring); ``order``:
+    the id to give each category (the reference's colour order; :data:`IDENTITY` for goal sets
+    it does not have)."""
     out: Observations = {}
     if "rgb" in obs:
         out["rgb"] = obs["rgb"]
@@ -131,16 +140,16 @@ def habitat_observations(obs: Mapping[str, np.ndarray], depth: DepthRange) -> Ob
         out["depth"] = depth(obs["depth"])
     if "goal" in obs:
         goal = int(np.asarray(obs["goal"]).reshape(-1)[0])
-        out["multiobjectgoal"] = np.array([CATEGORY_TO_REFERENCE[goal]], dtype=np.int64)
+        out["multiobjectgoal"] = np.array([order[goal]], dtype=np.int64)
     if "gps" in obs:
         ahead, left = (float(v) for v in np.asarray(obs["gps"]).reshape(-1)[:2])
         out["gps"] = np.array([ahead, -left], dtype=np.float32)
     if "compass" in obs:
         out["compass"] = np.asarray(obs["compass"], dtype=np.float32).reshape(1)
     if "oracle_map" in obs:
-        out["semMap"] = reference_map(obs["oracle_map"], 1)
+        out["semMap"] = reference_map(obs["oracle_map"], 1, order)
     elif "oracle_ego_map" in obs:
-        out["semMap"] = reference_map(obs["oracle_ego_map"], 2)
+        out["semMap"] = reference_map(obs["oracle_ego_map"], 2, order)
     return out
 
 
@@ -176,15 +185,18 @@ class Challenge:
             raise ValueError(f"{SETTINGS['num_envs']} must be an int ≥ 1, got {lanes!r}") from None
         if self.num_envs < 1:
             raise ValueError(f"{SETTINGS['num_envs']} must be an int ≥ 1, got {self.num_envs}")
+        self._depth = DepthRange({})  # both read from the track when a run opens
+        self._order: Sequence[int] = CATEGORY_TO_REFERENCE
 
     def submit(self, agent: Agent) -> dict[str, Any]:
+        """Play the run; its results as the phase shows them (empty while sealed)."""
         lanes = self._open(self.num_envs if is_batched(agent) else 1)
         try:
             if is_batched(agent):
                 self._play_batched(agent, lanes)
             else:
                 self._play(agent, lanes[0])
-            return lanes[0].status().results
+            return lanes[0].status().results or {}  # None on a sealed phase
         finally:
             for env in lanes:
                 env.close()
@@ -205,6 +217,8 @@ class Challenge:
         if "oracle_map" in sensors and "oracle_ego_map" in sensors:
             sensors.remove("oracle_ego_map")  # one semMap: the full oracle's
         self._depth = DepthRange(track.get("camera") or {})
+        colours = track.get("goal_set", "colours") == "colours"
+        self._order = CATEGORY_TO_REFERENCE if colours else IDENTITY
         limit = int(info["limits"].get("max_envs_per_run", num_envs))
         return RunEnv.lanes(
             self.server, self.track, self.phase, self.method, num_envs=min(num_envs, limit),
@@ -217,18 +231,18 @@ class Challenge:
             agent.reset()
             done = False
             while not done:
-                action = to_action(agent.act(habitat_observations(obs, self._depth)))
+                action = to_action(agent.act(habitat_observations(obs, self._depth, self._order)))
                 obs, _, terminated, truncated, _ = env.step(action)
                 done = terminated or truncated
 
     def _play_batched(self, agent: Agent, lanes: Sequence[RunEnv]) -> None:
         agent.reset()
         active = [env for env in lanes if not env.run_done]
-        observations = [env.reset()[0] for env in active]
+        observations: list[Mapping[str, np.ndarray]] = [env.reset()[0] for env in active]
         masks = np.zeros((len(active), 1), dtype=np.float32)
         batched_act: Any = agent.act  # the 2021 signature, not the base class's
         while active:
-            batch = [habitat_observations(o, self._depth) for o in observations]
+            batch = [habitat_observations(o, self._depth, self._order) for o in observations]
             actions = list(batched_act(batch, masks))
             if len(actions) != len(active):
                 raise ValueError(f"act() returned {len(actions)} actions for {len(active)} "

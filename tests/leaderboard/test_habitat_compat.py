@@ -119,6 +119,10 @@ def test_conversions_follow_the_reference() -> None:
     assert out["gps"].tolist() == [1.0, -2.0]  # [forward, right]
     assert out["depth"].ravel().tolist() == pytest.approx([0.05, 0.5])  # 0.5 m and 5 m of 10
     assert out["semMap"][0, 1, 1] == REFERENCE_CATEGORY_NAMES.index("cyan") + 1
+    # goal sets the reference does not have keep their ids
+    same = habitat.habitat_observations(obs, depth, habitat.IDENTITY)
+    assert same["multiobjectgoal"][0] == GOAL_CATEGORIES.index("magenta")
+    assert same["semMap"][0, 1, 1] == GOAL_CATEGORIES.index("cyan") + 1
     assert habitat.to_action({"action": "turn_right"}) == 3
     assert habitat.to_action(np.int64(1)) == 1
     with pytest.raises(ValueError, match="MOVE_FORWARD"):
