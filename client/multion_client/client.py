@@ -81,11 +81,11 @@ class Client:
     # ------------------------------------------------------------------ routes
     def health(self) -> dict[str, Any]:
         """Server status: API version, live workers, sessions and environments."""
-        return self._call("GET", HEALTH_PATH, idempotent=True)
+        return self._get_map(HEALTH_PATH)
 
     def spec(self) -> dict[str, Any]:
         """Actions, sensors, default config and limits; spaces are rebuilt as gymnasium spaces."""
-        spec = self._call("GET", SPEC_PATH, idempotent=True)
+        spec = self._get_map(SPEC_PATH)
         for key in ("observation_space", "action_space"):
             if key in spec:
                 spec[key] = space_from_wire(spec[key])
@@ -130,7 +130,7 @@ class Client:
     # ------------------------------------------------------------------ leaderboard runs
     def challenge(self) -> dict[str, Any]:
         """The server's challenge: tracks, phases, limits (no token needed)."""
-        return self._call("GET", CHALLENGE_PATH, idempotent=True)
+        return self._get_map(CHALLENGE_PATH)
 
     def create_run(self, message: CreateRun) -> RunInfo:
         """Start a run (debits the team's quota; not retried once the request was sent)."""
@@ -177,6 +177,11 @@ class Client:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+    def _get_map(self, path: str) -> dict[str, Any]:
+        """GET a route that answers a free-form map (health, spec, challenge)."""
+        answer: dict[str, Any] = self._call("GET", path, idempotent=True)
+        return answer
 
     def _call(
         self, method: str, path: str, body: dict[str, Any] | None = None, idempotent: bool = False

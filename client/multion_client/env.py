@@ -66,6 +66,8 @@ class RemoteEnv(gym.Env[dict[str, np.ndarray], int]):
     def session_id(self) -> str:
         return self.session.session_id
 
+    # Read-only properties over gym.Env's attributes, so that a lazy env connects on first use
+    # (mypy rejects a property that overrides a writable attribute, hence the ignores).
     @property
     def observation_space(self) -> spaces.Space[Any]:  # type: ignore[override]
         return self.session.observation_space

@@ -65,7 +65,9 @@ def session_path(session_id: str, verb: str | None = None) -> str:
 
 
 # ---------------------------------------------------------------------- messages
-def _fields(data: Any, message: str, required: Sequence[str], optional: Sequence[str] = ()) -> dict:
+def _fields(
+    data: Any, message: str, required: Sequence[str], optional: Sequence[str] = ()
+) -> dict[str, Any]:
     if not isinstance(data, Mapping):
         raise MalformedMessage(f"{message}: expected a map, got {type(data).__name__}")
     unknown = sorted(set(data) - set(required) - set(optional))

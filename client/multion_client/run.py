@@ -53,8 +53,11 @@ def token_from_env(token: str | None) -> str:
     return token
 
 
-class RunEnv(gym.Env[dict[str, np.ndarray], int]):
-    """One run of a challenge's (track, phase), created on construction (or resumed)."""
+class RunEnv(gym.Env[dict[str, np.ndarray], int | np.integer[Any]]):
+    """One run of a challenge's (track, phase), created on construction (or resumed).
+
+    Actions are ints or numpy integers (what ``action_space.sample()`` gives).
+    """
 
     metadata = {"render_modes": []}
 
@@ -155,7 +158,9 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int]):
             return self.reset()
         return self._current.observation, self._info(self._current)
 
-    def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+    def step(
+        self, action: int | np.integer[Any]
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         current = self._current
         if current is None or current.done:
             raise RuntimeError("the episode is over (or has not started); call reset()")

@@ -325,7 +325,7 @@ class RunStatus:
     @classmethod
     def from_wire(cls, data: Any) -> RunStatus:
         d = _fields(data, "RunStatus", cls.FIELDS, cls.OPTIONAL)
-        values = {name: d.get(name) for name in (*cls.FIELDS, *cls.OPTIONAL)}
+        values: dict[str, Any] = {name: d.get(name) for name in (*cls.FIELDS, *cls.OPTIONAL)}
         values["num_envs"] = d.get("num_envs", 1)
         return cls(**values)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -173,4 +173,7 @@ class RemoteVectorEnv(VectorEnv):
 
     def _batch(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         space = self.single_observation_space
-        return concatenate(space, observations, create_empty_array(space, self.num_envs))
+        # A Dict space batches to a dict of arrays; gymnasium's signatures cover every kind of
+        # space (and None for custom ones), hence the casts.
+        out = cast(dict[str, np.ndarray], create_empty_array(space, self.num_envs))
+        return cast(dict[str, np.ndarray], concatenate(space, observations, out))

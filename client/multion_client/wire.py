@@ -67,7 +67,8 @@ _packer_options = {"default": _default, "use_bin_type": True}
 
 def encode(obj: Any) -> bytes:
     """msgpack bytes of ``obj`` (dicts, lists, str, numbers, bytes, numpy arrays and scalars)."""
-    return msgpack.packb(obj, **_packer_options)
+    encoded: bytes = msgpack.packb(obj, **_packer_options)  # (msgpack has no type hints)
+    return encoded
 
 
 def decode(data: bytes | bytearray | memoryview) -> Any:
@@ -128,7 +129,8 @@ def _compact(bound: np.ndarray) -> np.ndarray | np.generic:
     """A uniform bound as one scalar (an image's Box would otherwise cost its size twice)."""
     flat = bound.reshape(-1)
     if flat.size and (flat == flat[0]).all():
-        return flat[0]
+        first: np.generic = flat[0]  # (numpy types an array's items as Any)
+        return first
     return bound
 
 
