@@ -4,6 +4,7 @@ nothing; killed helper processes are replaced; an unexpected error shows no inte
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -22,6 +23,8 @@ from sqlalchemy import select
 from multion.api.app import create_app
 from multion.api.local_server import LocalServer
 from multion.api.settings import ServerSettings
+from multion.leaderboard.challenge import Challenge
+from multion.leaderboard.challenge_file import replace_phase, write_challenge
 from multion.leaderboard.models import EpisodePicture, Run, utcnow
 from multion.leaderboard.run_expiry import RESTART_GRACE
 from multion.leaderboard.settings import LeaderboardSettings
@@ -40,16 +43,15 @@ SERVER_ENV = {
 }
 
 
-def fault_challenge(make_challenge: Callable[..., Path], directory: Path) -> Path:
+def fault_challenge(challenge: Challenge, directory: Path) -> Path:
     """The tiny challenge, its test-standard phase drawing fresh episodes (through the hidden-
     episode helper) with room for a few runs."""
-    path = make_challenge(directory)
-    text = path.read_text().replace(
-        'total_quota = 1\nepisodes_per_run = "fixed"', 'daily_quota = 5\nepisodes_per_run = "fresh"'
+    standard = challenge.tracks[0].phase("test-standard")
+    assert standard is not None
+    fresh = dataclasses.replace(
+        standard, total_quota=None, daily_quota=5, episodes_per_run="fresh"
     )
-    assert 'episodes_per_run = "fresh"' in text
-    path.write_text(text)
-    return path
+    return write_challenge(replace_phase(challenge, "1-on", fresh), directory / "challenge.toml")
 
 
 def group_server(challenge_file: Path, database: str) -> LocalServer:
@@ -118,10 +120,10 @@ class Player:
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_a_process_group_sigterm_loses_nothing_and_refunds_nothing(
-    request: pytest.FixtureRequest, backend: str, make_challenge: Callable[..., Path],
+    request: pytest.FixtureRequest, backend: str, challenge: Challenge,
     new_database: Callable[..., str], tmp_path: Path,
 ) -> None:  # fmt: skip
-    challenge_file = fault_challenge(make_challenge, tmp_path)
+    challenge_file = fault_challenge(challenge, tmp_path)
     database = new_database(request, backend, tmp_path)
     Database.open(database).close()
     token = new_token(database, "steady")
@@ -207,9 +209,9 @@ def _helpers(server: LocalServer) -> list[int]:
 
 
 def test_killed_helpers_are_replaced_and_nothing_is_charged(
-    make_challenge: Callable[..., Path], tmp_path: Path
+    challenge: Challenge, tmp_path: Path
 ) -> None:
-    challenge_file = fault_challenge(make_challenge, tmp_path)
+    challenge_file = fault_challenge(challenge, tmp_path)
     database = f"sqlite:///{tmp_path / 'results.db'}"
     Database.open(database).close()
     token = new_token(database, "unlucky")
@@ -257,11 +259,11 @@ def test_killed_helpers_are_replaced_and_nothing_is_charged(
 
 
 def test_a_helper_that_keeps_failing_charges_no_quota(
-    make_challenge: Callable[..., Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    challenge: Challenge, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """In process: the hidden-episode helper fails at every try (even after its pool was
     replaced). A running run fails and is refunded; a new run is not created at all."""
-    challenge_file = fault_challenge(make_challenge, tmp_path)
+    challenge_file = fault_challenge(challenge, tmp_path)
     database = f"sqlite:///{tmp_path / 'results.db'}"
     Database.open(database).close()
     token = new_token(database, "unlucky")
