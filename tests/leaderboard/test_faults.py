@@ -4,6 +4,7 @@ nothing; killed helper processes are replaced; an unexpected error shows no inte
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import signal
@@ -34,6 +35,7 @@ from multion_client import errors
 from multion_client.client import Client
 from multion_client.protocol import CONTENT_TYPE, decode, encode
 from multion_client.run_protocol import RUNS_PATH, CreateRun, RunObservation, StartEpisode, run_path
+from waiting import wait_until
 
 SERVER_ENV = {
     "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
@@ -138,9 +140,8 @@ def test_a_process_group_sigterm_loses_nothing_and_refunds_nothing(
         threads = [threading.Thread(target=p.play) for p in players]
         for thread in threads:
             thread.start()
-        deadline = time.monotonic() + 60
-        while min(p.steps for p in players) < 5 and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: min(p.steps for p in players) >= 5 or any(p.error for p in players),
+                   timeout=60, interval=0.01, message="5 steps of every player")  # fmt: skip
         assert min(p.steps for p in players) >= 5, [p.error for p in players]
         killed_at = utcnow()
         os.killpg(pgid, signal.SIGTERM)  # every process of the group at once, steps in flight
@@ -180,19 +181,22 @@ def test_a_process_group_sigterm_loses_nothing_and_refunds_nothing(
 
 def _group_left(pgid: int, wait_s: float = 10.0) -> list[str]:
     """The live (not zombie) processes of a process group after ``wait_s`` at most."""
-    deadline = time.monotonic() + wait_s
-    while True:
-        left = []
-        for stat in Path("/proc").glob("[0-9]*/stat"):
-            try:
-                fields = stat.read_text().rsplit(")", 1)[1].split()
-            except (OSError, IndexError):
-                continue
-            if int(fields[2]) == pgid and fields[0] != "Z":
-                left.append(stat.parent.name + " " + (stat.parent / "cmdline").read_bytes()[:80].decode(errors="replace"))
-        if not left or time.monotonic() > deadline:
-            return left
-        time.sleep(0.2)
+    with contextlib.suppress(AssertionError):  # the caller says which are left
+        wait_until(lambda: not _group_members(pgid), timeout=wait_s, interval=0.2)
+    return _group_members(pgid)
+
+
+def _group_members(pgid: int) -> list[str]:
+    """The live (not zombie) processes of a process group: pid and command line."""
+    members = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            members.append(stat.parent.name + " " + (stat.parent / "cmdline").read_bytes()[:80].decode(errors="replace"))
+    return members
 
 
 def _helpers(server: LocalServer) -> list[int]:
@@ -223,9 +227,8 @@ def test_killed_helpers_are_replaced_and_nothing_is_charged(
         standard = client.create_run(CreateRun("1-on", "test-standard", "s", sensors=["goal"]))
         first = Player(server.url, token, standard.run_id, 1)  # drawn by the helper
         first.play(stop_after=1)
-        deadline = time.monotonic() + 90
-        while len(_helpers(server)) < 2 and time.monotonic() < deadline:
-            time.sleep(0.2)
+        wait_until(lambda: len(_helpers(server)) >= 2, timeout=90, interval=0.2,
+                   message="the two helper processes")  # fmt: skip
         helpers = _helpers(server)
         assert len(helpers) == 2, helpers
         for pid in helpers:
@@ -241,17 +244,19 @@ def test_killed_helpers_are_replaced_and_nothing_is_charged(
         # and a new minival run gets its pictures from a new drawer
         again = client.create_run(CreateRun("1-on", "minival", "pics2", sensors=["goal"]))
         Player(server.url, token, again.run_id, 2).play()
-        deadline = time.monotonic() + 120
-        drawn: list[EpisodePicture] = []
-        while time.monotonic() < deadline and not drawn:
+
+        def drawn() -> list[EpisodePicture]:
             db = Database.open(database)
-            with db.sessions() as session:
-                drawn = list(session.scalars(select(EpisodePicture).where(
-                    EpisodePicture.run_id == again.run_id, EpisodePicture.png != b""
-                )))  # fmt: skip
-            db.close()
-            time.sleep(0.5)
-        assert drawn, "no picture was drawn after the drawer was killed"
+            try:
+                with db.sessions() as session:
+                    return list(session.scalars(select(EpisodePicture).where(
+                        EpisodePicture.run_id == again.run_id, EpisodePicture.png != b""
+                    )))  # fmt: skip
+            finally:
+                db.close()
+
+        wait_until(drawn, timeout=120, interval=0.5,
+                   message="a picture drawn after the drawer was killed")  # fmt: skip
         assert {r.id: r.state for r in runs_of(database)}[created.run_id] == "running"
         assert not any(r.refunded or r.state == "failed" for r in runs_of(database))
     finally:

@@ -10,7 +10,6 @@ import hashlib
 import os
 import re
 import signal
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -34,6 +33,7 @@ from multion.scenes.registry import HOUSE_CONFIG, scene_split
 from multion_client import errors
 from multion_client.client import Client
 from multion_client.run_protocol import CreateRun
+from waiting import wait_until
 
 SECRET = "trust-secret-0123456789abcdef"
 
@@ -174,10 +174,8 @@ def test_a_refunded_run_shows_nothing_and_names_no_internal_id(
     assert status.results is None and status.episodes is None
     listed = next(r for r in client.list_runs() if r.run_id == run.run_id)
     assert listed.results is None
-    deadline = time.monotonic() + 30
-    while client.health()["status"] != "ok":
-        assert time.monotonic() < deadline
-        time.sleep(0.2)
+    wait_until(lambda: client.health()["status"] == "ok", timeout=30, interval=0.2,
+               message="the workers to come back")  # fmt: skip
     with httpx.Client(base_url=trust_server.url) as web:
         page = web.get(f"/leaderboard/runs/{run.run_id}").text
         assert "refunded and shows nothing" in page and "Results over" not in page
