@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from server_settings import MAX_REQUEST_BYTES, leaderboard_env
 
 from multion.api.local_server import LocalServer, free_port
 from multion.leaderboard.challenge import (
@@ -114,19 +115,13 @@ def start_server(
     options: tuple[str, ...] = (),
 ) -> LocalServer:
     """A real server with the leaderboard on; tokens are checked at every request."""
-    env = {
-        "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
-        "MULTION_LEADERBOARD_EXPIRE_INTERVAL_S": "0.2",
-        "MULTION_LEADERBOARD_WARM_UP": "false",  # only the phases a test plays are generated
-        "MULTION_LEADERBOARD_PICTURE_INTERVAL_S": "0.5",  # run pictures soon after a run ends
-        **(extra_env or {}),
-    }
+    env = {**leaderboard_env(), **(extra_env or {})}
     saved = {k: os.environ.get(k) for k in env}
     os.environ.update(env)
     try:
         server = LocalServer(
             options=["--challenge", str(challenge_file), "--database", database,
-                     "--max-request-bytes", "65536", *options],
+                     "--max-request-bytes", str(MAX_REQUEST_BYTES), *options],
         )  # fmt: skip
         return server.start()
     finally:

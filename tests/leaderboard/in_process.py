@@ -10,6 +10,7 @@ from pathlib import Path
 from types import TracebackType
 
 import uvicorn
+from server_settings import LEADERBOARD, MAX_REQUEST_BYTES
 
 from multion.api.app import create_app
 from multion.api.local_server import free_port
@@ -28,13 +29,11 @@ class InProcessServer:
         self.clock = clock
         port = free_port()
         self.url = f"http://127.0.0.1:{port}"
-        settings = ServerSettings(port=port, workers=workers, max_request_bytes=65536)
-        leaderboard = LeaderboardSettings(
-            challenge=challenge_file, database=database, token_cache_s=0,
-            expire_interval_s=0.2, warm_up=False, picture_interval_s=0.5,
-        )  # fmt: skip
+        settings = ServerSettings(port=port, workers=workers, max_request_bytes=MAX_REQUEST_BYTES)
+        leaderboard = LeaderboardSettings(challenge=challenge_file, database=database, **LEADERBOARD)
         app = create_app(settings, leaderboard, clock)
-        config = uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning",
+        # log_config=None: uvicorn leaves the test process's logging as pytest set it
+        config = uvicorn.Config(app, host="127.0.0.1", port=port, log_config=None,
                                 access_log=False, timeout_graceful_shutdown=10)  # fmt: skip
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, name="leaderboard", daemon=True)
