@@ -71,16 +71,12 @@ sent on phases without per-episode feedback (success vs wrong_found would leak r
 
 class RunService(RunExpiry):
     """Every run operation; raises the typed errors of ``multion_client.errors``. Deadlines
-    and creation times are read from ``clock`` (a test's :class:`ManualClock` moves on without
-    sleeping)."""
+    follow ``clock`` (None: the wall clock; a test's ``ManualClock`` moves without sleeping)."""
 
     def __init__(
-        self,
-        challenge: Challenge,
-        db: Database,
-        registry: SessionRegistry,
+        self, challenge: Challenge, db: Database, registry: SessionRegistry,
         clock: Clock | None = None,
-    ) -> None:
+    ) -> None:  # fmt: skip
         self.challenge = challenge
         self.clock: Clock = clock or SystemClock()
         self.db = db
