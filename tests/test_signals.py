@@ -8,6 +8,7 @@ Ctrl-C in a terminal reaches the whole process group).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -19,6 +20,7 @@ import pytest
 
 from multion.api.local_server import free_port
 from process_tree import alive, descendants
+from waiting import wait_until
 
 MULTION = [sys.executable, "-m", "multion.cli"]
 
@@ -67,26 +69,27 @@ def test_a_signal_stops_every_process_the_command_started(
     )  # fmt: skip
     started: set[int] = set()
     try:
-        deadline = time.monotonic() + 120
-        while len(started) < running and time.monotonic() < deadline:
+
+        def all_started() -> bool:
             assert process.poll() is None, f"multion {name} exited early"
-            started |= descendants(process.pid)
-            time.sleep(0.2)
-        assert len(started) >= running, f"multion {name} started {len(started)} processes"
+            started.update(descendants(process.pid))
+            return len(started) >= running
+
+        wait_until(all_started, timeout=120, interval=0.2,
+                   message=f"multion {name}'s {running} processes")  # fmt: skip
         time.sleep(1.0)  # let them get on with their work
         if name == "train":
             # into the rollouts: a signal there used to cut a worker's reply short, and close()
             # then waited for it forever (3 of 4 tries at 12-22 s)
-            while not (tmp_path / "progress.csv").exists() and time.monotonic() < deadline:
-                time.sleep(0.2)
+            wait_until((tmp_path / "progress.csv").exists, timeout=120, interval=0.2,
+                       message="the first rollout (progress.csv)")  # fmt: skip
             time.sleep(2.0)
         started |= descendants(process.pid)
         process.send_signal(signum)
         code = process.wait(timeout=60)
         assert code in (128 + signum, -signum, 130, 0), code
-        deadline = time.monotonic() + 20
-        while alive(started) and time.monotonic() < deadline:
-            time.sleep(0.2)
+        with contextlib.suppress(AssertionError):  # the assertion below names those left
+            wait_until(lambda: not alive(started), timeout=20, interval=0.2)
         assert not alive(started), f"multion {name} left {sorted(alive(started))} running"
     finally:
         for pid in alive(started | {process.pid}):

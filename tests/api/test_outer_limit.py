@@ -8,16 +8,15 @@ import resource
 import shutil
 import subprocess
 import sys
-import time
 from typing import Any
 
-import httpx
 import pytest
 
 from multion.api.local_server import free_port
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
 from multion_client.client import Client
 from multion_client.protocol import HEALTH_PATH
+from waiting import answers, wait_until
 
 OUTER_BYTES = 3 * 2**30
 OPTION = "--worker-memory-mb"
@@ -68,16 +67,8 @@ def test_serve_starts_under_prlimit_and_its_workers_step(small_config: dict[str,
     url = f"http://127.0.0.1:{port}"
     process = _under_limit(OUTER_BYTES, "--port", str(port))
     try:
-        deadline = time.monotonic() + 90
-        while time.monotonic() < deadline:
-            assert process.poll() is None, process.communicate()
-            try:
-                if httpx.get(url + HEALTH_PATH, timeout=1.0).status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.2)
-        else:
-            pytest.fail("the server did not answer within 90 s under prlimit")
+        wait_until(lambda: answers(url + HEALTH_PATH, process), timeout=90, interval=0.2,
+                   message="the server to answer under prlimit")  # fmt: skip
         client = Client(url)
         try:
             session = client.create_session(small_config)  # a worker really runs

@@ -28,6 +28,7 @@ from multion_client.protocol import (
     session_path,
     space_from_wire,
 )
+from waiting import wait_until
 
 SETTINGS = ServerSettings(
     workers=2,
@@ -345,13 +346,6 @@ def test_unknown_routes_and_methods(api: TestClient) -> None:
     assert error_of(call(api, "PUT", "/v1/sessions"))[:2] == (405, "method_not_allowed")
 
 
-def _wait_for(predicate: Any, timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.05)
-
-
 def test_killed_worker_is_replaced(api: TestClient, small_config: dict[str, Any]) -> None:
     health = lambda: call(api, "GET", "/v1/health")[1]  # noqa: E731
     replaced = health()["workers_replaced"]
@@ -361,7 +355,7 @@ def test_killed_worker_is_replaced(api: TestClient, small_config: dict[str, Any]
             for sid in (doomed, survivor):
                 call(api, "POST", session_path(sid, "reset"), {})
             os.kill(victim["pid"], signal.SIGKILL)
-            _wait_for(lambda: health()["workers_replaced"] == replaced + 1)
+            wait_until(lambda: health()["workers_replaced"] == replaced + 1, 30, 0.05, "a new worker")
             status, code, message = error_of(
                 call(api, "POST", session_path(doomed, "step"), {"actions": [1]})
             )
@@ -374,7 +368,7 @@ def test_killed_worker_is_replaced(api: TestClient, small_config: dict[str, Any]
             with session(api, small_config) as fresh:
                 assert call(api, "POST", session_path(fresh, "reset"), {})[0] == 200
         assert call(api, "DELETE", session_path(doomed))[0] == 200  # a lost session can be closed
-    _wait_for(lambda: health()["status"] == "ok")
+    wait_until(lambda: health()["status"] == "ok", 30, 0.05, "status ok")
     pids = {w["pid"] for w in health()["workers"]}
     assert victim["pid"] not in pids and len(pids) == 2
 
@@ -384,7 +378,8 @@ def test_idle_sessions_are_reaped(small_config: dict[str, Any]) -> None:
     with TestClient(create_app(settings), raise_server_exceptions=False) as api:
         with session(api, small_config) as sid:
             call(api, "POST", session_path(sid, "reset"), {})
-            _wait_for(lambda: call(api, "GET", "/v1/health")[1]["sessions_reaped"] == 1, 10.0)
+            wait_until(lambda: call(api, "GET", "/v1/health")[1]["sessions_reaped"] == 1, 10, 0.05,
+                       "the reaper")  # fmt: skip
             status, code, _ = error_of(
                 call(api, "POST", session_path(sid, "step"), {"actions": [1]})
             )
@@ -406,7 +401,7 @@ def test_a_silent_worker_is_killed_and_replaced(small_config: dict[str, Any]) ->
             )
             assert (status, code) == (503, "worker_failed") and "did not answer" in message
             assert 2.5 < time.monotonic() - started < 10
-        _wait_for(lambda: call(api, "GET", "/v1/health")[1]["status"] == "ok")
+        wait_until(lambda: call(api, "GET", "/v1/health")[1]["status"] == "ok", 30, 0.05, "status ok")
         assert call(api, "GET", "/v1/health")[1]["workers_replaced"] == 1
         with session(api, small_config) as sid:
             assert call(api, "POST", session_path(sid, "reset"), {})[0] == 200

@@ -23,6 +23,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from waiting import wait_until
+
 HERE = Path(__file__).resolve().parent
 STANDINS = HERE / "standins"
 ROOT = HERE.parent.parent
@@ -113,13 +115,19 @@ def start_daemon() -> Daemon:
     # compose v1's `exec` and `run` through the Docker API, not by calling the docker CLI
     env["COMPOSE_INTERACTIVE_NO_CLI"] = "1"
     daemon = Daemon(root=root, process=process, env=env)
-    deadline = time.monotonic() + 60
-    while daemon.run("docker", "version", check=False, timeout=30).returncode != 0:
-        if process.poll() is not None or time.monotonic() > deadline:
-            text = (root / "dockerd.log").read_text(errors="replace")[-3000:]
-            daemon.stop()
-            raise RuntimeError(f"dockerd did not start:\n{text}")
-        time.sleep(0.5)
+
+    def answering_or_gone() -> bool:
+        return process.poll() is not None or (
+            daemon.run("docker", "version", check=False, timeout=30).returncode == 0
+        )
+
+    try:
+        wait_until(answering_or_gone, timeout=60, interval=0.5, message="dockerd to answer")
+        assert process.poll() is None, f"dockerd exited with {process.returncode}"
+    except AssertionError as error:
+        text = (root / "dockerd.log").read_text(errors="replace")[-3000:]
+        daemon.stop()
+        raise RuntimeError(f"dockerd did not start ({error}):\n{text}") from None
     return daemon
 
 

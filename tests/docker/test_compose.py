@@ -22,7 +22,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
@@ -31,6 +31,7 @@ import yaml
 from docker_engine import ROOT, Daemon
 
 from multion_client.client import Client
+from waiting import wait_until
 
 pytestmark = pytest.mark.slow
 DOCKER = ROOT / "docker"
@@ -119,16 +120,6 @@ def replicas(docker_daemon: Daemon, images: dict[str, str]) -> Iterator[Stack]:
         stack.down()
 
 
-def wait_for(
-    condition: Callable[[], bool], timeout_s: float, what: str, every_s: float = 1.0
-) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s:.0f} s waiting for {what}")
-        time.sleep(every_s)
-
-
 def test_replicas_behind_nginx_finish_a_run_when_its_replica_stops(replicas: Stack) -> None:
     added = replicas("exec", "-T", "replica-a", "multion", "leaderboard", "team", "add", "Rocket")
     token = added.stdout.strip().splitlines()[-1]
@@ -147,7 +138,7 @@ def test_replicas_behind_nginx_finish_a_run_when_its_replica_stops(replicas: Sta
         run_id = first.split()[1].rstrip(":")
         holder = f"replica-{run_id.split('-')[0]}"
         with Client(url, token=token) as client:
-            wait_for(lambda: client.run_status(run_id).episodes_done >= 2, 300, "2 episodes", 0.1)
+            wait_until(lambda: client.run_status(run_id).episodes_done >= 2, 300, 0.1, "2 episodes")
             # the participant is paused while its replica stops, so what is left of the run is
             # played on the other one (random's episodes are short: it would finish first)
             os.kill(submit.pid, signal.SIGSTOP)

@@ -3,6 +3,8 @@ episodes), a SQLite results database in a temp dir, team tokens, and a real HTTP
 
 from __future__ import annotations
 
+import dataclasses
+import datetime as dt
 import os
 import shutil
 import subprocess
@@ -12,73 +14,54 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from server_settings import MAX_REQUEST_BYTES, leaderboard_env
 
 from multion.api.local_server import LocalServer, free_port
-from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.challenge import (
+    Challenge,
+    HiddenScenes,
+    Limits,
+    Phase,
+    Track,
+    load_challenge,
+)
+from multion.leaderboard.challenge_file import write_challenge as write_challenge_file
 from multion.leaderboard.storage import Database, add_team
 
 SECRET = "test-secret-0123456789abcdef"
 
-CHALLENGE = """
-[challenge]
-name = "tiny"
-secret = "{secret}"
-
-[limits]
-step_timeout_s = {step_timeout_s}
-max_consecutive_timeouts = 2
-
-[hidden]
-rooms = [1, 1]
-
-[[tracks]]
-name = "1-on"
-num_goals = 1
-kind = "standard"
-camera = {{ width = 32, height = 32 }}
-max_steps = 40
-
-[[tracks.phases]]
-name = "minival"
-episodes = 3
-houses = 1
-feedback = "episodes"
-
-[[tracks.phases]]
-name = "test-standard"
-episodes = 2
-houses = 1
-feedback = "aggregate"
-total_quota = 1
-episodes_per_run = "fixed"   # the shared fixture's runs replay the same (test_trust: fresh)
-
-[[tracks]]
-name = "1-on-oracle"
-num_goals = 1
-kind = "oracle"
-camera = {{ width = 32, height = 32 }}
-max_steps = 40
-
-[[tracks.phases]]
-name = "minival"
-episodes = 2
-houses = 1
-feedback = "episodes"
-
-[[tracks.phases]]
-name = "test-challenge"
-episodes = 2
-houses = 1
-feedback = "sealed"
-sealed_until = 2999-01-01T00:00:00Z
-episodes_per_run = "fixed"
-"""
+TINY = Challenge(
+    name="tiny",
+    secret=SECRET,
+    limits=Limits(max_consecutive_timeouts=2),
+    hidden=HiddenScenes(rooms=(1, 1)),
+    tracks=(
+        Track("1-on", num_goals=1, camera={"width": 32, "height": 32}, max_steps=40, phases=(
+            Phase("minival", episodes=3, houses=1, feedback="episodes"),
+            # the shared fixture's runs replay the same (test_trust: fresh)
+            Phase("test-standard", episodes=2, houses=1, total_quota=1, episodes_per_run="fixed"),
+        )),
+        Track("1-on-oracle", num_goals=1, kind="oracle", camera={"width": 32, "height": 32},
+              max_steps=40, phases=(
+            Phase("minival", episodes=2, houses=1, feedback="episodes"),
+            Phase("test-challenge", episodes=2, houses=1, feedback="sealed",
+                  sealed_until=dt.datetime(2999, 1, 1, tzinfo=dt.timezone.utc),
+                  episodes_per_run="fixed"),
+        )),
+    ),
+)  # fmt: skip
+"""The tiny challenge: one-room hidden houses, 32×32 camera, 40-step episodes."""
 
 
-def write_challenge(directory: Path, step_timeout_s: float = 60.0) -> Path:
-    path = directory / "challenge.toml"
-    path.write_text(CHALLENGE.format(secret=SECRET, step_timeout_s=step_timeout_s))
-    return path
+def write_challenge(
+    directory: Path, step_timeout_s: float = 60.0, challenge: Challenge = TINY
+) -> Path:
+    """Write ``challenge`` (default: the tiny one) with ``step_timeout_s`` as
+    ``directory/challenge.toml``."""
+    limits = dataclasses.replace(challenge.limits, step_timeout_s=step_timeout_s)
+    return write_challenge_file(
+        dataclasses.replace(challenge, limits=limits), directory / "challenge.toml"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +71,8 @@ def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def make_challenge() -> Callable[..., Path]:
-    """``make_challenge(directory, step_timeout_s=60.0)``: write the tiny challenge file."""
+    """``make_challenge(directory, step_timeout_s=60.0, challenge=TINY)``: write a challenge
+    file (see :func:`write_challenge`)."""
     return write_challenge
 
 
@@ -131,19 +115,13 @@ def start_server(
     options: tuple[str, ...] = (),
 ) -> LocalServer:
     """A real server with the leaderboard on; tokens are checked at every request."""
-    env = {
-        "MULTION_LEADERBOARD_TOKEN_CACHE_S": "0",
-        "MULTION_LEADERBOARD_EXPIRE_INTERVAL_S": "0.2",
-        "MULTION_LEADERBOARD_WARM_UP": "false",  # only the phases a test plays are generated
-        "MULTION_LEADERBOARD_PICTURE_INTERVAL_S": "0.5",  # run pictures soon after a run ends
-        **(extra_env or {}),
-    }
+    env = {**leaderboard_env(), **(extra_env or {})}
     saved = {k: os.environ.get(k) for k in env}
     os.environ.update(env)
     try:
         server = LocalServer(
             options=["--challenge", str(challenge_file), "--database", database,
-                     "--max-request-bytes", "65536", *options],
+                     "--max-request-bytes", str(MAX_REQUEST_BYTES), *options],
         )  # fmt: skip
         return server.start()
     finally:

@@ -12,10 +12,11 @@ import pytest
 from sqlalchemy import select
 
 from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.models import Run, Team
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web import queries
-from multion.leaderboard.web.bench import CHALLENGE, TRACK, TRACKS, fill_database, run_pages_bench
+from multion.leaderboard.web.bench import bench_challenge, fill_database, run_pages_bench
 
 
 def fresh_database(request: pytest.FixtureRequest, backend: str, tmp_path: Path) -> str:
@@ -35,10 +36,7 @@ def fresh_database(request: pytest.FixtureRequest, backend: str, tmp_path: Path)
 def test_boards_rank_each_teams_best_run_with_ties(
     request: Any, backend: str, tmp_path: Path
 ) -> None:
-    path = tmp_path / "challenge.toml"
-    text = CHALLENGE.format(secret=secrets.token_urlsafe(24))
-    path.write_text(text + "".join(TRACK.format(name=n, m=m, episodes=5) for n, m in TRACKS))
-    challenge = load_challenge(path)
+    challenge = load_challenge(write_challenge(bench_challenge(5), tmp_path / "challenge.toml"))
     url = fresh_database(request, backend, tmp_path)
     fill_database(url, runs=240, episodes=5)
     db = Database.open(url)
@@ -102,10 +100,7 @@ def test_equal_per_episode_values_give_equal_scores_ranks_and_intervals(tmp_path
     for metric in ("ppl", "progress", "success", "spl"):
         assert one[metric] == other[metric]  # mean, low and high to the last bit
 
-    path = tmp_path / "challenge.toml"
-    path.write_text(
-        CHALLENGE.format(secret=secrets.token_urlsafe(24)) + TRACK.format(name="1-on", m=1, episodes=8)
-    )
+    path = write_challenge(bench_challenge(8, (("1-on", 1),)), tmp_path / "challenge.toml")
     challenge = load_challenge(path)
     url = f"sqlite:///{tmp_path / 'results.db'}"
     start = dt.datetime(2026, 1, 1, tzinfo=dt.timezone.utc)

@@ -3,12 +3,22 @@ the hidden houses and episodes come from the secret alone."""
 
 from __future__ import annotations
 
+import datetime as dt
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from multion.leaderboard.challenge import ChallengeError, load_challenge
+from multion.leaderboard.challenge import (
+    Challenge,
+    ChallengeError,
+    HiddenScenes,
+    Limits,
+    Phase,
+    Track,
+    load_challenge,
+)
+from multion.leaderboard.challenge_file import challenge_toml, write_challenge
 from multion.leaderboard.hidden import (
     HIDDEN_HOUSE_BASE,
     generate_hidden_episodes,
@@ -29,6 +39,36 @@ def test_the_tiny_challenge_reads(challenge_file: Path) -> None:
     assert standard.metric == "ppl"  # the MultiON challenge's ranking metric by default
 
 
+def test_a_written_challenge_reads_back_equal(tmp_path: Path) -> None:
+    """challenge_file writes what load_challenge reads: every field that differs from its
+    default (and only those), of every type a challenge file holds."""
+    every = Challenge(
+        name="all-fields",
+        secret='a "quoted" secret \\ 0123456789',
+        limits=Limits(step_timeout_s=2.5, max_consecutive_timeouts=4, run_timeout_s=600,
+                      max_envs_per_run=2),
+        hidden=HiddenScenes(rooms=(2, 3)),
+        tracks=(
+            Track("2-on", num_goals=2, kind="oracle", sensors=("rgb", "oracle_map"),
+                  camera={"width": 24, "height": 16, "hfov_deg": 90.0}, maps={"ego_size": 21},
+                  max_steps=30, metric="success", phases=(
+                Phase("minival", episodes=3, houses=1, feedback="episodes", daily_quota=4,
+                      max_steps=20),
+                Phase("sealed", episodes=2, feedback="sealed", total_quota=1,
+                      sealed_until=dt.datetime(2999, 1, 2, 3, 4, 5, tzinfo=dt.timezone.utc),
+                      episodes_per_run="fixed"),
+            )),
+        ),
+    )  # fmt: skip
+    path = write_challenge(every, tmp_path / "every.toml")
+    assert load_challenge(path) == every
+    assert "run_timeout_s = 600" in path.read_text()
+    plain = Challenge("plain", "plain-secret-0123456789", (Track("1-on", 1, phases=(Phase("p", 1),)),))
+    text = challenge_toml(plain)
+    assert "[limits]" not in text and "[hidden]" not in text and "kind" not in text
+    assert load_challenge(write_challenge(plain, tmp_path / "plain.toml")) == plain
+
+
 @pytest.mark.parametrize(
     ("old", "new", "message"),
     [
@@ -39,9 +79,9 @@ def test_the_tiny_challenge_reads(challenge_file: Path) -> None:
             r"max_consecutive_timeouts must be in \[1, 1000\], got 0",
         ),
         ("rooms = [1, 1]", "rooms = [3, 17]", r"hidden.rooms\[1\] must be in \[3, 16\]"),
-        ('kind = "standard"', 'kind = "cheating"', "kind must be one of"),
+        ("num_goals = 1\ncamera", 'num_goals = 1\nkind = "cheating"\ncamera', "kind must be one of"),
         ("episodes = 3", "episodes = 0", r"episodes must be in \[1, 100000\], got 0"),
-        ('feedback = "aggregate"', 'feedback = "sealed"', "needs sealed_until"),
+        ("total_quota = 1", 'total_quota = 1\nfeedback = "sealed"', "needs sealed_until"),
         (
             "camera = { width = 32, height = 32 }",
             "camera = { widht = 32 }",

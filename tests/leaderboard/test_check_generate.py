@@ -6,32 +6,32 @@ hidden houses'."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
 
 from multion.cli import main
 from multion.leaderboard import house_stats
+from multion.leaderboard.challenge import Challenge, HiddenScenes
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.house_stats import HouseStats
-
-FIXTURE_ROOMS = "rooms = [1, 1]"
 
 
 @pytest.fixture
-def small_houses(challenge_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+def small_houses(challenge: Challenge, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.setattr(
         house_stats, "val_stats", lambda: HouseStats(11, (8, 16, 12.0), (150, 400, 250), 0.55)
     )
     monkeypatch.setenv("MULTION_NAVGRID_CACHE", "off")
-    text = challenge_file.read_text()
     # one track, one phase, rooms 1–2: the houses that walked on their roofs
-    path = tmp_path / "small.toml"
-    path.write_text(
-        text[: text.index('[[tracks.phases]]\nname = "test-standard"')].replace(
-            FIXTURE_ROOMS, "rooms = [1, 2]"
-        )
+    track = challenge.tracks[0]
+    small = dataclasses.replace(
+        challenge,
+        hidden=HiddenScenes(rooms=(1, 2)),
+        tracks=(dataclasses.replace(track, phases=track.phases[:1]),),
     )
-    return path
+    return write_challenge(small, tmp_path / "small.toml")
 
 
 def test_small_hidden_houses_pass_and_their_navigable_share_is_below_the_footprint(

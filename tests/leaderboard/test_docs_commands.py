@@ -17,14 +17,12 @@ import os
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
-import httpx
-import pytest
 import tomllib
 
 from multion.api.local_server import free_port
+from waiting import answers, wait_until
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "leaderboard.md"
 BIN = Path(sys.executable).parent
@@ -139,14 +137,5 @@ def test_every_command_block_of_the_guide_runs_as_written(tmp_path: Path) -> Non
 
 
 def _wait_ready(url: str, server: subprocess.Popen[bytes], timeout_s: float = 120) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if server.poll() is not None:
-            pytest.fail(f"the docs' `multion serve` exited with {server.returncode}")
-        try:
-            if httpx.head(url + "/leaderboard", timeout=1.0).status_code == 200:
-                return
-        except httpx.TransportError:
-            pass
-        time.sleep(0.2)
-    pytest.fail("the docs' `multion serve` did not answer in time")
+    wait_until(lambda: answers(url + "/leaderboard", server, "HEAD"), timeout=timeout_s,
+               interval=0.2, message="the docs' `multion serve` to answer")  # fmt: skip

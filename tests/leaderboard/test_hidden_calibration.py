@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge import Challenge, Phase, Track, load_challenge
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
 from multion.scenes.registry import layout_for
 from multion.task.dataset import save_dataset
@@ -20,21 +21,15 @@ ROOT = Path(__file__).resolve().parents[2]
 EPISODES = 200
 TOLERANCE = 5.0
 
-CHALLENGE = """
-[challenge]
-name = "calibration"
-secret = "calibration-secret-0123456789"
-
-[[tracks]]
-name = "1-on"
-num_goals = 1
-
-[[tracks.phases]]
-name = "test-standard"
-episodes = {episodes}
-houses = 11
-feedback = "aggregate"
-"""
+CHALLENGE = Challenge(
+    name="calibration",
+    secret="calibration-secret-0123456789",
+    tracks=(
+        Track("1-on", num_goals=1, phases=(
+            Phase("test-standard", episodes=EPISODES, houses=11, feedback="aggregate"),
+        )),
+    ),
+)  # fmt: skip
 
 
 def documented_val_success() -> float:
@@ -48,9 +43,7 @@ def documented_val_success() -> float:
 
 @pytest.mark.slow
 def test_hidden_houses_play_like_the_packaged_val_houses(tmp_path: Path) -> None:
-    path = tmp_path / "challenge.toml"
-    path.write_text(CHALLENGE.format(episodes=EPISODES))
-    challenge = load_challenge(path)
+    challenge = load_challenge(write_challenge(CHALLENGE, tmp_path / "challenge.toml"))
     track = challenge.tracks[0]
     phase = track.phases[0]
     assert phase.episode_set == "fresh"

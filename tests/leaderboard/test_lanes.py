@@ -4,16 +4,24 @@ resumes each lane at its step, the quota counts runs, and a replay re-scores exa
 
 from __future__ import annotations
 
-import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from in_process import InProcessServer
 
 from multion.api.local_server import LocalServer
-from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge import (
+    Challenge,
+    HiddenScenes,
+    Limits,
+    Phase,
+    Track,
+    load_challenge,
+)
+from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.clock import ManualClock
 from multion.leaderboard.replay import rescore
 from multion.leaderboard.storage import Database, add_team
 from multion_agents.cli_submit import play_lanes
@@ -23,44 +31,23 @@ from multion_client.client import Client
 from multion_client.run import RunEnv
 from multion_client.run_protocol import CreateRun
 
-CHALLENGE = """
-[challenge]
-name = "lanes"
-secret = "lanes-secret-0123456789abcdef"
-
-[limits]
-step_timeout_s = {step_timeout_s}
-max_consecutive_timeouts = 2
-max_envs_per_run = 3
-
-[hidden]
-rooms = [1, 1]
-
-[[tracks]]
-name = "1-on"
-num_goals = 1
-camera = {{ width = 16, height = 16 }}
-max_steps = 12
-
-[[tracks.phases]]
-name = "test-standard"
-episodes = 6
-houses = 2
-feedback = "aggregate"
-
-[[tracks.phases]]
-name = "once"
-episodes = 4
-houses = 1
-feedback = "aggregate"
-total_quota = 1
-"""
+LANES = Challenge(
+    name="lanes",
+    secret="lanes-secret-0123456789abcdef",
+    limits=Limits(max_consecutive_timeouts=2, max_envs_per_run=3),
+    hidden=HiddenScenes(rooms=(1, 1)),
+    tracks=(
+        Track("1-on", num_goals=1, camera={"width": 16, "height": 16}, max_steps=12, phases=(
+            Phase("test-standard", episodes=6, houses=2, feedback="aggregate"),
+            Phase("once", episodes=4, houses=1, feedback="aggregate", total_quota=1),
+        )),
+    ),
+)  # fmt: skip
+STEP_TIMEOUT_S = LANES.limits.step_timeout_s
 
 
-def write(directory: Path, step_timeout_s: float = 60.0) -> Path:
-    path = directory / "lanes.toml"
-    path.write_text(CHALLENGE.format(step_timeout_s=step_timeout_s))
-    return path
+def write(directory: Path) -> Path:
+    return write_challenge(LANES, directory / "lanes.toml")
 
 
 @pytest.fixture(scope="module")
@@ -180,9 +167,7 @@ def test_a_restart_resumes_every_lane_at_its_step(
         second.stop()
 
 
-def test_a_silent_lane_expires_on_its_own_budget(
-    tmp_path: Path, launch: Callable[..., LocalServer]
-) -> None:
+def test_a_silent_lane_expires_on_its_own_budget(tmp_path: Path) -> None:
     # its own database: another server on the same one would expire this run too (as a
     # replica does), which is right, but not what this test looks at
     database = f"sqlite:///{tmp_path / 'silent.db'}"
@@ -190,45 +175,27 @@ def test_a_silent_lane_expires_on_its_own_budget(
     with db.sessions.begin() as session:
         token = add_team(session, "half-silent")[1]
     db.close()
-    server = launch(write(tmp_path, step_timeout_s=1.0), database)
-    try:
+    clock = ManualClock()  # the test moves the time on: no sleeping, no race with the expiry
+    with InProcessServer(write(tmp_path), database, clock) as server:
         client = Client(server.url, token=token)
         run = client.create_run(CreateRun("1-on", "test-standard", "h", ["goal"], num_envs=2))
         client.start_episode(run.run_id, 0)
         client.start_episode(run.run_id, 1)
-        failures: list[BaseException] = []
-        stop = threading.Event()
-
-        def busy_lane() -> None:  # lane 1 acts on time; lane 0 goes silent
-            try:
-                for seq in range(1, 12):
-                    if stop.wait(0.25):
-                        return
-                    client.run_step(run.run_id, 1, seq, 2)
-            except errors.RunOver:
-                pass  # lane 0's silence ended the run
-            except BaseException as error:  # noqa: BLE001 - reported by the test
-                failures.append(error)
-
-        worker = threading.Thread(target=busy_lane)
-        worker.start()
-        deadline = time.monotonic() + 20
-        while client.run_status(run.run_id).lanes[0]["episode_active"]:
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
+        # lane 1 acts on time, lane 0 stays silent (both started at 0 s, budget 60 s)
+        clock.advance(STEP_TIMEOUT_S - 20)
+        client.run_step(run.run_id, 1, 1, 2)  # lane 1's budget: until 100 s
+        clock.advance(30)  # 70 s: lane 0 is late, lane 1 is not
         status = client.run_status(run.run_id)
-        if status.state == "running":  # (on a slow machine the run may be over already)
-            assert status.lanes[1]["episode_active"]  # lane 1 was on time: it goes on
-            with pytest.raises(errors.EpisodeOver, match="timeout"):
-                client.run_step(run.run_id, 0, 1, 2)
-        while client.run_status(run.run_id).state == "running":  # lane 0 stays silent
-            assert time.monotonic() < deadline
-            time.sleep(0.1)
-        stop.set()
-        worker.join()
-        assert not failures
+        assert status.state == "running" and status.lanes is not None
+        assert not status.lanes[0]["episode_active"]  # scored as it stood
+        assert status.lanes[1]["episode_active"]  # lane 1 was on time: it goes on
+        with pytest.raises(errors.EpisodeOver, match="timeout"):
+            client.run_step(run.run_id, 0, 1, 2)
+        client.run_step(run.run_id, 1, 2, 2)  # lane 1's budget: until 130 s
+        # 125 s: lane 0's next episode was not started in its budget (until 120 s), its second
+        # expiry in a row: the run ends, although lane 1 is on time
+        clock.advance(55)
         status = client.run_status(run.run_id)
         assert status.state == "ended" and status.end_reason == "timeouts"
+        assert status.lanes is not None
         assert not any(lane["episode_active"] for lane in status.lanes)
-    finally:
-        server.stop()

@@ -1,53 +1,45 @@
-"""Time budgets and server faults, on a server whose episodes expire after 1 s of silence."""
+"""Time budgets and server faults, on a server whose runs follow a manual clock: a test
+advances it past the step budget instead of sleeping."""
 
 from __future__ import annotations
 
 import os
 import signal
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
+from in_process import InProcessServer
 
+from multion.leaderboard.clock import ManualClock
 from multion_client import errors
 from multion_client.client import Client
 from multion_client.run import RunEnv
 from multion_client.run_protocol import CreateRun
+from waiting import wait_until
 
-STEP_TIMEOUT_S = 1.0
+STEP_TIMEOUT_S = 60.0
+LATE = STEP_TIMEOUT_S + 1.0
+"""Past one step budget."""
 
 
 @pytest.fixture(scope="module")
 def hasty(
-    tmp_path_factory: pytest.TempPathFactory,
-    database: str,
-    make_challenge: Callable[..., Path],
-    launch: Callable[..., Any],
-) -> Iterator[Any]:
+    tmp_path_factory: pytest.TempPathFactory, database: str, make_challenge: Callable[..., Path]
+) -> Iterator[InProcessServer]:
     directory = tmp_path_factory.mktemp("hasty")
-    server = launch(make_challenge(directory, step_timeout_s=STEP_TIMEOUT_S), database)
-    try:
+    challenge = make_challenge(directory, step_timeout_s=STEP_TIMEOUT_S)
+    with InProcessServer(challenge, database, ManualClock()) as server:
         yield server
-    finally:
-        server.stop()
-
-
-def _wait_until(predicate: Callable[[], bool], timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.1)
 
 
 def test_a_late_action_finds_its_episode_scored_as_it_stood(
-    hasty: Any, new_team: Callable[[str], str]
+    hasty: InProcessServer, new_team: Callable[[str], str]
 ) -> None:
     env = RunEnv(hasty.url, "1-on", "minival", "slow", token=new_team("slow"), sensors=["goal"])
     env.reset()
     env.step(2)
-    time.sleep(STEP_TIMEOUT_S + 0.3)
+    hasty.clock.advance(LATE)
     with pytest.raises(errors.EpisodeOver, match="timeout"):
         env.client.run_step(env.run_id, 0, 2, 2)
     # RunEnv turns the expiry into a truncated episode, so an agent's loop simply goes on
@@ -63,12 +55,16 @@ def test_a_late_action_finds_its_episode_scored_as_it_stood(
     env.abandon()
 
 
-def test_a_silent_client_loses_its_run(hasty: Any, new_team: Callable[[str], str]) -> None:
+def test_a_silent_client_loses_its_run(hasty: InProcessServer, new_team: Callable[[str], str]) -> None:
     client = Client(hasty.url, token=new_team("silent"))
     info = client.create_run(CreateRun("1-on", "minival", "silent", ["goal"]))
     client.start_episode(info.run_id, 0)
+    hasty.clock.advance(LATE)
+    # the expiry loop scores the silent episode as it stands; the run goes on
+    wait_until(lambda: client.run_status(info.run_id).episodes_done == 1, message="an expiry")
+    assert client.run_status(info.run_id).state == "running"
     # two expiries in a row (the episode, then the next one never started) end the run
-    _wait_until(lambda: client.run_status(info.run_id).state != "running")
+    hasty.clock.advance(STEP_TIMEOUT_S)
     status = client.run_status(info.run_id)
     assert status.state == "ended" and status.end_reason == "timeouts"
     reasons = [e["metrics"]["end_reason"] for e in status.episodes]
@@ -78,7 +74,7 @@ def test_a_silent_client_loses_its_run(hasty: Any, new_team: Callable[[str], str
         client.start_episode(info.run_id, 1)
 
 
-def test_a_run_the_server_broke_is_refunded(hasty: Any, new_team: Callable[[str], str]) -> None:
+def test_a_run_the_server_broke_is_refunded(hasty: InProcessServer, new_team: Callable[[str], str]) -> None:
     client = Client(hasty.url, token=new_team("unlucky"))
     info = client.create_run(CreateRun("1-on", "test-standard", "unlucky", ["goal"]))
     client.start_episode(info.run_id, 0)
@@ -89,6 +85,6 @@ def test_a_run_the_server_broke_is_refunded(hasty: Any, new_team: Callable[[str]
     status = client.run_status(info.run_id)
     assert status.state == "failed" and status.refunded and status.end_reason == "server_error"
     # the phase allows one run in total: the refunded one does not count
-    _wait_until(lambda: client.health()["status"] == "ok")
+    wait_until(lambda: client.health()["status"] == "ok", message="the workers to come back")
     again = client.create_run(CreateRun("1-on", "test-standard", "retry", ["goal"]))
     client.abandon_run(again.run_id)

@@ -4,6 +4,7 @@ whatever their case, and a run that played nothing is no leaderboard entry."""
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 import logging
@@ -16,7 +17,8 @@ from fastapi import FastAPI
 
 from multion.cli import main
 from multion.leaderboard.app import check_leaderboard
-from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.challenge_file import replace_phase, write_challenge
 from multion.leaderboard.models import Run, Team
 from multion.leaderboard.results import summarize
 from multion.leaderboard.settings import LeaderboardSettings
@@ -71,21 +73,25 @@ def _add_runs(url: str, runs: list[tuple[str, str, str, str, list[dict[str, Any]
 
 
 def test_a_past_seal_is_said_by_check_tracks_and_serve(
-    challenge_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    challenge_file: Path, challenge: Challenge, tmp_path: Path, capsys: pytest.CaptureFixture[str],
     caplog: pytest.LogCaptureFixture,
 ) -> None:  # fmt: skip
     code, out, _ = run_cli(capsys, "leaderboard", "check", "--challenge", str(challenge_file))
     assert code == 0 and "2 tracks, 4 phases: OK" in out and "warning" not in out
-    past = tmp_path / "past.toml"  # a wrong year: 2001 for 2999
-    past.write_text(challenge_file.read_text().replace("2999-01-01", "2001-01-01"))
+    sealed = challenge.tracks[1].phases[1]
+    assert sealed.sealed_until == dt.datetime(2999, 1, 1, tzinfo=dt.timezone.utc)
+    past_seal = dataclasses.replace(sealed, sealed_until=dt.datetime(2001, 1, 1, tzinfo=dt.timezone.utc))
+    past = write_challenge(  # a wrong year: 2001 for 2999
+        replace_phase(challenge, "1-on-oracle", past_seal), tmp_path / "past.toml"
+    )
     code, out, _ = run_cli(capsys, "leaderboard", "check", "--challenge", str(past))
     assert code == 0
     assert "warning: phase 1-on-oracle/test-challenge: sealed_until 2001-01-01T00:00:00+00:00 is in the past" in out
     code, out, _ = run_cli(capsys, "leaderboard", "tracks", "--challenge", str(past))
     assert "sealed until 2001-01-01T00:00:00+00:00 (passed: results shown to everyone)" in out
-    one = tmp_path / "one.toml"  # one track, one phase: no "1 tracks"
-    text = challenge_file.read_text()
-    one.write_text(text[: text.index('[[tracks.phases]]\nname = "test-standard"')])
+    track = challenge.tracks[0]  # one track, one phase: no "1 tracks"
+    alone = dataclasses.replace(challenge, tracks=(dataclasses.replace(track, phases=track.phases[:1]),))
+    one = write_challenge(alone, tmp_path / "one.toml")
     code, out, _ = run_cli(capsys, "leaderboard", "check", "--challenge", str(one))
     assert code == 0 and "1 track, 1 phase: OK" in out
     with caplog.at_level(logging.WARNING, logger="multion.leaderboard"):

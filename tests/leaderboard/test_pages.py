@@ -5,7 +5,6 @@ from __future__ import annotations
 import html
 import io
 import re
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -13,6 +12,8 @@ import httpx
 import pytest
 from PIL import Image
 from played_runs import PlayedRun, percent
+
+from waiting import wait_until
 
 
 def get(server: Any, path: str) -> httpx.Response:
@@ -113,14 +114,14 @@ def test_a_run_page_shows_its_results_breakdowns_and_pictures(
 def drawn_pictures(server: Any, run_id: str, timeout_s: float = 180.0) -> list[str]:
     """The picture addresses of a run page, once the background drawer has drawn them (until
     then the page says they are being drawn and has no image)."""
-    deadline = time.monotonic() + timeout_s
-    while True:
+
+    def page_once_drawn() -> str | None:
         page = get(server, f"/leaderboard/runs/{run_id}").text
-        pictures = re.findall(rf'src="(/leaderboard/runs/{run_id}/episodes/\d+\.png)"', page)
-        if "being drawn" not in page:
-            return pictures
-        assert time.monotonic() < deadline, "the run's pictures were not drawn in time"
-        time.sleep(0.5)
+        return None if "being drawn" in page else page
+
+    page = wait_until(page_once_drawn, timeout=timeout_s, interval=0.5,
+                      message="the run's pictures to be drawn")  # fmt: skip
+    return re.findall(rf'src="(/leaderboard/runs/{run_id}/episodes/\d+\.png)"', page)
 
 
 def test_team_and_rules_pages(server: Any, played: dict[str, PlayedRun]) -> None:

@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import re
 import subprocess
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -25,6 +24,7 @@ from multion_agents.registry import agent_class
 from multion_client import errors
 from multion_client.client import Client
 from multion_client.run import RunEnv
+from waiting import answers, wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 NGINX = Path("/usr/sbin/nginx")
@@ -96,12 +96,12 @@ def test_two_replicas_share_one_postgresql(
     assert board.status_code == 200 and f'data-run="{done.run_id}"' in board.text
     # pictures are drawn in the background after a run ends: compare the pages once drawn,
     # or the two requests may fall on either side of the drawing
-    deadline = time.monotonic() + 120
-    while True:
+
+    def page_once_drawn() -> str | None:
         page = httpx.get(f"{b.url}/leaderboard/runs/{done.run_id}", timeout=60).text
-        if "The picture is being drawn" not in page or time.monotonic() > deadline:
-            break
-        time.sleep(0.5)
+        return None if "The picture is being drawn" in page else page
+
+    page = wait_until(page_once_drawn, timeout=120, interval=0.5, message="the run's pictures")
     assert page == httpx.get(f"{a.url}/leaderboard/runs/{done.run_id}", timeout=60).text
     assert "on-a" in page and "Results over 3 episodes" in page
     # a run started on A, continued on B at the same step
@@ -204,16 +204,9 @@ def nginx(
     process = subprocess.Popen([*command, "-g", "daemon off;"])
     url = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 20
-        while True:
-            assert process.poll() is None, (directory / "error.log").read_text()
-            try:
-                if httpx.get(url + "/v1/health", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert time.monotonic() < deadline, "nginx did not answer within 20 s"
-            time.sleep(0.1)
+        wait_until(lambda: process.poll() is not None or answers(url + "/v1/health"),
+                   timeout=20, message="nginx to answer")  # fmt: skip
+        assert process.poll() is None, (directory / "error.log").read_text()
         yield url
     finally:
         process.terminate()

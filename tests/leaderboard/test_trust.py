@@ -5,11 +5,11 @@ that cannot take the capacity kept for runs, and messages that name no internal 
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import re
 import signal
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -18,7 +18,14 @@ import httpx
 import pytest
 
 from multion.api.local_server import LocalServer
-from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.challenge import (
+    Challenge,
+    HiddenScenes,
+    Phase,
+    Track,
+    load_challenge,
+)
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.hidden import challenge_houses
 from multion.leaderboard.replay import rescore
 from multion.leaderboard.storage import Database
@@ -26,65 +33,29 @@ from multion.scenes.registry import HOUSE_CONFIG, scene_split
 from multion_client import errors
 from multion_client.client import Client
 from multion_client.run_protocol import CreateRun
+from waiting import wait_until
 
 SECRET = "trust-secret-0123456789abcdef"
 
-TWO_TRACKS = f"""
-[challenge]
-name = "trust"
-secret = "{SECRET}"
-
-[limits]
-step_timeout_s = 60
-
-[hidden]
-rooms = [1, 1]
-
-[[tracks]]
-name = "std"
-num_goals = 1
-camera = {{ width = 16, height = 16 }}
-max_steps = 8
-
-[[tracks.phases]]
-name = "minival"
-episodes = 2
-houses = 1
-feedback = "episodes"
-
-[[tracks.phases]]
-name = "test-standard"
-episodes = 3
-houses = 2
-feedback = "aggregate"
-
-[[tracks.phases]]
-name = "paired"
-episodes = 3
-houses = 1
-feedback = "aggregate"
-episodes_per_run = "fixed"
-
-[[tracks]]
-name = "orc"
-num_goals = 1
-kind = "oracle"
-camera = {{ width = 16, height = 16 }}
-max_steps = 8
-
-[[tracks.phases]]
-name = "test-standard"
-episodes = 3
-houses = 2
-feedback = "aggregate"
-"""
+TWO_TRACKS = Challenge(
+    name="trust",
+    secret=SECRET,
+    hidden=HiddenScenes(rooms=(1, 1)),
+    tracks=(
+        Track("std", num_goals=1, camera={"width": 16, "height": 16}, max_steps=8, phases=(
+            Phase("minival", episodes=2, houses=1, feedback="episodes"),
+            Phase("test-standard", episodes=3, houses=2, feedback="aggregate"),
+            Phase("paired", episodes=3, houses=1, feedback="aggregate", episodes_per_run="fixed"),
+        )),
+        Track("orc", num_goals=1, kind="oracle", camera={"width": 16, "height": 16}, max_steps=8,
+              phases=(Phase("test-standard", episodes=3, houses=2, feedback="aggregate"),)),
+    ),
+)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
 def trust_challenge(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("trust") / "challenge.toml"
-    path.write_text(TWO_TRACKS)
-    return path
+    return write_challenge(TWO_TRACKS, tmp_path_factory.mktemp("trust") / "challenge.toml")
 
 
 @pytest.fixture(scope="module")
@@ -113,15 +84,8 @@ def first_views(client: Client, run_id: str, episodes: int) -> list[str]:
 
 
 # ---------------------------------------------------------------------- houses
-def read(text: str, directory: Path) -> Challenge:
-    path = directory / "challenge.toml"
-    path.write_text(text)
-    return load_challenge(path)
-
-
-def test_no_two_tracks_or_phases_share_a_hidden_house(tmp_path: Path) -> None:
-    text = TWO_TRACKS.replace("[hidden]\nrooms = [1, 1]\n", "")
-    challenge = read(text, tmp_path)
+def test_no_two_tracks_or_phases_share_a_hidden_house() -> None:
+    challenge = dataclasses.replace(TWO_TRACKS, hidden=HiddenScenes())
     houses = challenge_houses(challenge)
     every = [h for ids in houses.values() for h in ids]
     assert len(every) == len(set(every)) == 2 + 1 + 1 + 2
@@ -131,9 +95,7 @@ def test_no_two_tracks_or_phases_share_a_hidden_house(tmp_path: Path) -> None:
     for house in houses[("std", "minival")]:
         assert re.fullmatch(r"house-\d{10,}", house) and scene_split(house) is None
     # a challenge may narrow the range, within the generator's own
-    narrowed = read(
-        text.replace("[[tracks]]", "[hidden]\nrooms = [8, 9]\n\n[[tracks]]", 1), tmp_path
-    )
+    narrowed = dataclasses.replace(TWO_TRACKS, hidden=HiddenScenes(rooms=(8, 9)))
     rooms = {int(h.rsplit("-r", 1)[1]) for ids in challenge_houses(narrowed).values() for h in ids}
     assert rooms <= {8, 9} and HOUSE_CONFIG.min_rooms == 8
 
@@ -212,10 +174,8 @@ def test_a_refunded_run_shows_nothing_and_names_no_internal_id(
     assert status.results is None and status.episodes is None
     listed = next(r for r in client.list_runs() if r.run_id == run.run_id)
     assert listed.results is None
-    deadline = time.monotonic() + 30
-    while client.health()["status"] != "ok":
-        assert time.monotonic() < deadline
-        time.sleep(0.2)
+    wait_until(lambda: client.health()["status"] == "ok", timeout=30, interval=0.2,
+               message="the workers to come back")  # fmt: skip
     with httpx.Client(base_url=trust_server.url) as web:
         page = web.get(f"/leaderboard/runs/{run.run_id}").text
         assert "refunded and shows nothing" in page and "Results over" not in page

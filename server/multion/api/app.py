@@ -30,6 +30,7 @@ from multion_client.errors import (
 from multion_client.protocol import API_VERSION
 
 if TYPE_CHECKING:
+    from multion.leaderboard.clock import Clock
     from multion.leaderboard.settings import LeaderboardSettings
 
 log = logging.getLogger("multion.api")
@@ -42,12 +43,16 @@ clients only send actions. The `multion_client` package (`Client`, `RemoteEnv`,
 
 
 def create_app(
-    settings: ServerSettings | None = None, leaderboard: LeaderboardSettings | None = None
+    settings: ServerSettings | None = None,
+    leaderboard: LeaderboardSettings | None = None,
+    clock: Clock | None = None,
 ) -> FastAPI:
     """A MultiON server app; its lifespan starts and stops the simulator workers.
 
     With ``leaderboard`` (a challenge file and a results database) it also serves the run
     routes of :mod:`multion.leaderboard`; without, it behaves as a plain session server.
+    ``clock`` is what the runs' deadlines follow (None: the wall clock; tests pass a
+    :class:`~multion.leaderboard.clock.ManualClock`).
     """
     settings, warning = fit_outer_memory_limit(settings or ServerSettings())
     if warning:  # `multion serve` fitted them already; an app built another way says it here
@@ -77,7 +82,7 @@ def create_app(
             else:
                 from multion.leaderboard.app import leaderboard_lifespan
 
-                async with leaderboard_lifespan(app, leaderboard, challenge, registry):
+                async with leaderboard_lifespan(app, leaderboard, challenge, registry, clock):
                     yield
         finally:
             reaper.cancel()

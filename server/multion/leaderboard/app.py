@@ -16,6 +16,7 @@ from fastapi import FastAPI
 
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.clock import Clock
 from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import utcnow
 from multion.leaderboard.routes import TokenCache, router, team_of
@@ -48,11 +49,16 @@ def check_leaderboard(app: FastAPI, settings: LeaderboardSettings) -> Challenge:
 
 @contextlib.asynccontextmanager
 async def leaderboard_lifespan(
-    app: FastAPI, settings: LeaderboardSettings, challenge: Challenge, registry: SessionRegistry
+    app: FastAPI,
+    settings: LeaderboardSettings,
+    challenge: Challenge,
+    registry: SessionRegistry,
+    clock: Clock | None = None,
 ) -> AsyncIterator[None]:
-    """Open (and migrate) the database, start the run service and its expiry loop."""
+    """Open (and migrate) the database, start the run service and its expiry loop; the
+    service's deadlines follow ``clock`` (None: the wall clock)."""
     db = await asyncio.to_thread(Database.open, settings.database)
-    service = RunService(challenge, db, registry)
+    service = RunService(challenge, db, registry, clock)
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
     app.state.authenticate = team_of  # for plain sessions on a `--sessions token` server
     registry.run_reserve = app.state.settings.run_reserve

@@ -18,7 +18,15 @@ from typing import Any
 import numpy as np
 
 from multion.api.local_server import LocalServer
-from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge import (
+    Challenge,
+    HiddenScenes,
+    Limits,
+    Phase,
+    Track,
+    load_challenge,
+)
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.storage import Database, add_team
 from multion_client.env import RemoteEnv
@@ -26,28 +34,22 @@ from multion_client.run import RunEnv
 
 BLOCK_STEPS = 5
 TARGET = 0.9
-CHALLENGE = """
-[challenge]
-name = "bench"
-secret = "{secret}"
 
-[limits]
-step_timeout_s = 600
 
-[hidden]
-rooms = [{rooms}, {rooms}]
-
-[[tracks]]
-name = "3-on"
-num_goals = 3
-camera = {{ width = {size}, height = {size} }}
-
-[[tracks.phases]]
-name = "minival"
-episodes = 4
-houses = 1
-episodes_per_run = "fixed"   # the session plays the same episodes inline
-"""
+def bench_challenge(size: int, rooms: int) -> Challenge:
+    """One 3-ON track at ``size``² in houses of ``rooms`` rooms, a fresh secret; its minival
+    phase plays a fixed set, so that the session plays the same episodes inline."""
+    return Challenge(
+        name="bench",
+        secret=secrets.token_urlsafe(24),
+        limits=Limits(step_timeout_s=600),
+        hidden=HiddenScenes(rooms=(rooms, rooms)),
+        tracks=(
+            Track("3-on", num_goals=3, camera={"width": size, "height": size}, phases=(
+                Phase("minival", episodes=4, houses=1, episodes_per_run="fixed"),
+            )),
+        ),
+    )  # fmt: skip
 
 
 def run_leaderboard_bench(
@@ -60,8 +62,7 @@ def run_leaderboard_bench(
     """Print and return steps/s of a session and of a run at ``size``² RGB-D, and their ratio
     (in one hidden house of ``rooms`` rooms)."""
     with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
-        path = Path(directory) / "challenge.toml"
-        path.write_text(CHALLENGE.format(secret=secrets.token_urlsafe(24), size=size, rooms=rooms))
+        path = write_challenge(bench_challenge(size, rooms), Path(directory) / "challenge.toml")
         challenge = load_challenge(path)
         track = challenge.tracks[0]
         episodes = generate_hidden_episodes(challenge, track, track.phases[0])

@@ -18,34 +18,29 @@ from typing import Any
 import numpy as np
 
 from multion.api.local_server import LocalServer
+from multion.leaderboard.challenge import Challenge, HiddenScenes, Limits, Phase, Track
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.storage import Database, add_team
 from multion_client.run import RunEnv
 
 TARGET = 1.6
-CHALLENGE = """
-[challenge]
-name = "bench-lanes"
-secret = "{secret}"
 
-[limits]
-step_timeout_s = 600
-max_envs_per_run = 2
 
-[hidden]
-rooms = [{rooms}, {rooms}]
-
-[[tracks]]
-name = "3-on"
-num_goals = 3
-camera = {{ width = {size}, height = {size} }}
-max_steps = {max_steps}
-
-[[tracks.phases]]
-name = "test"
-episodes = {episodes}
-houses = 2
-feedback = "aggregate"
-"""
+def bench_challenge(size: int, episodes: int, max_steps: int, rooms: int) -> Challenge:
+    """One 3-ON track at ``size``² in houses of ``rooms`` rooms, runs of up to two lanes, a
+    fresh secret."""
+    return Challenge(
+        name="bench-lanes",
+        secret=secrets.token_urlsafe(24),
+        limits=Limits(step_timeout_s=600, max_envs_per_run=2),
+        hidden=HiddenScenes(rooms=(rooms, rooms)),
+        tracks=(
+            Track("3-on", num_goals=3, camera={"width": size, "height": size},
+                  max_steps=max_steps, phases=(
+                Phase("test", episodes=episodes, houses=2, feedback="aggregate"),
+            )),
+        ),
+    )  # fmt: skip
 
 
 def bench_server_options(
@@ -53,13 +48,8 @@ def bench_server_options(
 ) -> tuple[list[str], list[str]]:
     """Write the bench's challenge file and SQLite database (``teams`` added, without quotas)
     into ``directory``: the server's options and each team's token."""
-    path = directory / "challenge.toml"
-    path.write_text(
-        CHALLENGE.format(
-            secret=secrets.token_urlsafe(24), size=size, rooms=rooms, episodes=episodes,
-            max_steps=max_steps,
-        )
-    )  # fmt: skip
+    challenge = bench_challenge(size, episodes, max_steps, rooms)
+    path = write_challenge(challenge, directory / "challenge.toml")
     database = f"sqlite:///{directory / 'bench.db'}"
     db = Database.open(database)
     with db.sessions.begin() as session:

@@ -13,8 +13,9 @@ from typing import Any
 from sqlalchemy import select
 
 from multion.leaderboard.challenge import Challenge
+from multion.leaderboard.clock import Clock
 from multion.leaderboard.live_run import Lane, LiveRun
-from multion.leaderboard.models import Run, utcnow
+from multion.leaderboard.models import Run
 from multion.leaderboard.run_store import EpisodeResult
 from multion_client import errors
 
@@ -30,6 +31,8 @@ class RunExpiry(ABC):
     :class:`~multion.leaderboard.runs.RunService`'s (the abstract methods below)."""
 
     challenge: Challenge
+    clock: Clock
+    """What the deadlines are compared with."""
     live: dict[str, LiveRun]
 
     @abstractmethod
@@ -57,7 +60,7 @@ class RunExpiry(ABC):
                 log.exception("expiring runs failed")
 
     async def expire_all(self) -> None:
-        now = utcnow()
+        now = self.clock.now()
 
         def due(session: Any) -> list[tuple[str, int]]:
             rows = session.execute(
@@ -80,7 +83,7 @@ class RunExpiry(ABC):
         if live.run_id not in self.live:
             return
         limits, st = self.challenge.limits, lane.state
-        now = utcnow()
+        now = self.clock.now()
         results: list[EpisodeResult] = []
         if now > live.created_at + dt.timedelta(seconds=limits.run_timeout_s):
             results = [live.result(x, "timeout") for x in live.lanes if x.state.episode_active]
@@ -118,7 +121,7 @@ class RunExpiry(ABC):
         :data:`RESTART_GRACE` and a step budget from now, saved (so a replica that carries a
         run on sees it too), and a restart that takes minutes costs no episode a timeout."""
         step = dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
-        later = utcnow() + RESTART_GRACE + step
+        later = self.clock.now() + RESTART_GRACE + step
         for live in list(self.live.values()):
             try:  # bounded: a stop must not wait on a stuck lane
                 await asyncio.wait_for(self._extend(live, later), 5.0)

@@ -31,10 +31,11 @@ from sqlalchemy import select
 
 from multion.api.sessions import SessionRegistry
 from multion.leaderboard.challenge import Challenge
+from multion.leaderboard.clock import Clock, SystemClock
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
 from multion.leaderboard.lane_sessions import LaneSessions, ServerFault
 from multion.leaderboard.live_run import Lane, LiveRun, draw_of
-from multion.leaderboard.models import Run, utcnow
+from multion.leaderboard.models import Run
 from multion.leaderboard.run_expiry import RunExpiry
 from multion.leaderboard.run_request import checked_request, track_phase
 from multion.leaderboard.run_store import (
@@ -69,10 +70,15 @@ sent on phases without per-episode feedback (success vs wrong_found would leak r
 
 
 class RunService(RunExpiry):
-    """Every run operation; raises the typed errors of ``multion_client.errors``."""
+    """Every run operation; raises the typed errors of ``multion_client.errors``. Deadlines
+    follow ``clock`` (None: the wall clock; a test's ``ManualClock`` moves without sleeping)."""
 
-    def __init__(self, challenge: Challenge, db: Database, registry: SessionRegistry) -> None:
+    def __init__(
+        self, challenge: Challenge, db: Database, registry: SessionRegistry,
+        clock: Clock | None = None,
+    ) -> None:  # fmt: skip
         self.challenge = challenge
+        self.clock: Clock = clock or SystemClock()
         self.db = db
         self.registry = registry
         self.hidden = HiddenEpisodes(challenge)
@@ -108,8 +114,7 @@ class RunService(RunExpiry):
                 "the server failed to prepare this run's episodes; no run was created and "
                 "nothing counts against your quota: retry later"
             ) from None
-        deadline = utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
-        state = RunState(0, [LaneState(deadline=deadline) for _ in firsts])
+        state = RunState(0, [LaneState(deadline=self._deadline()) for _ in firsts])
         row = Run(
             id=run_id,
             team_id=team_id,
@@ -123,7 +128,7 @@ class RunService(RunExpiry):
             episode_set=phase.episode_set,
             order=order,
             num_envs=request.num_envs,
-            created_at=utcnow(),
+            created_at=self.clock.now(),
             **state.columns(),
         )
         async with self._creating:
@@ -472,7 +477,7 @@ class RunService(RunExpiry):
             await self.sessions.close(lane)
 
     def _deadline(self) -> dt.datetime:
-        return utcnow() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
+        return self.clock.now() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
 
     async def _db(self, work: Any) -> Any:
         """Run ``work(session)`` in a thread, in one transaction."""

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from multion.leaderboard.challenge import Challenge, HiddenScenes, Phase, Track
+from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.models import EpisodeRecord, Run, Team
 from multion.leaderboard.results import summarize
 from multion.leaderboard.storage import Database
@@ -26,31 +28,23 @@ from multion.leaderboard.storage import Database
 TARGET_MS = 100.0
 TRACKS = (("1-on", 1), ("2-on", 2), ("3-on", 3))
 PHASES = ("minival", "test-standard")
-CHALLENGE = """
-[challenge]
-name = "bench"
-secret = "{secret}"
 
-[hidden]
-rooms = [1, 1]
-"""
-TRACK = """
-[[tracks]]
-name = "{name}"
-num_goals = {m}
-camera = {{ width = 32, height = 32 }}
 
-[[tracks.phases]]
-name = "minival"
-episodes = {episodes}
-houses = 1
-feedback = "episodes"
-
-[[tracks.phases]]
-name = "test-standard"
-episodes = {episodes}
-houses = 1
-"""
+def bench_challenge(episodes: int, tracks: tuple[tuple[str, int], ...] = TRACKS) -> Challenge:
+    """The bench's challenge: each of ``tracks`` (name, goals) with a minival and a
+    test-standard phase of ``episodes`` episodes, a fresh secret."""
+    return Challenge(
+        name="bench",
+        secret=secrets.token_urlsafe(24),
+        hidden=HiddenScenes(rooms=(1, 1)),
+        tracks=tuple(
+            Track(name, num_goals=m, camera={"width": 32, "height": 32}, phases=(
+                Phase("minival", episodes=episodes, houses=1, feedback="episodes"),
+                Phase("test-standard", episodes=episodes, houses=1),
+            ))  # fmt: skip
+            for name, m in tracks
+        ),
+    )
 
 
 def fill_database(url: str, runs: int, episodes: int, seed: int = 0) -> list[str]:
@@ -113,10 +107,7 @@ def run_pages_bench(
     from multion.leaderboard.settings import LeaderboardSettings
 
     with tempfile.TemporaryDirectory(prefix="multion-pages-bench-") as directory:
-        challenge = Path(directory) / "challenge.toml"
-        text = CHALLENGE.format(secret=secrets.token_urlsafe(24))
-        text += "".join(TRACK.format(name=n, m=m, episodes=episodes) for n, m in TRACKS)
-        challenge.write_text(text)
+        challenge = write_challenge(bench_challenge(episodes), Path(directory) / "challenge.toml")
         url = f"sqlite:///{Path(directory) / 'results.db'}"
         started = time.perf_counter()
         ids = fill_database(url, runs, episodes)
