@@ -33,40 +33,13 @@ from multion.pictures import gps_to_world
 from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
+from multion_agents.eval_settings import EvalSettings
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
 
 EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
 
 RECORDED_SENSOR = "gps"
-
-
-@dataclass(frozen=True)
-class EvalSettings:
-    """What to evaluate, and where."""
-
-    agent: str
-    num_goals: int = 3
-    split: str = "val"
-    episodes: int | None = None
-    """How many episodes (evenly spaced over the dataset); None: all of them."""
-    seed: int = 0
-    server: str | None = None
-    """A server URL; None starts a local one."""
-    in_process: bool = False
-    """Simulate in this process, without any server (for debugging and profiling agents)."""
-    workers: int = 1
-    dataset: str | None = None
-    image_size: int | None = None
-    """Camera width and height; None keeps the server's default (256, as in the paper)."""
-    max_steps: int | None = None
-    """Step limit override (None: the task's 2500); for quick checks only."""
-    checkpoint: str | None = None
-    """A training checkpoint of the learned agent ``agent`` (``multion train``)."""
-    deterministic: bool = False
-    """Learned agents take their most likely action instead of sampling one."""
-    env_overrides: ConfigOverrides = field(default_factory=dict)
-    """Environment config changes (``--set task.found_budget=3``), applied after the agent's."""
 
 
 @dataclass
