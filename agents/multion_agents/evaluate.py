@@ -77,6 +77,8 @@ class EvalResult:
     """Every field of the environment config, defaults included (what the report compares)."""
     dataset_sha256: str = ""
     """Fingerprint of the dataset file the episodes came from."""
+    agent_settings: dict[str, Any] = field(default_factory=dict)
+    """The agent's own tunables (``Agent.recorded_settings``); empty for agents without any."""
 
 
 # ---------------------------------------------------------------------- episodes and config
@@ -326,7 +328,8 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     check_overrides(settings.env_overrides)
     cls = resolve_agent(settings)
     resolved = resolve_config(env_config(settings, cls))
-    configured_agent(cls, settings.seed, resolved)  # an agent refuses a config it cannot use
+    # an agent refuses a config it cannot use; its tunables are recorded with the run
+    agent_settings = configured_agent(cls, settings.seed, resolved).recorded_settings()
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:
@@ -379,6 +382,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         seconds=time.perf_counter() - started,
         resolved_config=resolved,
         dataset_sha256=dataset_sha256(dataset_file(settings)),
+        agent_settings=agent_settings,
     )
 
 
