@@ -49,6 +49,11 @@ class Agent(ABC):
         """Restart the agent's random stream (called by the evaluator before each episode)."""
         self.rng = np.random.default_rng(seed)
 
+    def recorded_settings(self) -> dict[str, Any]:
+        """The agent's own tunables, recorded in ``metrics.json`` by ``multion eval`` (an agent
+        with settings returns them, e.g. ``dataclasses.asdict(self.settings)``); none here."""
+        return {}
+
     def configure(self, config: EnvConfigDict) -> None:
         """Receive the resolved config of the environment the agent acts in, before its first
         episode: every field with defaults filled in, as nested dicts (``camera``, ``agent``,

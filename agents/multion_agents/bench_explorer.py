@@ -19,7 +19,7 @@ from multion.sim.camera import CameraConfig
 from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion.task.episode import Episode
-from multion_agents.baselines.explorer import ExplorerAgent, StepTimes
+from multion_agents.baselines.explorer import ExplorerAgent, ExplorerSettings, StepTimes
 from multion_agents.baselines.explorer_reference import ReferenceExplorerAgent
 
 TARGET = 2.0
@@ -36,10 +36,10 @@ def run_explorer_bench(image: int = 256, houses: int = 3, steps: int = 500) -> d
     for episode in load_dataset(packaged_dataset_path(3, "val"), 3):
         first.setdefault(episode.scene_id, episode)
     played = list(first.values())[:houses]
-    reference, fast = ReferenceExplorerAgent(seed=0), ExplorerAgent(seed=0)
     # the look-ahead of issue 22 changes decisions on purpose where the reference turned at
     # random (squeezed, no step downhill); without it both must still act alike
-    fast.look_ahead = 1
+    reference = ReferenceExplorerAgent(seed=0)
+    fast = ExplorerAgent(seed=0, settings=ExplorerSettings(look_ahead=1))
     config = EnvConfig(
         task=TaskConfig(num_goals=3, max_steps=steps),
         camera=CameraConfig(width=image, height=image),

@@ -33,40 +33,13 @@ from multion.pictures import gps_to_world
 from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
+from multion_agents.eval_settings import EvalSettings
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
 
 EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
 
 RECORDED_SENSOR = "gps"
-
-
-@dataclass(frozen=True)
-class EvalSettings:
-    """What to evaluate, and where."""
-
-    agent: str
-    num_goals: int = 3
-    split: str = "val"
-    episodes: int | None = None
-    """How many episodes (evenly spaced over the dataset); None: all of them."""
-    seed: int = 0
-    server: str | None = None
-    """A server URL; None starts a local one."""
-    in_process: bool = False
-    """Simulate in this process, without any server (for debugging and profiling agents)."""
-    workers: int = 1
-    dataset: str | None = None
-    image_size: int | None = None
-    """Camera width and height; None keeps the server's default (256, as in the paper)."""
-    max_steps: int | None = None
-    """Step limit override (None: the task's 2500); for quick checks only."""
-    checkpoint: str | None = None
-    """A training checkpoint of the learned agent ``agent`` (``multion train``)."""
-    deterministic: bool = False
-    """Learned agents take their most likely action instead of sampling one."""
-    env_overrides: ConfigOverrides = field(default_factory=dict)
-    """Environment config changes (``--set task.found_budget=3``), applied after the agent's."""
 
 
 @dataclass
@@ -104,6 +77,8 @@ class EvalResult:
     """Every field of the environment config, defaults included (what the report compares)."""
     dataset_sha256: str = ""
     """Fingerprint of the dataset file the episodes came from."""
+    agent_settings: dict[str, Any] = field(default_factory=dict)
+    """The agent's own tunables (``Agent.recorded_settings``); empty for agents without any."""
 
 
 # ---------------------------------------------------------------------- episodes and config
@@ -353,7 +328,8 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     check_overrides(settings.env_overrides)
     cls = resolve_agent(settings)
     resolved = resolve_config(env_config(settings, cls))
-    configured_agent(cls, settings.seed, resolved)  # an agent refuses a config it cannot use
+    # an agent refuses a config it cannot use; its tunables are recorded with the run
+    agent_settings = configured_agent(cls, settings.seed, resolved).recorded_settings()
     episodes = select_episodes(settings)
     started = time.perf_counter()
     if settings.in_process:
@@ -406,6 +382,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
         seconds=time.perf_counter() - started,
         resolved_config=resolved,
         dataset_sha256=dataset_sha256(dataset_file(settings)),
+        agent_settings=agent_settings,
     )
 
 

@@ -83,3 +83,23 @@ def test_local_and_remote_server_give_the_same_metrics(
 def test_clear_errors(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert _run([*argv, "--quiet"]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_metrics_json_records_the_agents_own_settings(
+    room_dataset: tuple[Path, list[Episode]], tmp_path: Path
+) -> None:
+    from dataclasses import asdict
+
+    from multion_agents.baselines.oracle_planner import OraclePlannerSettings
+
+    path, _ = room_dataset
+    flags = ["--agent", "oracle-planner", "--task", "1-on", "--dataset", str(path), "--in-process"]
+    flags += ["--episodes", "1", "--max-steps", "5", "--pictures", "0", "--quiet"]
+    assert _run([*flags, "--out", str(tmp_path / "planner")]) == 0
+    run = json.loads((tmp_path / "planner" / "metrics.json").read_text())["run"]
+    assert run["agent_settings"] == asdict(OraclePlannerSettings())
+    assert run["agent_settings"]["stuck_visits"] == 3
+    flags[1] = "random"  # an agent without tunables records none
+    assert _run([*flags, "--out", str(tmp_path / "random")]) == 0
+    run = json.loads((tmp_path / "random" / "metrics.json").read_text())["run"]
+    assert run["agent_settings"] == {}

@@ -18,7 +18,7 @@ from scipy import ndimage
 from multion.sim.camera import CameraConfig
 from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
 from multion_agents.baselines import explorer_reference as ref
-from multion_agents.baselines.explorer import ExplorerAgent, _close
+from multion_agents.baselines.explorer import ExplorerAgent, ExplorerSettings, _close
 from multion_agents.baselines.mapping import (
     CameraModel,
     DepthProjector,
@@ -167,10 +167,8 @@ def test_the_map_changes_when_floor_alone_is_new_and_not_when_a_frame_repeats(
 
 def _twins(rng: np.random.Generator) -> tuple[ExplorerAgent, ref.ReferenceExplorerAgent]:
     """A fast and a reference explorer on a small map in the same random state."""
-    fast, old = ExplorerAgent(), ref.ReferenceExplorerAgent()
-    for agent in (fast, old):
-        agent.map_size = 61
-        agent.reset()
+    small = ExplorerSettings(map_size=61)
+    fast, old = ExplorerAgent(settings=small), ref.ReferenceExplorerAgent(settings=small)
     blobs = ndimage.binary_dilation(rng.random((61, 61)) < 0.03, iterations=2)
     walls = ndimage.binary_dilation(rng.random((61, 61)) < 0.02)
     for layer, mask in ((fast.map.free, blobs & ~walls), (fast.map.obstacle, walls & blobs)):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import dataclasses
 import math
 import os
 import re
@@ -380,7 +381,7 @@ def test_the_cuda_training_bench_says_plainly_it_needs_a_gpu(capsys) -> None:
 
 def test_a_curriculum_trains_on_near_goals_first_then_on_the_tasks_own(tmp_path: Path) -> None:
     args = tiny_args(tmp_path, Path("unused"), frames=256, curriculum=((128, 3.0),))
-    args.dataset = None  # sampled online from the train houses
+    args = dataclasses.replace(args, dataset=None)  # sampled online from the train houses
     train(args)
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
     assert [float(r["max_geodesic"]) for r in rows] == [3.0, 3.0, 20.0, 20.0]

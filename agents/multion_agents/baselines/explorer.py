@@ -36,12 +36,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
-from typing import ClassVar
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import ndimage
 
+from multion.ranges import bounded, check_fields, one_of
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.field_steps import FieldSteps
 from multion_agents.baselines.mapping import (
@@ -77,30 +78,49 @@ class StepTimes:
     rest: float = 0.0  # learning from the last action, bookkeeping
 
 
+@dataclass(frozen=True)
+class ExplorerSettings:
+    """The explorer's tunables (metres, cells, steps), recorded in ``metrics.json``."""
+
+    cell_size: float = bounded(0.1, 0.01, 1.0)
+    map_size: int = bounded(601, 11, 4001)
+    """Cells of the square map: 601 is ±30 m around the start, any house fits (up to 25 m)."""
+    depth_rays: int = bounded(64, 1, 1024)
+    """Depth is sampled on a grid of this many × this many pixels, whatever the resolution."""
+    found_distance: float = bounded(1.0, 0.0, 1.5, low_open=True)
+    """Map distance to a seen goal that calls FOUND (inside the task's 1.5 m success radius)."""
+    replan_every: int = bounded(8, 1, 1000)
+    wall_margin: float = bounded(0.35, 0.0, 2.0)
+    """Metres kept round seen obstacles when planning."""
+    min_frontier_cells: int = bounded(4, 1, 1000)
+    close_range: float = bounded(0.6, 0.0, 5.0)
+    detour_steps: int = bounded(60, 0, 10_000)
+    tight_steps: int = bounded(100, 0, 10_000)
+    look_ahead: int = bounded(3, 1, 5)
+    """Steps looked ahead when no single one goes down the plan (1: none)."""
+    lattice_search: bool = one_of(True, (True, False))
+    """Search the step lattice when going round in circles."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "explorer")
+
+
 class ExplorerAgent(Agent):
     """Frontier exploration + colour goal detection + goal memory, all from RGB-D and pose."""
 
     sensors: ClassVar[tuple[str, ...]] = ("rgb", "depth", "goal", "gps", "compass")
     config_overrides: ClassVar[ConfigOverrides] = {}
-    cell_size: float = 0.1
-    map_size: int = 601  # ±30 m around the start: any house fits (up to about 25 m long)
-    depth_rays: int = 64  # depth is sampled on a 64 × 64 grid of pixels, whatever the resolution
-    found_distance: float = 1.0
-    replan_every: int = 8
-    wall_margin: float = 0.35
-    min_frontier_cells: int = 4
-    close_range: float = 0.6
-    detour_steps: int = 60
-    tight_steps: int = 100
-    look_ahead: int = 3  # steps looked ahead when no single one goes down the plan (1: none)
-    lattice_search: bool = True  # search the step lattice when going round in circles
     camera: CameraModel = CameraModel()
     motion: Motion = Motion()
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(self, seed: int = 0, settings: ExplorerSettings = ExplorerSettings()) -> None:
         super().__init__(seed)
+        self.settings = settings
         self.times = StepTimes()  # over the agent's life, for `multion bench --only explorer`
         self.reset()
+
+    def recorded_settings(self) -> dict[str, Any]:
+        return asdict(self.settings)
 
     def configure(self, config: EnvConfigDict) -> None:
         """The camera model and action magnitudes of the environment (``camera``, ``agent``)."""
@@ -126,10 +146,10 @@ class ExplorerAgent(Agent):
         self.reset()
 
     def reset(self) -> None:
-        self.grid = StartFrameGrid(self.map_size, self.cell_size)
+        self.grid = StartFrameGrid(self.settings.map_size, self.settings.cell_size)
         self.map = SemanticMap(self.grid)
         self._projector: DepthProjector | None = None
-        self._blocked = np.zeros((self.map_size, self.map_size), dtype=bool)
+        self._blocked = np.zeros((self.settings.map_size, self.settings.map_size), dtype=bool)
         self._steps = FieldSteps(self.grid, self.motion)  # refused headings, steps planned ahead
         self._given_up = np.zeros_like(self._blocked)
         self._passable = np.ones_like(self._blocked)
@@ -193,7 +213,7 @@ class ExplorerAgent(Agent):
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
-            self._paint_disc(self._around_path, position, self.close_range, True)
+            self._paint_disc(self._around_path, position, self.settings.close_range, True)
             self.map.changed = True
         self._still = 0 if moved else self._still + 1
         if self._still > 2 * self.motion.headings and self._spin == 0:
@@ -210,7 +230,7 @@ class ExplorerAgent(Agent):
             else:
                 # stuck on the way to a remembered goal (pressing against a doorway the map
                 # thinks is open): explore elsewhere for a while, which finds another way in
-                self._detour = self.detour_steps
+                self._detour = self.settings.detour_steps
 
     def _decide(self, goal: int, goal_in_view: bool, position: np.ndarray, heading: float) -> int:
         goal_at = self.map.goal_position(goal)
@@ -247,9 +267,9 @@ class ExplorerAgent(Agent):
         assert self._field is not None
         self._since_plan += 1
         # the margin already dropped, yet no single step goes down the plan: look further ahead
-        look_ahead = self.look_ahead if self._tight > 0 else 1
+        look_ahead = self.settings.look_ahead if self._tight > 0 else 1
         action = self._steps.action(
-            self._field, self._passable, position, heading, look_ahead, self.lattice_search
+            self._field, self._passable, position, heading, look_ahead, self.settings.lattice_search
         )
         if action is None:
             # a local minimum of the field (map changed under the plan): re-plan, look around
@@ -273,7 +293,7 @@ class ExplorerAgent(Agent):
     def _perceive(self, observation: Observation, position: np.ndarray, heading: float) -> set[int]:
         depth, rgb = observation["depth"], observation["rgb"]
         if self._projector is None:
-            stride = max(1, depth.shape[1] // self.depth_rays)
+            stride = max(1, depth.shape[1] // self.settings.depth_rays)
             self._projector = DepthProjector(depth.shape[:2], self.camera, stride)
         detections = goal_shaped(detect_goals(rgb), depth, self.camera)
         self.map.integrate(self._projector, depth, detections, position, heading)
@@ -289,7 +309,7 @@ class ExplorerAgent(Agent):
         box round them, to stay cheap every step.
         """
         # outside the box round the obstacles nothing is inflated: passable = not refused
-        r0, r1, c0, c1 = self.map.obstacle_extent.box(2, self.map_size)
+        r0, r1, c0, c1 = self.map.obstacle_extent.box(2, self.settings.map_size)
         if self._tight > 0:  # walled in by the margin: only the obstacles themselves block
             inflated = self.map.obstacle[r0:r1, c0:c1]
         else:  # one cell round each obstacle
@@ -305,7 +325,7 @@ class ExplorerAgent(Agent):
         for centre in (position, self._target_point):
             if centre is not None:
                 known = _union(known, self._disc_box(centre, 1.0))
-        box = _grown(known, 8, self.map_size)
+        box = _grown(known, 8, self.settings.map_size)
         self._since_plan = 0
         if self._target is None or self._target[0] != "goal":
             self._field = self._field_to(self._frontier(self._passable), box)
@@ -327,12 +347,17 @@ class ExplorerAgent(Agent):
     def _squeeze(self) -> None:
         """Plan over the obstacles alone, without the margin round them, for ``tight_steps``
         steps; the simulator refuses what is really too tight."""
-        self._tight = self.tight_steps
+        self._tight = self.settings.tight_steps
         self._refresh_passable()
 
     def _field_to(self, sources: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         return cropped_distance_field(
-            self._passable, sources, self.cell_size, box, self.wall_margin, slowest=0.3
+            self._passable,
+            sources,
+            self.settings.cell_size,
+            box,
+            self.settings.wall_margin,
+            slowest=0.3,
         )
 
     def _frontier(self, passable: np.ndarray) -> np.ndarray:
@@ -340,7 +365,7 @@ class ExplorerAgent(Agent):
         out = np.zeros_like(passable)
         if self.map.explored_extent.empty:
             return out
-        r0, r1, c0, c1 = self.map.explored_extent.box(1, self.map_size)
+        r0, r1, c0, c1 = self.map.explored_extent.box(1, self.settings.map_size)
         window = np.s_[r0:r1, c0:c1]
         free = self.map.free[window] & passable[window]
         unknown = ~self.map.explored_within((r0, r1, c0, c1))
@@ -353,11 +378,11 @@ class ExplorerAgent(Agent):
             return out
         sizes = np.bincount(labels.ravel())
         sizes[0] = 0
-        out[window] = sizes[labels] >= self.min_frontier_cells
+        out[window] = sizes[labels] >= self.settings.min_frontier_cells
         return out
 
     def _needs_frontier_replan(self, position: np.ndarray) -> bool:
-        if self._field is None or self._since_plan >= self.replan_every:
+        if self._field is None or self._since_plan >= self.settings.replan_every:
             return True
         arrived = float(self.grid.lookup(self._field, position, outside=np.inf)) < 0.3
         if arrived:
@@ -384,8 +409,8 @@ class ExplorerAgent(Agent):
         cells = self.grid.to_xy(rows, cols)
         # from each cell towards the goal, stopping a cell short of the goal's own cell
         gaps = np.hypot(*(cells - centre).T)
-        reach = np.clip(1.0 - self.cell_size / np.maximum(gaps, 1e-9), 0.0, 1.0)
-        t = np.linspace(0.0, 1.0, int(math.ceil(2 * radius / self.cell_size)) + 2)
+        reach = np.clip(1.0 - self.settings.cell_size / np.maximum(gaps, 1e-9), 0.0, 1.0)
+        t = np.linspace(0.0, 1.0, int(math.ceil(2 * radius / self.settings.cell_size)) + 2)
         t = t[None, :] * reach[:, None]
         points = cells[:, None, :] + t[:, :, None] * (centre - cells)[:, None, :]
         blocked = self.grid.lookup(self.map.obstacle, points, outside=True).any(axis=1)
@@ -395,15 +420,15 @@ class ExplorerAgent(Agent):
     def _close_enough(self, position: np.ndarray, goal_at: np.ndarray, in_view: bool) -> bool:
         assert self._field is not None
         gap = float(np.hypot(*(goal_at - position)))
-        if self._stuck > 0 and gap <= self.found_distance + 0.3:
+        if self._stuck > 0 and gap <= self.settings.found_distance + 0.3:
             # cannot get any nearer, but in a straight free line this is still well inside the
             # 1.5 m success radius
             return self._straight_and_free(position, goal_at)
-        if gap > self.found_distance:
+        if gap > self.settings.found_distance:
             return False
         # the field measures the way to the ring aimed at; add its radius for the way to the goal
         along_map = interpolate(self.grid, self._field, position) + GOAL_RADII[self._aim]
-        if along_map > self.found_distance + 0.5:
+        if along_map > self.settings.found_distance + 0.5:
             return False
         if in_view:
             # seen over something low (a bed, a table) is not near: the way round can be long
@@ -423,11 +448,11 @@ class ExplorerAgent(Agent):
     def _segment(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Points from ``start`` towards ``end``, stopping a cell short of ``end``."""
         gap = float(np.hypot(*(end - start)))
-        t = np.linspace(0.0, max(0.0, 1.0 - self.cell_size / max(gap, 1e-9)), 12)[:, None]
+        t = np.linspace(0.0, max(0.0, 1.0 - self.settings.cell_size / max(gap, 1e-9)), 12)[:, None]
         return (1 - t) * start[None, :] + t * end[None, :]
 
     def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
-        mask = np.zeros((self.map_size, self.map_size), dtype=bool)
+        mask = np.zeros((self.settings.map_size, self.settings.map_size), dtype=bool)
         r0, r1, c0, c1, inside = self._disc_window(centre, radius)
         mask[r0:r1, c0:c1] = inside
         return mask
@@ -437,14 +462,14 @@ class ExplorerAgent(Agent):
     ) -> tuple[int, int, int, int, np.ndarray]:
         """The cells within ``radius`` of ``centre``'s cell, as a box (row0, row1, col0, col1)
         on the map and the disc's mask inside it (clipped at the map's edges)."""
-        cells = int(math.ceil(radius / self.cell_size))
+        cells = int(math.ceil(radius / self.settings.cell_size))
         whole = self._disc_masks.get(radius)
         if whole is None:
             rr, cc = np.mgrid[-cells : cells + 1, -cells : cells + 1]
-            whole = self._disc_masks[radius] = np.hypot(rr, cc) * self.cell_size <= radius
+            whole = self._disc_masks[radius] = np.hypot(rr, cc) * self.settings.cell_size <= radius
         row, col = (int(v) for v in self.grid.to_cell(centre))
-        r0, r1 = max(0, row - cells), min(self.map_size, row + cells + 1)
-        c0, c1 = max(0, col - cells), min(self.map_size, col + cells + 1)
+        r0, r1 = max(0, row - cells), min(self.settings.map_size, row + cells + 1)
+        c0, c1 = max(0, col - cells), min(self.settings.map_size, col + cells + 1)
         r1, c1 = max(r0, r1), max(c0, c1)
         mask = whole[r0 - row + cells : r1 - row + cells, c0 - col + cells : c1 - col + cells]
         return r0, r1, c0, c1, mask
@@ -461,7 +486,7 @@ class ExplorerAgent(Agent):
         r0, _, c0, _, inside = self._disc_window(centre, radius)
         rows, cols = np.nonzero(inside)
         if len(rows) == 0:
-            return self.map_size, 0, self.map_size, 0
+            return self.settings.map_size, 0, self.settings.map_size, 0
         return (
             r0 + int(rows.min()),
             r0 + int(rows.max()) + 1,

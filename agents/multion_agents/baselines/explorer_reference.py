@@ -227,7 +227,7 @@ class ReferenceExplorerAgent(ExplorerAgent):
     def _perceive(self, observation: Observation, position: np.ndarray, heading: float) -> set[int]:
         depth, rgb = observation["depth"], observation["rgb"]
         if self._projector is None:
-            stride = max(1, depth.shape[1] // self.depth_rays)
+            stride = max(1, depth.shape[1] // self.settings.depth_rays)
             self._projector = ReferenceDepthProjector(depth.shape[:2], self.camera, stride)
         detections = reference_goal_shaped(reference_detect_goals(rgb), depth, self.camera)
         self.map.integrate(self._projector, depth, detections, position, heading)
@@ -246,7 +246,7 @@ class ReferenceExplorerAgent(ExplorerAgent):
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
-            self._around_path |= self._disc(position, self.close_range)
+            self._around_path |= self._disc(position, self.settings.close_range)
             self.map.changed = True
         self._still = 0 if moved else self._still + 1
         if self._still > 2 * self.motion.headings and self._spin == 0:
@@ -261,7 +261,7 @@ class ReferenceExplorerAgent(ExplorerAgent):
             else:
                 # stuck on the way to a remembered goal (pressing against a doorway the map
                 # thinks is open): explore elsewhere for a while, which finds another way in
-                self._detour = self.detour_steps
+                self._detour = self.settings.detour_steps
 
     def _refresh_passable(self) -> None:
         """Passable = not within one cell of a seen obstacle, and not refused by the simulator.
@@ -313,7 +313,7 @@ class ReferenceExplorerAgent(ExplorerAgent):
             return frontier
         sizes = np.bincount(labels.ravel())
         sizes[0] = 0
-        return sizes[labels] >= self.min_frontier_cells
+        return sizes[labels] >= self.settings.min_frontier_cells
 
     def _step(self, position: np.ndarray, heading: float) -> int:
         assert self._field is not None
@@ -350,11 +350,11 @@ class ReferenceExplorerAgent(ExplorerAgent):
         return bool(self.grid.lookup(free, self._segment(start, end), outside=False).all())
 
     def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
-        mask = np.zeros((self.map_size, self.map_size), dtype=bool)
-        cells = int(math.ceil(radius / self.cell_size))
+        mask = np.zeros((self.settings.map_size, self.settings.map_size), dtype=bool)
+        cells = int(math.ceil(radius / self.settings.cell_size))
         row, col = (int(v) for v in self.grid.to_cell(centre))
-        r0, r1 = max(0, row - cells), min(self.map_size, row + cells + 1)
-        c0, c1 = max(0, col - cells), min(self.map_size, col + cells + 1)
+        r0, r1 = max(0, row - cells), min(self.settings.map_size, row + cells + 1)
+        c0, c1 = max(0, col - cells), min(self.settings.map_size, col + cells + 1)
         rr, cc = np.mgrid[r0:r1, c0:c1]
-        mask[r0:r1, c0:c1] = np.hypot(rr - row, cc - col) * self.cell_size <= radius
+        mask[r0:r1, c0:c1] = np.hypot(rr - row, cc - col) * self.settings.cell_size <= radius
         return mask

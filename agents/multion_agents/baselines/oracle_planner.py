@@ -27,10 +27,13 @@ at a tenth of the speed: the simulator then says which of them really block.
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+import sys
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
+from multion.ranges import bounded, check_fields
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.lattice_search import LatticeSearch, key_of
 from multion_agents.baselines.navigation import (
@@ -52,6 +55,26 @@ GOAL_CELLS = 1
 """Each goal is its own 0.1 m cell: the planner measures its distance to the goal's cells."""
 
 
+@dataclass(frozen=True)
+class OraclePlannerSettings:
+    """The planner's tunables, recorded in ``metrics.json``."""
+
+    found_distance: float = bounded(1.0, 0.0, 1.5, low_open=True)
+    """Map distance to the goal that calls FOUND (inside the task's 1.5 m success radius)."""
+    cut_off_found: float = bounded(0.5, 0.0, 1.5)
+    """Straight-line metres to a goal cell that call FOUND when the goal is cut off on the map."""
+    wall_margin: float = bounded(0.3, 0.0, 2.0)
+    """Metres kept round occupied cells when planning."""
+    stuck_visits: int = bounded(3, 1, sys.maxsize)
+    """Visits of one position (for one goal) that start a lattice search (``sys.maxsize``:
+    never, as the DAgger expert of ``learned/expert.py``)."""
+    search_progress: float = bounded(1.0, 0.0, 20.0, low_open=True)
+    """Metres down the field that end a lattice search."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "oracle_planner")
+
+
 class OraclePlannerAgent(Agent):
     """Fast-marching planner on the oracle map, following the path with GPS + compass."""
 
@@ -59,19 +82,17 @@ class OraclePlannerAgent(Agent):
     config_overrides: ClassVar[ConfigOverrides] = {
         "maps": {"cell_size": CELL_SIZE, "ego_size": EGO_SIZE, "goal_cells": GOAL_CELLS}
     }
-    found_distance: float = 1.0
-    cut_off_found: float = 0.5
-    """Straight-line metres to a goal cell that call FOUND when the goal is cut off on the map."""
-    wall_margin: float = 0.3
-    stuck_visits: int = 3
-    """Visits of one position (for one goal) that start a lattice search."""
-    search_progress: float = 1.0
-    """Metres down the field that end a lattice search."""
     motion: Motion = Motion()
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(
+        self, seed: int = 0, settings: OraclePlannerSettings = OraclePlannerSettings()
+    ) -> None:
         super().__init__(seed)
+        self.settings = settings
         self.reset()
+
+    def recorded_settings(self) -> dict[str, Any]:
+        return asdict(self.settings)
 
     def configure(self, config: EnvConfigDict) -> None:
         """Checks the oracle map's geometry; takes the action magnitudes (``agent``)."""
@@ -180,7 +201,9 @@ class OraclePlannerAgent(Agent):
             sources = self._frontier(passable)
         cell = self._grid.cell_size
         self._moves, self._cut_off = passable, False
-        field = distance_field(passable, nearest_free(sources, passable, 5), cell, self.wall_margin)
+        field = distance_field(
+            passable, nearest_free(sources, passable, 5), cell, self.settings.wall_margin
+        )
         if np.isfinite(interpolate(self._grid, field, position)):
             return field
         self._cut_off = True
@@ -188,7 +211,9 @@ class OraclePlannerAgent(Agent):
         relaxed = passable | ((self._layers[..., 0] == MAP_OCCUPIED) & ~self._refused)
         self._moves = relaxed
         targets = nearest_free(sources, relaxed, 5)
-        return distance_field(relaxed, targets, cell, self.wall_margin, crawl=relaxed & ~passable)
+        return distance_field(
+            relaxed, targets, cell, self.settings.wall_margin, crawl=relaxed & ~passable
+        )
 
     def _searched_action(self, position: np.ndarray, heading: float) -> int | None:
         """The lattice search's action while the field goes round in circles, else None."""
@@ -199,12 +224,12 @@ class OraclePlannerAgent(Agent):
         if self._at_goal(position, here) or index is None:
             return None
         visits = self._visits[key_of(position)] = self._visits.get(key_of(position), 0) + 1
-        if self._search is None and visits >= self.stuck_visits:
+        if self._search is None and visits >= self.settings.stuck_visits:
             self._search, self._search_from = LatticeSearch(self.motion), here
             self.searches += 1
         if self._search is None:
             return None
-        if here <= self._search_from - self.search_progress:
+        if here <= self._search_from - self.settings.search_progress:
             self._search, self._visits = None, {}  # out of the trap
             return None
         action = self._search.act(position, index, lambda p: float(interpolate(grid, field, p)))
@@ -231,7 +256,7 @@ class OraclePlannerAgent(Agent):
         """Time for FOUND: the goal is on the map and the plan says it is near."""
         if not (self._layers[..., 1] == self._goal + 1).any():  # type: ignore[operator]
             return False
-        return here <= self.found_distance or self._near_cut_off_goal(position)
+        return here <= self.settings.found_distance or self._near_cut_off_goal(position)
 
     def _near_cut_off_goal(self, position: np.ndarray) -> bool:
         """A goal whose cells the map cuts off (val-2-on-00650: the plan's crawl through occupied
@@ -242,7 +267,10 @@ class OraclePlannerAgent(Agent):
         assert self._grid is not None
         rows, cols = np.nonzero(self._layers[..., 1] == self._goal + 1)  # type: ignore[operator]
         gaps = self._grid.to_xy(rows, cols) - position
-        return bool(len(gaps)) and float(np.hypot(gaps[..., 0], gaps[..., 1]).min()) <= self.cut_off_found
+        return (
+            bool(len(gaps))
+            and float(np.hypot(gaps[..., 0], gaps[..., 1]).min()) <= self.settings.cut_off_found
+        )
 
     def _frontier(self, passable: np.ndarray) -> np.ndarray:
         unknown = self._layers[..., 0] == MAP_UNKNOWN

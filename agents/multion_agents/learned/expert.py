@@ -21,10 +21,12 @@ import numpy as np
 from multion.api.config_io import env_config_to_dict
 from multion.task.env import MultiONEnv
 from multion.task.maps import MapConfig, OracleMap
-from multion_agents.baselines.oracle_planner import OraclePlannerAgent
+from multion_agents.baselines.oracle_planner import OraclePlannerAgent, OraclePlannerSettings
 from multion_agents.learned.rollout_envs import EXPERT_ACTION
 
 EXPERT_SENSORS = ("goal", "gps", "compass")
+EXPERT_SETTINGS = OraclePlannerSettings(stuck_visits=sys.maxsize)
+"""The planner as the expert: without lattice searches (see ``OraclePlannerLabels``)."""
 """Sensors the expert reads each step (the training env adds them; the policy ignores them)."""
 
 
@@ -38,13 +40,12 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
             raise ValueError(f"the expert needs sensors {missing} in the env config")
         super().__init__(env)
         self._multion = env
-        self.planner = OraclePlannerAgent()
-        """The expert (``replans`` counts what it had to redo)."""
         # no lattice searches: they answer the planner's own loops, but a learner turning on the
         # spot comes back to a position every step, and labels would then be search moves most
         # of the time (87 % of a random learner's steps in val houses); labels stay a function
         # of the state and the map
-        self.planner.stuck_visits = sys.maxsize
+        self.planner = OraclePlannerAgent(settings=EXPERT_SETTINGS)
+        """The expert (``replans`` counts what it had to redo)."""
         maps = OraclePlannerAgent.config_overrides["maps"]
         self._map_config = MapConfig(**maps)
         # the planner acts in this env, with its own oracle map (the env's may be coarser)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -43,109 +43,21 @@ from multion_agents.learned.distributed import (
 from multion_agents.learned.env_groups import make_env_groups
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
-from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy, hidden_size_of
-from multion_agents.learned.pretrain import MapPretraining, check_map_pretraining, pretrain_map
+from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
+from multion_agents.learned.pretrain import check_map_pretraining, pretrain_map
 from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import (
     NO_LABEL,
     SUMMARY_METRICS,
-    Curriculum,
     check_curriculum,
     stage_config,
     training_env_config,
 )
+from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_log import TrainingLog, plot_learning_curve
 from multion_client.constants import Action
 
 FOUND = int(Action.FOUND)
-
-
-@dataclass
-class Args:
-    """A training run. Defaults are the reference configuration's PPO (saimwani/multiON,
-    ``ppo_multinav.yaml``; SPEC §6): 16 environments, learning rate and clip range decayed
-    linearly to zero over the run, advantages not normalised. docs/learned.md lists what still
-    differs from the paper."""
-
-    agent: str = "oracle-map"
-    """Model name, one of ``multion_agents.learned.models.MODELS``."""
-    task: str = "1-on"
-    frames: int = 1_000_000
-    """Environment steps to train for, summed over all ranks."""
-    envs: int = 16
-    """Environments per rank (the paper: 16)."""
-    servers: tuple[str, ...] = ()
-    """MultiON server URLs to step the environments on; empty: local simulator processes."""
-    image_size: int = 256
-    """Camera width = height (the paper: 256)."""
-    hidden_size: int = HIDDEN_SIZE
-    """GRU units (the reference: 768, ``ppo_multinav.yaml``), 1–4096."""
-    seed: int = 1
-    out: str = "runs/train"
-    """Directory for checkpoint.pt, progress.csv, eval.csv, TensorBoard and learning_curve.png."""
-    rollout_steps: int = 128
-    learning_rate: float = 2.5e-4
-    clip: float = 0.2
-    lr_decay: bool = True
-    """Decay the learning rate linearly to 0 over the run (reference: use_linear_lr_decay)."""
-    clip_decay: bool = True
-    """Decay the clip range (policy and value) linearly to 0 over the run (reference:
-    use_linear_clip_decay)."""
-    normalize_advantages: bool = False
-    """Normalise advantages per rollout (reference: use_normalized_advantage False; this
-    trainer's earlier default was True)."""
-    epochs: int = 2
-    minibatches: int = 4
-    """Mini-batches per epoch (at most the number of environments per rank)."""
-    value_coef: float = 0.5
-    entropy_coef: float = 0.01
-    aux_coef: float = 1.0
-    """Weight of a model's auxiliary loss (ObjRecogMap's recogniser)."""
-    imitation_coef: float = 0.0
-    """Weight of the cross-entropy between the policy and the oracle planner's action at each
-    step the learner takes (0: none, the paper's pure PPO). The learner stays in control
-    (DAgger's labels, ``learned/expert.py``); needs local environments."""
-    pretrain_map: MapPretraining = field(default_factory=MapPretraining)
-    """Before PPO, train the policy with supervision on oracle-map crops at random poses
-    (``learned/pretrain.py``; ``steps`` 0: not at all, as in the paper). Needs an agent that
-    reads ``oracle_map``; skipped on ``resume`` (the checkpoint holds it)."""
-    max_grad_norm: float = 0.2
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    checkpoint_every: int = 10
-    """Save a checkpoint every N updates (and at the end)."""
-    eval_every: int = 0
-    """Evaluate on val episodes every N frames (0: only at the end if eval_episodes > 0)."""
-    eval_episodes: int = 0
-    """Val episodes per evaluation (evenly spaced over the packaged val set)."""
-    resume: bool = False
-    """Continue from ``out/checkpoint.pt``."""
-    threads: int = 1
-    """torch threads per rank. 1 is fastest when simulator processes share the cores: with
-    more, OpenMP threads spin against the simulators (20× slower steps measured on 2 cores)."""
-    update_threads: int = 0
-    """torch threads for the PPO update, while the simulators wait (0: this rank's share of the
-    machine's cores)."""
-    found_prior: float | None = None
-    """Initial probability of FOUND (None: uniform, 1/4, as in the paper). A small value keeps
-    the untrained policy from ending most episodes by a wrong FOUND in its first steps, which
-    otherwise teaches it early that FOUND ends the slack penalty (see docs/learned.md)."""
-    episodes_per_scene: int = 25
-    curriculum: Curriculum = ()
-    """``((until_frames, max_geodesic), ...)``: easier online episodes first (goals within
-    ``max_geodesic`` metres) until each stage's frame count, then the task's own
-    (``rollout_envs.stage_config``). Each stage starts fresh environments and episodes."""
-    max_steps: int | None = None
-    """Step limit of *training* episodes (None: the task's 2500); evaluation always uses 2500."""
-    env_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
-    """Environment config changes for training, e.g. ``{"task": {"wrong_found_penalty": 2.5}}``."""
-    dataset: str | None = None
-    """Train on the episodes of this dataset file instead of sampling train-split episodes."""
-    device: str = "auto"
-    tensorboard: bool = True
-    progress: bool = True
-    extra: dict[str, Any] = field(default_factory=dict)
-    """Free-form notes stored in the checkpoint (e.g. the command line)."""
 
 
 def set_found_prior(policy: RecurrentPolicy, probability: float) -> None:
@@ -303,12 +215,8 @@ def train(args: Args) -> dict[str, Any]:
     # camera even if the env's defaults change later
     env_config = env_config_to_dict(env_config_from_dict(env_config))
     check_curriculum(args.curriculum, env_config)
-    if not 0.0 <= args.imitation_coef <= 100.0:
-        raise ValueError(f"--imitation-coef must be in [0, 100], got {args.imitation_coef}")
     check_map_pretraining(args.pretrain_map, args.agent, spec.sensors)
     torch.manual_seed(args.seed)  # identical initial weights on every rank
-    if not 1 <= args.hidden_size <= 4096:
-        raise ValueError(f"--hidden-size must be in [1, 4096], got {args.hidden_size}")
     policy = build_policy(args.agent, env_config, args.hidden_size).to(device)
     if args.found_prior is not None:
         set_found_prior(policy, args.found_prior)

@@ -6,7 +6,7 @@ episodes they are wide; that is the honest answer.
 Files written to the output directory:
 
 * ``metrics.json``: the aggregates and the run's configuration (agent, task, split, episodes,
-  seed, server, the ``--set`` overrides, the environment config as sent and with every default
+  seed, server, the agent's own settings, the ``--set`` overrides, the environment config as sent and with every default
   filled in, the dataset file's SHA-256, package versions);
 * ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings);
 * ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion.pictures`).
@@ -113,6 +113,7 @@ def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]
         "dataset": s.dataset,
         "checkpoint": s.checkpoint,
         "deterministic": s.deterministic,
+        "agent_settings": result.agent_settings,
         "server": result.server,
         "max_steps": s.max_steps,
         "image_size": s.image_size,

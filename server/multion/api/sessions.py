@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import logging
+import secrets
 import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
 from multion.task.env import check_reset_options
+from multion.task.errors import BadResetOptionError
 from multion.task.memory import estimate_env_bytes, mib
 from multion_client import errors
 from multion_client.constants import ACTIONS_TEXT, action_id
@@ -366,10 +368,12 @@ class SessionRegistry:
             ),
             return_exceptions=True,
         )
-        for result in results:
+        for sh, result in zip(shards, results, strict=True):
             if isinstance(result, BaseException):
                 raise result
             header, _ = result
+            if "traceback" in header:
+                raise _simulator_bug(header["traceback"], sh.worker)
             if not header["ok"]:
                 raise errors.error_from_code(header["code"], header["message"])
         return results  # type: ignore[return-value]
@@ -417,11 +421,22 @@ def _check_actions(actions: list[Any], n: int) -> list[int]:
     return checked
 
 
+def _simulator_bug(worker_traceback: str, worker: Worker) -> errors.InternalError:
+    """Log a bug in a worker under an incident number; the client gets only that number (the
+    exception's text can name files and internals). The session stays open, as the worker
+    keeps its environments."""
+    incident = secrets.token_hex(4)
+    log.error("incident %s: simulator worker %s: %s", incident, worker.pid, worker_traceback)
+    return errors.InternalError(
+        f"the simulator failed on this request (incident {incident}); retry later"
+    )
+
+
 def _check_options(options: list[Any]) -> None:
     for index, option in enumerate(options):
         try:
             check_reset_options(option or {})
-        except ValueError as error:
+        except BadResetOptionError as error:
             raise errors.BadRequest(f"environment {index}: {error}") from None
 
 

@@ -10,18 +10,29 @@ server splices into its HTTP response without decoding them. This module never i
 from __future__ import annotations
 
 import os
+import traceback
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.processes import give_back_memory, ignore_stop_signals, limit_address_space
-from multion.task.dataset import DatasetError
-from multion.task.env import EpisodeOverError, MultiONEnv
+from multion.task.env import MultiONEnv
+from multion.task.errors import (
+    BadEpisodeError,
+    BadResetOptionError,
+    DatasetError,
+    EpisodeNotFoundError,
+    EpisodeOverError,
+    IllegalActionError,
+)
 from multion_client import errors
 from multion_client.protocol import encode, encode_items, space_to_wire
 
 Reply = tuple[dict[str, Any], list[bytes]]
+
+INTERNAL_FAILURE = "the simulator failed on this request"
+"""All a client learns of a bug in the simulator; the traceback goes to the server's log."""
 
 
 @dataclass
@@ -66,7 +77,11 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
 
 
 def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) -> Reply:
-    """Run one command; every failure becomes an error header with a code and a message."""
+    """Run one command; every failure becomes an error header with a code and a message.
+
+    The env's :mod:`~multion.task.errors` (bad input) are mapped to 4xx codes by name in the
+    commands below; anything else is a bug: its header carries a generic message for the client
+    and, under ``traceback``, the traceback that the server logs (``sessions.py``)."""
     try:
         if command == "create":
             return _create(shards, shard_id, payload)
@@ -88,9 +103,9 @@ def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) 
         return {"ok": False, "code": error.code, "message": error.message}, []
     except MemoryError:
         raise
-    except Exception as error:  # noqa: BLE001 - a worker must answer, whatever happened
-        message = f"{command} failed in the simulator: {type(error).__name__}: {error}"
-        return {"ok": False, "code": errors.InternalError.code, "message": message}, []
+    except Exception:  # noqa: BLE001 - a worker must answer, whatever happened
+        header = {"ok": False, "code": errors.InternalError.code, "message": INTERNAL_FAILURE}
+        return {**header, "traceback": f"{command} failed:\n{traceback.format_exc()}"}, []
 
 
 def _create(shards: dict[str, Shard], shard_id: str, payload: dict[str, Any]) -> Reply:
@@ -113,9 +128,10 @@ def _reset(shard: Shard, seeds: list[int | None], options: list[dict[str, Any] |
     for index, (env, seed, option) in enumerate(zip(shard.envs, seeds, options, strict=True)):
         try:
             results.append(env.reset(seed=seed, options=option))
-        except (DatasetError, IndexError, KeyError, ValueError, TypeError) as error:
-            text = error.args[0] if isinstance(error, KeyError) and error.args else error
-            raise errors.InvalidEpisode(f"reset of environment {index} failed: {text}") from None
+        except (EpisodeNotFoundError, BadEpisodeError, DatasetError) as error:
+            raise errors.InvalidEpisode(f"reset of environment {index} failed: {error}") from None
+        except BadResetOptionError as error:  # the server checked them: only direct callers
+            raise errors.BadRequest(f"environment {index}: {error}") from None
     shard.observations = [obs for obs, _ in results]
     shard.infos = [info for _, info in results]
     return _observations(shard)
@@ -131,7 +147,7 @@ def _step(shard: Shard, actions: list[Any]) -> Reply:
             obs, reward, term, trunc, info = env.step(action)
         except EpisodeOverError as error:
             raise errors.EpisodeOver(f"environment {index}: {error}") from None
-        except ValueError as error:
+        except IllegalActionError as error:
             raise errors.InvalidAction(f"environment {index}: {error}") from None
         if shard.auto_reset and (term or trunc):
             # Gymnasium SAME_STEP autoreset: the next episode's first observation, with the

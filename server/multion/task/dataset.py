@@ -32,16 +32,13 @@ from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import AgentConfig
 from multion.task.episode import Episode, Goal
+from multion.task.errors import DatasetError
 from multion.task.step_reach import step_headings, steps_reach_goals
 from multion_client.constants import NUM_CATEGORIES
 
 FORMAT = "multion-episodes"
 VERSION = 3
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "datasets"
-
-
-class DatasetError(ValueError):
-    """A dataset file that cannot be used; the message names the file and the problem."""
 
 
 @dataclass(frozen=True)

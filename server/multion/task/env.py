@@ -16,10 +16,9 @@ from multion.scenes.registry import SPLITS, scene_ids
 from multion.sim.camera import CameraConfig
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.goal_objects import OBJECT_GOAL_SETS, goal_yaw
-from multion.sim.navgrid import NavGridConfig
+from multion.sim.navgrid import NavGrid, NavGridConfig
 from multion.sim.simulator import AgentConfig, Simulator
 from multion.task.dataset import (
-    DatasetError,
     EpisodeConstraints,
     load_dataset,
     packaged_dataset_path,
@@ -27,6 +26,14 @@ from multion.task.dataset import (
     variant_name,
 )
 from multion.task.episode import Episode
+from multion.task.errors import (
+    BadEpisodeError,
+    BadResetOptionError,
+    DatasetError,
+    EpisodeNotFoundError,
+    EpisodeOverError,
+    IllegalActionError,
+)
 from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
 from multion_client.constants import (
@@ -64,10 +71,6 @@ RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
 }
 """What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
 its id, or inline; with their types."""
-
-
-class EpisodeOverError(RuntimeError):
-    """``step`` was called after the episode ended; call ``reset``."""
 
 
 @dataclass(frozen=True)
@@ -238,7 +241,13 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     def _next_episode(self, options: dict[str, Any]) -> Episode:
         if "episode" in options:
             episode = options["episode"]
-            return episode if isinstance(episode, Episode) else Episode.from_dict(episode)
+            if isinstance(episode, Episode):
+                return episode
+            try:
+                return Episode.from_dict(episode)
+            except (KeyError, TypeError, ValueError) as error:
+                problem = f"no field {error}" if isinstance(error, KeyError) else str(error)
+                raise BadEpisodeError(f"malformed inline episode: {problem}") from None
         if self.episodes is None:
             if (
                 self._online_scene is None
@@ -266,18 +275,26 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         if "episode_index" in options:
             index = int(options["episode_index"])
             if not 0 <= index < len(self.episodes):
-                raise IndexError(
+                raise EpisodeNotFoundError(
                     f"episode_index {index} is out of range 0..{len(self.episodes) - 1}"
                 )
             self._cursor = index
         elif "episode_id" in options:
             ids = [e.episode_id for e in self.episodes]
             if options["episode_id"] not in ids:
-                raise KeyError(f"unknown episode_id {options['episode_id']!r}")
+                raise EpisodeNotFoundError(f"unknown episode_id {options['episode_id']!r}")
             self._cursor = ids.index(options["episode_id"])
         episode = self.episodes[self._cursor % len(self.episodes)]
         self._cursor = (self._cursor + 1) % len(self.episodes)
         return episode
+
+    def _load_scene(self, episode: Episode, inline: bool) -> NavGrid:
+        if not inline:
+            return self.sim.load_scene(episode.scene_id)
+        try:  # a scene id the caller wrote: an unknown one is the caller's mistake
+            return self.sim.load_scene(episode.scene_id)
+        except (ValueError, OSError) as error:
+            raise BadEpisodeError(f"episode {episode.episode_id}: {error}") from None
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -286,17 +303,19 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         if seed is not None:
             integer = isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)
             if not (integer and 0 <= seed <= MAX_SEED):
-                raise ValueError(f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}")
+                raise BadResetOptionError(
+                    f"seed must be an int in [0, {MAX_SEED}], got {seed!r:.80}"
+                )
             seed = int(seed)
         check_reset_options(options or {})
         super().reset(seed=seed)
         if seed is not None and self.episodes:
             self._cursor = seed % len(self.episodes)
         episode = self._next_episode(dict(options or {}))
-        grid = self.sim.load_scene(episode.scene_id)
+        grid = self._load_scene(episode, inline="episode" in (options or {}))
         start = np.asarray(episode.start_position[:2], dtype=np.float64)
         if not bool(grid.is_navigable(start)):
-            raise DatasetError(
+            raise BadEpisodeError(
                 f"episode {episode.episode_id}: start {episode.start_position} is not navigable "
                 f"in {episode.scene_id}"
             )
@@ -310,7 +329,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         for index, field_ in enumerate(self._fields):
             d = float(grid.lookup(field_, previous, outside=np.inf))
             if not math.isfinite(d):
-                raise DatasetError(
+                raise BadEpisodeError(
                     f"episode {episode.episode_id}: goal {index} is unreachable in {episode.scene_id}"
                 )
             optimal.append(d)
@@ -546,23 +565,28 @@ def build_observation_space(config: EnvConfig) -> spaces.Dict:
 def _check_action(action: Any) -> int:
     value = action_id(action)
     if value is None:
-        raise ValueError(f"illegal action {action!r:.80}; actions are integers: {ACTIONS_TEXT}")
+        raise IllegalActionError(
+            f"illegal action {action!r:.80}; actions are integers: {ACTIONS_TEXT}"
+        )
     return value
 
 
 def check_reset_options(options: Mapping[str, Any]) -> None:
-    """Raise ValueError unless ``options`` holds at most one known reset option of the right type."""
+    """Raise :class:`BadResetOptionError` unless ``options`` holds at most one known reset option
+    of the right type."""
     unknown = sorted(set(options) - set(RESET_OPTIONS))
     if unknown:
-        raise ValueError(
+        raise BadResetOptionError(
             f"unknown reset option(s) {unknown}; reset options are {', '.join(RESET_OPTIONS)}"
         )
     if len(options) > 1:
-        raise ValueError(f"give at most one of the reset options {', '.join(RESET_OPTIONS)}")
+        raise BadResetOptionError(
+            f"give at most one of the reset options {', '.join(RESET_OPTIONS)}"
+        )
     for name, value in options.items():
         kind, text = RESET_OPTIONS[name]
         if isinstance(value, bool) or not isinstance(value, kind):
-            raise ValueError(f"reset option {name!r} must be {text}, got {value!r:.80}")
+            raise BadResetOptionError(f"reset option {name!r} must be {text}, got {value!r:.80}")
 
 
 def make_env(

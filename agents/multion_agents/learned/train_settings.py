@@ -1,0 +1,213 @@
+"""The settings of a training run (``Args``): each field's default, range and ``multion train``
+option in one place (``multion_agents.cli_fields``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from multion.task.dataset import parse_task
+from multion_agents.agent import ConfigOverrides
+from multion_agents.cli_fields import Option, check_settings, setting
+from multion_agents.config_overrides import parse_env_overrides
+from multion_agents.learned.policy import HIDDEN_SIZE, MAX_HIDDEN_SIZE
+from multion_agents.learned.pretrain import MapPretraining
+from multion_agents.learned.rollout_envs import Curriculum, parse_curriculum
+
+PPO = "PPO schedule (defaults follow the reference code, ppo_multinav.yaml)"
+
+
+def _task_name(text: str) -> str:
+    parse_task(text)  # a ValueError naming the known tasks
+    return text
+
+
+def _pretraining(steps: int) -> MapPretraining:
+    try:
+        return MapPretraining(steps=steps)
+    except ValueError as error:
+        raise ValueError(f"--pretrain-map: {error}") from None
+
+
+@dataclass(frozen=True)
+class Args:
+    """A training run. Defaults are the reference configuration's PPO (saimwani/multiON,
+    ``ppo_multinav.yaml``; SPEC §6): 16 environments, learning rate and clip range decayed
+    linearly to zero over the run, advantages not normalised. docs/learned.md lists what still
+    differs from the paper."""
+
+    agent: str = setting("oracle-map", cli=Option("model name (see --list)"))
+    """Model name, one of ``multion_agents.learned.models.MODELS``."""
+    task: str = setting("1-on", cli=Option("1-on … 8-on (default 1-on)", parse=_task_name))
+    frames: int = setting(1_000_000, low=1, cli=Option("environment steps, all ranks together"))
+    """Environment steps to train for, summed over all ranks."""
+    envs: int = setting(
+        16, low=1, cli=Option("environments per rank (default %(default)s, the paper's)")
+    )
+    servers: tuple[str, ...] = setting(
+        (),
+        cli=Option(
+            "step environments on this server URL (repeatable); default: local simulator processes",
+            flag="--server",
+            metavar="SERVER",
+            repeat=True,
+            parse=tuple,
+        ),
+    )
+    image_size: int = setting(256, low=1, cli=Option("camera width = height (paper 256)"))
+    hidden_size: int = setting(
+        HIDDEN_SIZE,
+        low=1,
+        high=MAX_HIDDEN_SIZE,
+        cli=Option(f"GRU units, 1-{MAX_HIDDEN_SIZE} (default %(default)s, the reference's)"),
+    )
+    seed: int = setting(1, cli=Option("seed of the policy, the environments and the episodes"))
+    out: str = setting(
+        "runs/train",
+        cli=Option(
+            "run directory (checkpoint.pt, progress.csv, eval.csv, tensorboard/, "
+            "learning_curve.png)"
+        ),
+    )
+    resume: bool = setting(False, cli=Option("continue from OUT/checkpoint.pt"))
+    checkpoint_every: int = setting(10, low=1, cli=Option("updates between checkpoints"))
+    """Save a checkpoint every N updates (and at the end)."""
+    eval_every: int = setting(
+        0, low=0, cli=Option("frames between val evaluations (0: only at the end)")
+    )
+    eval_episodes: int = setting(0, low=0, cli=Option("val episodes per evaluation (0: none)"))
+    """Val episodes per evaluation (evenly spaced over the packaged val set)."""
+    max_steps: int | None = setting(
+        None,
+        low=1,
+        integer=True,
+        cli=Option("step limit of training episodes (default: the task's 2500)"),
+    )
+    """Step limit of *training* episodes; evaluation always uses 2500."""
+    env_overrides: ConfigOverrides = setting(
+        default_factory=dict,
+        cli=Option(
+            "change the training env config, e.g. --set task.wrong_found_penalty=2.5 "
+            "--set maps.ego_size=25 (repeatable; values are JSON or strings)",
+            flag="--set",
+            metavar="SECTION.FIELD=VALUE",
+            repeat=True,
+            parse=parse_env_overrides,
+        ),
+    )
+    dataset: str | None = setting(
+        None,
+        cli=Option(
+            "train on this dataset file's episodes (default: sample train-split episodes online)"
+        ),
+    )
+    found_prior: float | None = setting(
+        None,
+        cli=Option("initial probability of FOUND (default: uniform, 0.25, as in the paper)"),
+    )
+    """A small value keeps the untrained policy from ending most episodes by a wrong FOUND in
+    its first steps, which otherwise teaches it early that FOUND ends the slack penalty (see
+    docs/learned.md). Its range, (0, 1), is checked by ``ppo.set_found_prior``."""
+    episodes_per_scene: int = setting(
+        25, low=1, cli=Option("online episodes sampled in one scene before the next scene")
+    )
+    pretrain_map: MapPretraining = setting(
+        default_factory=MapPretraining,
+        cli=Option(
+            "before PPO, train STEPS supervised steps on oracle-map crops at random poses "
+            "(0-20000; agents that read oracle_map; default 0, none, as in the paper; the v3 "
+            "recipe uses 1200, see docs/learned.md)",
+            metavar="STEPS",
+            kind=int,
+            parse=_pretraining,
+        ),
+    )
+    """``learned/pretrain.py``; skipped on ``resume`` (the checkpoint holds it)."""
+    curriculum: Curriculum = setting(
+        (),
+        cli=Option(
+            "easier episodes first: until FRAMES frames, online episodes keep each goal within "
+            "METRES (2-20) of the start or the previous goal (repeatable, increasing FRAMES; "
+            "e.g. --curriculum 240000:4 --curriculum 480000:10)",
+            metavar="FRAMES:METRES",
+            repeat=True,
+            parse=parse_curriculum,
+        ),
+    )
+    """Each stage starts fresh environments and episodes (``rollout_envs.stage_config``)."""
+    threads: int = setting(
+        1,
+        low=1,
+        cli=Option("torch threads per rank (default 1: fastest when simulators share the cores)"),
+    )
+    """With more, OpenMP threads spin against the simulators (20× slower steps measured on 2
+    cores)."""
+    update_threads: int = setting(
+        0,
+        low=0,
+        cli=Option(
+            "torch threads for PPO updates, while simulators wait (default 0: this rank's cores)"
+        ),
+    )
+    device: str = setting("auto", cli=Option("cpu, cuda, cuda:N or auto (cuda when available)"))
+    lr_decay: bool = setting(
+        True,
+        cli=Option("decay the learning rate linearly to 0 over the run", toggle=True, group=PPO),
+    )
+    clip_decay: bool = setting(
+        True,
+        cli=Option(
+            "decay the PPO clip range (policy and value) linearly to 0 over the run",
+            toggle=True,
+            group=PPO,
+        ),
+    )
+    normalize_advantages: bool = setting(
+        False, cli=Option("normalise advantages per rollout", toggle=True, group=PPO)
+    )
+    """The reference: use_normalized_advantage False; this trainer's earlier default was True."""
+    tensorboard: bool = setting(
+        True, cli=Option("write no TensorBoard logs", flag="--no-tensorboard", negate=True)
+    )
+    progress: bool = setting(True, cli=Option("no progress bar", flag="--quiet", negate=True))
+    rollout_steps: int = setting(
+        128, low=1, cli=Option("steps per environment between updates (default %(default)s)")
+    )
+    learning_rate: float = setting(
+        2.5e-4, low=0, low_open=True, cli=Option("Adam learning rate (default %(default)s)")
+    )
+    clip: float = setting(
+        0.2, low=0, low_open=True, cli=Option("PPO clip range (default %(default)s)")
+    )
+    epochs: int = setting(2, low=1, cli=Option("PPO epochs per update (default %(default)s)"))
+    minibatches: int = setting(
+        4, low=1, cli=Option("recurrent mini-batches per epoch (≤ envs) (default %(default)s)")
+    )
+    value_coef: float = setting(0.5, low=0, cli=Option("value loss weight (default %(default)s)"))
+    entropy_coef: float = setting(
+        0.01, low=0, cli=Option("entropy bonus weight (default %(default)s)")
+    )
+    aux_coef: float = setting(
+        1.0, low=0, cli=Option("auxiliary loss weight (ObjRecogMap) (default %(default)s)")
+    )
+    imitation_coef: float = setting(
+        0.0,
+        low=0,
+        high=100,
+        cli=Option(
+            "weight of the cross-entropy to oracle-planner's actions on the learner's states, "
+            "in [0, 100] (0: pure PPO, as in the paper) (default %(default)s)"
+        ),
+    )
+    """The learner stays in control (DAgger's labels, ``learned/expert.py``); needs local
+    environments."""
+    max_grad_norm: float = setting(
+        0.2, low=0, low_open=True, cli=Option("gradient clipping norm (default %(default)s)")
+    )
+    gamma: float = setting(0.99, low=0, high=1, cli=Option("discount (default %(default)s)"))
+    gae_lambda: float = setting(0.95, low=0, high=1, cli=Option("GAE lambda (default %(default)s)"))
+    extra: dict[str, Any] = setting(default_factory=dict)
+    """Free-form notes stored in the checkpoint (e.g. the command line)."""
+
+    def __post_init__(self) -> None:
+        check_settings(self)
