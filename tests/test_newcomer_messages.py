@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion_agents.config_overrides import parse_env_overrides
 from multion_agents.registry import LEARNED_AGENT_NAMES
 
@@ -34,7 +34,7 @@ def test_no_pybullet_banner_on_a_command() -> None:
 
 
 EGL_SCRIPT = """
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion.sim.camera import resolve_renderer
 from multion.task.env import MultiONEnv
 

@@ -15,10 +15,11 @@ from __future__ import annotations
 import os
 import time
 
-from multion.sim.camera import CameraConfig
+from multion.config.episode import Episode
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
 from multion.task.dataset import load_dataset, packaged_dataset_path
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode
+from multion.task.env import MultiONEnv
 from multion_agents.baselines.explorer import ExplorerAgent, StepTimes
 from multion_agents.baselines.explorer_reference import ReferenceExplorerAgent
 

@@ -29,9 +29,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
+from multion.config.episode import Episode
 from multion.pictures import gps_to_world
 from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
-from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
 
@@ -161,7 +161,7 @@ def check_overrides(overrides: ConfigOverrides) -> None:
 
 def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
     """Every field of ``config`` with defaults filled in; a ConfigError names a bad field."""
-    from multion.api.config_io import env_config_from_dict, env_config_to_dict
+    from multion.config.codec import env_config_from_dict, env_config_to_dict
 
     return env_config_to_dict(env_config_from_dict(config))
 
@@ -334,7 +334,7 @@ def remote_env_factory(url: str) -> EnvFactory:
 
 def local_env_factory() -> EnvFactory:
     """In-process environments (no server), e.g. for tests and debugging agents."""
-    from multion.api.config_io import session_config_from_dict
+    from multion.config.codec import session_config_from_dict
     from multion.task.env import MultiONEnv
 
     def make(config: dict[str, Any]) -> gym.Env:
@@ -410,7 +410,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
 
 
 def _requested_renderer(config: dict[str, Any]) -> str:
-    from multion.task.env import EnvConfig
+    from multion.config.task import EnvConfig
 
     return str(config.get("camera", {}).get("renderer", EnvConfig().camera.renderer))
 

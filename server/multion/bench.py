@@ -24,10 +24,12 @@ import gymnasium as gym
 import numpy as np
 
 from multion.api.cli_serve import add_http_stack_arguments
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
 from multion.sim import grid_cache, simulator
 from multion.sim.bullet import pybullet as p
-from multion.sim.camera import EGL_LIGHT_POSITION, CameraConfig, resolve_renderer
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.sim.camera import EGL_LIGHT_POSITION, resolve_renderer
+from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
 
 SCENE = "house-00061"

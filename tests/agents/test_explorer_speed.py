@@ -15,8 +15,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
+from multion.task.env import MultiONEnv
 from multion_agents.baselines import explorer_reference as ref
 from multion_agents.baselines.explorer import ExplorerAgent, _close
 from multion_agents.baselines.mapping import (

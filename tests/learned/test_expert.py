@@ -11,7 +11,7 @@ import pytest
 import torch
 from rollouts import SIZE, random_rollout, space_for
 
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.learned.env_groups import EnvGroups
 from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from multion.api.config_io import env_config_from_dict, env_config_to_dict
+from multion.config.codec import env_config_from_dict, env_config_to_dict
 from multion_agents.learned.checkpoint import build_policy, load_checkpoint
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.ppo import Args, train

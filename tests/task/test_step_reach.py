@@ -8,12 +8,13 @@ import math
 import numpy as np
 import pytest
 
+from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
 from multion.scenes.registry import scene_ids
 from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import EpisodeConstraints, can_step, iter_chunks, sample_episode
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.dataset import can_step, iter_chunks, sample_episode
+from multion.task.env import MultiONEnv
 from multion.task.step_reach import steps_reach_goals
 from v2_episodes import v2_episode
 

@@ -102,7 +102,7 @@ def build_policy(
 ) -> RecurrentPolicy:
     """The (untrained) policy of model ``agent`` for environments configured by ``env_config``,
     with a GRU of ``hidden_size`` units (768, the reference's, by default)."""
-    from multion.api.config_io import env_config_from_dict
+    from multion.config.codec import env_config_from_dict
     from multion.task.env import build_observation_space
 
     config = env_config_from_dict(env_config)

@@ -18,9 +18,10 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from multion.api.config_io import env_config_to_dict
+from multion.config.codec import env_config_to_dict
+from multion.config.task import MapConfig
 from multion.task.env import MultiONEnv
-from multion.task.maps import MapConfig, OracleMap
+from multion.task.maps import OracleMap
 from multion_agents.baselines.oracle_planner import OraclePlannerAgent
 from multion_agents.learned.rollout_envs import EXPERT_ACTION
 

@@ -67,9 +67,9 @@ class MapGeometry:
 
     @classmethod
     def from_env_config(cls, config: Any) -> MapGeometry:
-        """From a :class:`multion.task.env.EnvConfig` or its nested-dict form."""
+        """From a :class:`multion.config.task.EnvConfig` or its nested-dict form."""
         if isinstance(config, dict):
-            from multion.api.config_io import env_config_from_dict
+            from multion.config.codec import env_config_from_dict
 
             config = env_config_from_dict(config)
         camera, maps = config.camera, config.maps
@@ -96,7 +96,7 @@ class MapGeometry:
 
 def default_geometry() -> MapGeometry:
     """The geometry of the default environment config (for tests and quick experiments)."""
-    from multion.task.env import EnvConfig
+    from multion.config.task import EnvConfig
 
     return MapGeometry.from_env_config(EnvConfig())
 

@@ -75,7 +75,7 @@ def parse_curriculum(texts: Sequence[str]) -> Curriculum:
 def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None:
     """A ``ValueError`` (or the config's own ``ConfigError``, naming ``online_max_geodesic``
     and its range) before any environment starts, rather than at a stage switch."""
-    from multion.api.config_io import env_config_from_dict
+    from multion.config.codec import env_config_from_dict
 
     if not curriculum:
         return
@@ -98,7 +98,7 @@ def stage_config(env_config: dict[str, Any], curriculum: Curriculum, frames: int
 
 def _make_local_env(config: dict[str, Any], expert: bool = False) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
-    from multion.api.config_io import env_config_from_dict
+    from multion.config.codec import env_config_from_dict
     from multion.task.env import MultiONEnv
 
     if not expert:

@@ -15,8 +15,8 @@ import subprocess
 import sys
 import time
 
-from multion.api.config_io import env_config_from_dict
 from multion.api.local_server import LocalServer
+from multion.config.codec import env_config_from_dict
 from multion.task.memory import estimate_env_bytes, mib
 
 LARGEST: dict = {
@@ -30,7 +30,7 @@ LARGEST: dict = {
 
 _PEAK_PROBE = """
 import json, sys
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 
 def status(key):

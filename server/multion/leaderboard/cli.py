@@ -32,8 +32,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from multion.config.episode import Episode
     from multion.leaderboard.challenge import Challenge
-    from multion.task.episode import Episode
 
 DEFAULT_DATABASE = "sqlite:///leaderboard.db"
 
