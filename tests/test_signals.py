@@ -20,7 +20,7 @@ import pytest
 from multion.api.local_server import free_port
 from process_tree import alive, descendants
 
-MULTION = [sys.executable, "-m", "multion.cli"]
+MULTION = [sys.executable, "-m", "multion_agents.cli"]
 
 
 def commands(tmp: Path) -> dict[str, tuple[list[str], int]]:

@@ -256,7 +256,7 @@ def test_fast_and_reference_explorers_act_alike_on_a_val_episode() -> None:
 def test_the_explorer_bench_times_both_agents_and_stops_on_a_different_action(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from multion_agents.bench_explorer import run_explorer_bench
+    from multion_agents.bench.explorer import run_explorer_bench
 
     results = run_explorer_bench(image=64, houses=1, steps=30)
     assert results["steps"] == 30

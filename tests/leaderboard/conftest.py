@@ -15,6 +15,7 @@ import pytest
 
 from multion.api.local_server import LocalServer, free_port
 from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.storage import Database, add_team
 
 SECRET = "test-secret-0123456789abcdef"
@@ -144,6 +145,7 @@ def start_server(
         server = LocalServer(
             options=["--challenge", str(challenge_file), "--database", database,
                      "--max-request-bytes", "65536", *options],
+            serve_module=SERVE_MODULE,
         )  # fmt: skip
         return server.start()
     finally:

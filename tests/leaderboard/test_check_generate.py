@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from multion.cli import main
 from multion.leaderboard import house_stats
 from multion.leaderboard.house_stats import HouseStats
+from multion_agents.cli import main
 
 FIXTURE_ROOMS = "rooms = [1, 1]"
 

@@ -14,7 +14,6 @@ from typing import Any
 import pytest
 from fastapi import FastAPI
 
-from multion.cli import main
 from multion.leaderboard.app import check_leaderboard
 from multion.leaderboard.challenge import load_challenge
 from multion.leaderboard.models import Run, Team
@@ -22,6 +21,7 @@ from multion.leaderboard.results import summarize
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.queries import leaderboards
+from multion_agents.cli import main
 
 START = dt.datetime(2026, 1, 1, tzinfo=dt.timezone.utc)
 

@@ -171,7 +171,7 @@ def test_train_pretrains_once_and_resume_keeps_it(tmp_path: Path, room_dataset: 
     ],
 )
 def test_train_cli_rejects_bad_pretraining(tmp_path: Path, capsys, flags, message) -> None:
-    from multion.cli import main
+    from multion_agents.cli import main
 
     code = main(["train", *flags, "--frames", "64", "--out", str(tmp_path)])
     assert code == 2

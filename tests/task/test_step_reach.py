@@ -128,7 +128,7 @@ def test_the_best_first_search_agrees_with_the_breadth_first_reference() -> None
     """Issue 30: the search that replaced the breadth-first one answers the same, on draws
     that pass and draws that fail (the pocket, goals behind it), also when it widens to layers
     at once (no greedy expansions) or after a few."""
-    from multion.bench_reset import breadth_first_reach
+    from multion_agents.bench.reset import breadth_first_reach
 
     simulator = Simulator()
     rng = np.random.default_rng(3)

@@ -23,8 +23,10 @@ from multion.config.task import MapConfig
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
 from multion_agents.baselines.oracle_planner import OraclePlannerAgent
-from multion_agents.learned.rollout_envs import EXPERT_ACTION
 
+EXPERT_ACTION = "expert_action"
+"""The info key of an imitation label: the expert's action for the observation returned with it
+(:class:`OraclePlannerLabels`)."""
 EXPERT_SENSORS = ("goal", "gps", "compass")
 """Sensors the expert reads each step (the training env adds them; the policy ignores them)."""
 

@@ -19,8 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from multion.api.app import create_app
+from multion.api.settings import ServerSettings
+from multion.leaderboard.app import LeaderboardExtension
 from multion.leaderboard.models import EpisodeRecord, Run, Team
 from multion.leaderboard.results import summarize
+from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database
 
 TARGET_MS = 100.0
@@ -108,9 +112,6 @@ def run_pages_bench(
     """Median and 95th-percentile server milliseconds per page; prints them with the target."""
     from fastapi.testclient import TestClient
 
-    from multion.api.app import create_app
-    from multion.api.settings import ServerSettings
-    from multion.leaderboard.settings import LeaderboardSettings
 
     with tempfile.TemporaryDirectory(prefix="multion-pages-bench-") as directory:
         challenge = Path(directory) / "challenge.toml"
@@ -127,9 +128,13 @@ def run_pages_bench(
             )
         app = create_app(
             ServerSettings(workers=1),
-            LeaderboardSettings(
-                challenge=challenge, database=url, warm_up=False, draw_pictures=False
-            ),
+            [
+                LeaderboardExtension(
+                    LeaderboardSettings(
+                        challenge=challenge, database=url, warm_up=False, draw_pictures=False
+                    )
+                )
+            ],
         )
         pages = {
             "leaderboard": "/leaderboard",
