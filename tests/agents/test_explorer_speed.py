@@ -1,7 +1,7 @@
 """The explorer's fast paths (issue 23) give exactly what the code they replaced gave.
 
 Each rewritten function is compared with its old version (kept in
-``multion_agents.baselines.explorer_reference``) on random inputs, and the two agents are run
+``multion_agents.bench.explorer_reference``) on random inputs, and the two agents are run
 side by side on the same observations. ``test_explorer_actions.py`` pins the actions themselves.
 """
 
@@ -18,7 +18,6 @@ from scipy import ndimage
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, TaskConfig
 from multion.task.env import MultiONEnv
-from multion_agents.baselines import explorer_reference as ref
 from multion_agents.baselines.explorer import ExplorerAgent, _close
 from multion_agents.baselines.mapping import (
     CameraModel,
@@ -34,6 +33,7 @@ from multion_agents.baselines.navigation import (
     interpolate,
     interpolate_many,
 )
+from multion_agents.bench import explorer_reference as ref
 from v2_episodes import v2_episode
 
 SEEDS = st.integers(0, 2**32 - 1)
