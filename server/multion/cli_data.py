@@ -6,7 +6,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from multion.task.dataset import DatasetError, parse_task
+from multion.scenes.obj_export import export_obj
+from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim.simulator import Simulator
+from multion.task.dataset import DatasetError, load_dataset, parse_task
+from multion.task.generate import generate_dataset
+from multion.viz import scene_picture
 from multion_client.constants import NUM_CATEGORIES
 
 
@@ -27,8 +32,6 @@ def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_dataset(args: argparse.Namespace) -> int:
     if args.action == "generate":
-        from multion.task.generate import generate_dataset
-
         if args.episodes <= 0:
             print("--episodes must be positive", file=sys.stderr)
             return 2
@@ -43,7 +46,6 @@ def run_dataset(args: argparse.Namespace) -> int:
         )
         print(f"wrote {path}")
         return 0
-    from multion.task.dataset import load_dataset
 
     try:
         episodes = load_dataset(args.path)
@@ -71,23 +73,17 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_scene(args: argparse.Namespace) -> int:
-    from multion.scenes.registry import is_mesh_scene, layout_for
-
     try:
         layout = None if is_mesh_scene(args.scene_id) else layout_for(args.scene_id)
     except ValueError as error:
         print(error, file=sys.stderr)
         return 2
     if args.action == "export":
-        from multion.scenes.obj_export import export_obj
-
         if layout is None:
             print("only procedural scenes can be exported", file=sys.stderr)
             return 2
         print(f"wrote {export_obj(layout, args.out)}")
         return 0
-    from multion.sim.simulator import Simulator
-    from multion.viz import scene_picture
 
     sim = Simulator()
     try:

@@ -20,6 +20,7 @@ from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
+from multion_client.vector import RemoteVectorEnv
 
 SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
 NO_LABEL = -1
@@ -117,7 +118,6 @@ def make_vector_env(
                 "--imitation-coef labels steps with a planner beside the simulator: it needs "
                 "local environments, not --server"
             )
-        from multion_client.vector import RemoteVectorEnv
 
         counts = [
             num_envs // len(servers) + (i < num_envs % len(servers)) for i in range(len(servers))
