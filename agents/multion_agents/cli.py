@@ -36,7 +36,9 @@ COMMANDS: dict[str, Command] = {
         "multion_agents.cli_eval", "evaluate an agent on a split, locally or against a server"
     ),
     "train": Command("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
-    "report": Command("multion_agents.cli_report", "tables and figures of the paper from eval runs"),
+    "report": Command(
+        "multion_agents.cli_report", "tables and figures of the paper from eval runs"
+    ),
     "submit": Command(
         "multion_agents.cli_submit",
         "play an agent through a leaderboard run on a challenge server",

@@ -95,7 +95,6 @@ def run(args: argparse.Namespace) -> int:
 
 def submit(args: argparse.Namespace, cls: type) -> Any:
     """Play every remaining episode of a (new or resumed) run; returns its final RunStatus."""
-
     token = token_from_env(args.token)
     camera = (cls.config_overrides or {}).get("camera", {})
     if args.resume is None:
@@ -173,7 +172,6 @@ def play_run(
     ``multion eval`` does. ``bar``: a shared progress bar (else one of its own)."""
     from tqdm import tqdm
 
-
     agent = cls(seed=seed)
     if config is not None:
         agent.configure(copy.deepcopy(config))
@@ -228,7 +226,6 @@ def run_config(cls: type, track: dict[str, Any]) -> dict[str, Any]:
     task and camera, the agent's oracle-map settings, every other field the server's default.
     Images are resized to the agent's own camera size when it asks for one (``_resized``), so
     the agent sees its own width and height."""
-
     camera = {**track.get("camera", {})}
     size = _target_size((cls.config_overrides or {}).get("camera", {}), track)
     if size is not None:

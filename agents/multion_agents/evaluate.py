@@ -165,7 +165,6 @@ def check_overrides(overrides: ConfigOverrides) -> None:
 
 def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
     """Every field of ``config`` with defaults filled in; a ConfigError names a bad field."""
-
     return env_config_to_dict(env_config_from_dict(config))
 
 
@@ -348,7 +347,6 @@ def local_env_factory() -> EnvFactory:
 def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     """Evaluate against ``settings.server``, or a local server started (and stopped) here, or
     in this process with ``settings.in_process``."""
-
     # fail on a bad agent, checkpoint or config before starting anything
     check_overrides(settings.env_overrides)
     cls = resolve_agent(settings)

@@ -32,7 +32,6 @@ BASELINE_AGENTS = ("random", "random-oracle-found", "explorer", "oracle-planner"
 def agents_for(allowed_sensors: Sequence[str], names: Sequence[str] | None = None) -> list[str]:
     """The baselines whose sensors the track allows (``random-oracle-found`` needs
     ``goal_distance``, ``oracle-planner`` the oracle map)."""
-
     return [
         name
         for name in names or BASELINE_AGENTS
@@ -50,7 +49,6 @@ def baseline_token(db: Database) -> str:
 
 def server_tracks(server: str) -> list[dict[str, Any]]:
     """The tracks the server hosts (name, sensors, metric, phases)."""
-
     client = Client(server)
     try:
         return list(client.challenge()["tracks"])
@@ -69,7 +67,6 @@ def play_baselines(
     """Play the baselines on every (track, phase) of the server selected; returns the run ids.
 
     ``db`` must be the server's own database: the token is written there."""
-
     hosted = server_tracks(server)
     unknown = sorted(set(tracks or ()) - {t["name"] for t in hosted})
     if unknown:

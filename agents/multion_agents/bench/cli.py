@@ -291,7 +291,6 @@ def _appearance_rates(
 ) -> tuple[float, float]:
     """Renders/s of the bench scene with plain colours (textures off, default light) and as it
     is (textured floors and walls, its own light), at the same poses, back to back."""
-
     layout = layout_for(SCENE)
     plain_layout = dataclasses.replace(
         layout,
@@ -328,7 +327,6 @@ def _egl_rates(
     """EGL renders/s of the bench scene at the same poses, back to back, with one body per box
     or the boxes merged into one mesh, and with the plugin's own light (its shadow pass runs)
     or the cameras' far light (``sim.camera.EGL_LIGHT_POSITION``); records them and the draws."""
-
     for merge in (False, True):
         world = PyBulletWorld.from_layout(layout_for(SCENE), "egl", merge=merge)
         bodies = "merged" if merge else "per_box"
@@ -436,7 +434,6 @@ def _build_seconds(scene: str) -> float:
 
 def _eval_seconds(episodes: int) -> float:
     """Wall time of ``multion eval --agent oracle-planner --task 3-on --split val``."""
-
     settings = EvalSettings(agent="oracle-planner", num_goals=3, split="val", episodes=episodes)
     start = time.perf_counter()
     evaluate(settings, progress=False)

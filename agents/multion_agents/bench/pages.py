@@ -112,7 +112,6 @@ def run_pages_bench(
     """Median and 95th-percentile server milliseconds per page; prints them with the target."""
     from fastapi.testclient import TestClient
 
-
     with tempfile.TemporaryDirectory(prefix="multion-pages-bench-") as directory:
         challenge = Path(directory) / "challenge.toml"
         text = CHALLENGE.format(secret=secrets.token_urlsafe(24))

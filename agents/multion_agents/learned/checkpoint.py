@@ -104,7 +104,6 @@ def build_policy(
 ) -> RecurrentPolicy:
     """The (untrained) policy of model ``agent`` for environments configured by ``env_config``,
     with a GRU of ``hidden_size`` units (768, the reference's, by default)."""
-
     config = env_config_from_dict(env_config)
     space = build_observation_space(config)
     return model_spec(agent).build(space, MapGeometry.from_env_config(config), hidden_size)

@@ -97,7 +97,6 @@ class MapGeometry:
 
 def default_geometry() -> MapGeometry:
     """The geometry of the default environment config (for tests and quick experiments)."""
-
     return MapGeometry.from_env_config(EnvConfig())
 
 

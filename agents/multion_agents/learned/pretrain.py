@@ -112,7 +112,6 @@ def sample_map_crops(
     """``count`` labelled crops at random poses in episodes of ``env_config`` on ``split`` (a
     random episode, so mostly a new house, every ``poses_per_scene`` poses; ``seed`` picks the
     episodes and poses)."""
-
     wanted = {**env_config, "sensors": ["goal"], "episodes_per_scene": 1, "split": split}
     if split != "train":
         wanted.pop("dataset", None)  # the split's packaged episodes, not a training file
@@ -188,7 +187,6 @@ def _logits(
 
 def blank_frames(policy: RecurrentPolicy, env_config: dict[str, Any]) -> Batch:
     """One all-zero frame (1, 1, ...) of each observation ``policy`` reads in ``env_config``."""
-
     space = build_observation_space(env_config_from_dict(env_config))
     if MAP_SENSOR not in policy.sensors:
         raise ValueError(

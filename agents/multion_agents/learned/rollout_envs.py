@@ -76,7 +76,6 @@ def parse_curriculum(texts: Sequence[str]) -> Curriculum:
 def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None:
     """A ``ValueError`` (or the config's own ``ConfigError``, naming ``online_max_geodesic``
     and its range) before any environment starts, rather than at a stage switch."""
-
     if not curriculum:
         return
     if env_config.get("dataset") is not None:

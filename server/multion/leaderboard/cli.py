@@ -117,10 +117,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace, more_actions: Mapping[str, Action] | None = None) -> int:
     """Run ``args.action``: one of this module's, or of ``more_actions`` (``baselines``)."""
-
     actions = {**_ACTIONS, **(more_actions or {})}
     if args.action not in actions:
-        print(f"multion leaderboard {args.action}: needs the agents (multion_agents)", file=sys.stderr)
+        print(
+            f"multion leaderboard {args.action}: needs the agents (multion_agents)", file=sys.stderr
+        )
         return 2
     try:
         return int(actions[args.action](args) or 0)
@@ -147,7 +148,6 @@ def _database_url(args: argparse.Namespace) -> tuple[str, str]:
 
 def existing_database(args: argparse.Namespace) -> Database:
     """The existing database (never created here: a typo must not make an empty one)."""
-
     url, source = _database_url(args)
     return Database.open_existing(url, hint=f" ({source})")
 
@@ -179,7 +179,6 @@ def _check(args: argparse.Namespace) -> int:
 def _generate(challenge: Challenge) -> int:
     """Build every phase's hidden houses and episodes; their statistics beside val's. Refuses
     (exit status 1) a challenge whose houses or episodes are unsound (issue 33)."""
-
     hidden = HiddenEpisodes(challenge, in_subprocess=False)
     rows = [val_stats().row("packaged val (calibrated)")]
     problems: list[str] = []
@@ -209,7 +208,6 @@ def _generate(challenge: Challenge) -> int:
 
 def _episode_problems(episodes: list[Episode]) -> list[str]:
     """Starts and goals that are not inside a room (or a doorway)."""
-
     problems = []
     for e in episodes:
         points = [e.start_position[:2]] + [g.position[:2] for g in e.goals]
@@ -247,7 +245,6 @@ def _tracks(args: argparse.Namespace) -> int:
 
 def _team(args: argparse.Namespace) -> int:
     from sqlalchemy import select
-
 
     db = existing_database(args)
     try:
@@ -293,7 +290,6 @@ def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
     """Every run as a flat row (team, track, phase, method, state, metrics with intervals)."""
     from sqlalchemy import select
 
-
     query = select(Run, Team.name).join(Team).order_by(Run.created_at)
     for name in ("track", "phase", "state"):
         if filters.get(name):
@@ -333,7 +329,6 @@ def shown_rows(
     """The rows of the runs the leaderboard page shows now, in its order: the page's own query
     (:func:`~multion.leaderboard.web.queries.leaderboards`), so sealed phases before their
     date and runs that played nothing are left out here too."""
-
     by_id = {row["run_id"]: row for row in rows}
     boards = leaderboards(session, challenge, utcnow())
     return [by_id[r.run_id] for board in boards for r in board.rows if r.run_id in by_id]
@@ -371,7 +366,6 @@ def _check_filters(session: Any, args: argparse.Namespace) -> None:
     typo must not read as "no runs")."""
     from sqlalchemy import distinct, select
 
-
     for option, column in (("team", Team.name), ("track", Run.track), ("phase", Run.phase)):
         given = getattr(args, option)
         if given is None:
@@ -387,7 +381,6 @@ def _check_filters(session: Any, args: argparse.Namespace) -> None:
 
 def _export(args: argparse.Namespace) -> int:
     from sqlalchemy import select
-
 
     db = existing_database(args)
     try:
