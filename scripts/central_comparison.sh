@@ -9,7 +9,7 @@
 #   bash scripts/central_comparison.sh                 # every stage, in the order below
 #   STAGES="core" bash scripts/central_comparison.sh   # only the first four agents
 #   OUT=runs/central FRAMES=720000 bash scripts/central_comparison.sh
-#   MULTION='python -m multion.cli' ...             # another installation of the command
+#   MULTION='python -m multion_agents.cli' ...             # another installation of the command
 # Stages: core (oracle-map, no-map, oracle-ego-map, random-oracle-found), pretrain (oracle-map
 # after map pretraining), learned (proj-neural-map, obj-recog-map), shapes (NoMap with the
 # supplement's shapes as goals). The report goes to $OUT/report (`multion report`).

@@ -7,9 +7,9 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 
+from multion.config.episode import Episode
 from multion.sim.simulator import Simulator
 from multion.task.dataset import sample_episode
-from multion.task.episode import Episode
 
 ROOM = "room-6x4"
 

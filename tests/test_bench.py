@@ -1,7 +1,7 @@
 """``multion bench --only sim`` runs end to end (its numbers are measured, not asserted: the
 machines are shared and noisy; here only that every part runs and reports a rate)."""
 
-from multion.bench import bench_sim
+from multion_agents.bench.cli import bench_sim
 
 
 def test_the_simulator_bench_runs_every_part(capsys):
@@ -21,7 +21,7 @@ def test_the_simulator_bench_runs_every_part(capsys):
 
 
 def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_two() -> None:
-    from multion.leaderboard.bench_lanes import run_lanes_bench
+    from multion_agents.bench.lanes import run_lanes_bench
 
     figures = run_lanes_bench(size=16, episodes=4, max_steps=5, rooms=1, verbose=False)
     assert figures["steps"] == 4 * 5  # every episode to its step limit, nothing lost
@@ -29,7 +29,7 @@ def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_two() -> None:
 
 
 def test_the_participants_bench_plays_every_run_to_its_end() -> None:
-    from multion.leaderboard.bench_participants import run_participants_bench
+    from multion_agents.bench.participants import run_participants_bench
 
     figures = run_participants_bench(
         participants=3, size=16, episodes=2, max_steps=5, rooms=1, verbose=False

@@ -4,7 +4,7 @@ import gzip
 
 from PIL import Image
 
-from multion.cli import main
+from multion_agents.cli import main
 
 
 def test_scene_picture_writes_a_png(tmp_path, capsys):

@@ -23,7 +23,7 @@ import pytest
 from packaging.version import Version
 
 from multion.api.local_server import LocalServer
-from multion.task.episode import Episode
+from multion.config.episode import Episode
 
 if sys.version_info >= (3, 11):
     import tomllib

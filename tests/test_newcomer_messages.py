@@ -9,19 +9,19 @@ import sys
 
 import pytest
 
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion_agents.config_overrides import parse_env_overrides
 from multion_agents.registry import LEARNED_AGENT_NAMES
 
 # `multion ARGS` with torch's import blocked, as on a machine set up without --dev
 WITHOUT_TORCH = (
-    "import sys; sys.modules['torch'] = None; from multion.cli import main; "
+    "import sys; sys.modules['torch'] = None; from multion_agents.cli import main; "
     "sys.exit(main(sys.argv[1:]))"
 )
 
 
 def multion(*args: str, torch: bool = True) -> subprocess.CompletedProcess[str]:
-    command = ["-m", "multion.cli"] if torch else ["-c", WITHOUT_TORCH]
+    command = ["-m", "multion_agents.cli"] if torch else ["-c", WITHOUT_TORCH]
     return subprocess.run(
         [sys.executable, *command, *args], capture_output=True, text=True, timeout=300
     )
@@ -34,7 +34,7 @@ def test_no_pybullet_banner_on_a_command() -> None:
 
 
 EGL_SCRIPT = """
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion.sim.camera import resolve_renderer
 from multion.task.env import MultiONEnv
 

@@ -22,7 +22,7 @@ from multion.api.local_server import free_port
 from process_tree import alive, descendants
 from waiting import wait_until
 
-MULTION = [sys.executable, "-m", "multion.cli"]
+MULTION = [sys.executable, "-m", "multion_agents.cli"]
 
 
 def commands(tmp: Path) -> dict[str, tuple[list[str], int]]:

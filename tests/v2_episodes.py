@@ -8,7 +8,7 @@ import json
 from functools import cache
 from pathlib import Path
 
-from multion.task.episode import Episode
+from multion.config.episode import Episode
 
 DATA = Path(__file__).parent / "data" / "v2_val_episodes.json"
 

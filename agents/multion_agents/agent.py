@@ -57,7 +57,7 @@ class Agent(ABC):
     def configure(self, config: EnvConfigDict) -> None:
         """Receive the resolved config of the environment the agent acts in, before its first
         episode: every field with defaults filled in, as nested dicts (``camera``, ``agent``,
-        ``maps``, ``task``, ...; ``multion.api.config_io.env_config_to_dict``). ``multion eval``
+        ``maps``, ``task``, ...; ``multion.config.codec.env_config_to_dict``). ``multion eval``
         passes the session's config, ``multion submit`` the run's.
 
         An agent whose decisions depend on the environment (camera model, step length, turn

@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from multion.ranges import ConfigError, Range
+from multion.config.ranges import ConfigError, Range
 
 
 @dataclass(frozen=True)

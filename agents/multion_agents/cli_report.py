@@ -20,6 +20,10 @@ import shlex
 import sys
 from pathlib import Path
 
+from multion_agents.report.document import DocumentError, Layout, write_report
+from multion_agents.report.paper import paper_results
+from multion_agents.report.runs import RunError, load_runs
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -41,10 +45,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from multion_agents.report.document import DocumentError, Layout, write_report
-    from multion_agents.report.paper import paper_results
-    from multion_agents.report.runs import RunError, load_runs
-
     if args.doc is not None and (not args.doc or "/" in args.doc or args.doc.startswith(".")):
         return _fail(f"--doc {args.doc!r}: give a document name like 'baselines', not a path")
     if not args.no_figures and not has_matplotlib():

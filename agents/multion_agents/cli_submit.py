@@ -24,6 +24,12 @@ from typing import Any
 
 import numpy as np
 
+from multion_agents.agent import AgentError
+from multion_agents.evaluate import EvalSettings, episode_seed, resolve_agent, resolve_config
+from multion_client.client import Client
+from multion_client.errors import MultiONError, RunOver, ServerUnavailable
+from multion_client.run import RunEnv, token_from_env
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--server", required=True, help="the challenge server's URL")
@@ -52,10 +58,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from multion_agents.agent import AgentError
-    from multion_agents.evaluate import EvalSettings, resolve_agent
-    from multion_client.errors import MultiONError, ServerUnavailable
-
     settings = EvalSettings(
         agent=args.agent, checkpoint=args.checkpoint, deterministic=args.deterministic
     )
@@ -93,9 +95,6 @@ def run(args: argparse.Namespace) -> int:
 
 def submit(args: argparse.Namespace, cls: type) -> Any:
     """Play every remaining episode of a (new or resumed) run; returns its final RunStatus."""
-    from multion_client.client import Client
-    from multion_client.run import RunEnv, token_from_env
-
     token = token_from_env(args.token)
     camera = (cls.config_overrides or {}).get("camera", {})
     if args.resume is None:
@@ -173,9 +172,6 @@ def play_run(
     ``multion eval`` does. ``bar``: a shared progress bar (else one of its own)."""
     from tqdm import tqdm
 
-    from multion_agents.evaluate import episode_seed
-    from multion_client.errors import RunOver
-
     agent = cls(seed=seed)
     if config is not None:
         agent.configure(copy.deepcopy(config))
@@ -230,8 +226,6 @@ def run_config(cls: type, track: dict[str, Any]) -> dict[str, Any]:
     task and camera, the agent's oracle-map settings, every other field the server's default.
     Images are resized to the agent's own camera size when it asks for one (``_resized``), so
     the agent sees its own width and height."""
-    from multion_agents.evaluate import resolve_config
-
     camera = {**track.get("camera", {})}
     size = _target_size((cls.config_overrides or {}).get("camera", {}), track)
     if size is not None:

@@ -5,7 +5,7 @@ Examples::
     multion train --agent oracle-map --task 1-on --frames 2000000 --envs 4 --out runs/om
     multion train --agent oracle-map --task 1-on --frames 2000000 --out runs/om --resume
     multion train --agent no-map --server http://gpu-box:8000 --server http://gpu-box:8001 --envs 8
-    torchrun --nproc-per-node 2 -m multion.cli train --agent oracle-map --envs 2 --out runs/ddppo
+    torchrun --nproc-per-node 2 -m multion_agents.cli train --agent oracle-map --envs 2 --out runs/ddppo
 
 Every rank of a ``torchrun`` job steps ``--envs`` environments of its own; only rank 0 writes
 logs and checkpoints.

@@ -29,12 +29,16 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
+from multion.config.codec import env_config_from_dict, env_config_to_dict, session_config_from_dict
+from multion.config.episode import Episode
+from multion.config.task import EnvConfig
 from multion.pictures import gps_to_world
 from multion.task.dataset import load_dataset, packaged_dataset_path, read_header, task_name
-from multion.task.episode import Episode
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
 from multion_agents.eval_settings import EvalSettings
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
+from multion_client.client import Client
+from multion_client.env import RemoteEnv
 
 EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
@@ -136,8 +140,6 @@ def check_overrides(overrides: ConfigOverrides) -> None:
 
 def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
     """Every field of ``config`` with defaults filled in; a ConfigError names a bad field."""
-    from multion.api.config_io import env_config_from_dict, env_config_to_dict
-
     return env_config_to_dict(env_config_from_dict(config))
 
 
@@ -299,7 +301,6 @@ def play_all(
 
 def remote_env_factory(url: str) -> EnvFactory:
     """Environments served by the MultiON server at ``url``."""
-    from multion_client.env import RemoteEnv
 
     def make(config: dict[str, Any]) -> gym.Env:
         return RemoteEnv(url, config)
@@ -309,7 +310,6 @@ def remote_env_factory(url: str) -> EnvFactory:
 
 def local_env_factory() -> EnvFactory:
     """In-process environments (no server), e.g. for tests and debugging agents."""
-    from multion.api.config_io import session_config_from_dict
     from multion.task.env import MultiONEnv
 
     def make(config: dict[str, Any]) -> gym.Env:
@@ -322,8 +322,6 @@ def local_env_factory() -> EnvFactory:
 def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     """Evaluate against ``settings.server``, or a local server started (and stopped) here, or
     in this process with ``settings.in_process``."""
-    from multion_client.client import Client
-
     # fail on a bad agent, checkpoint or config before starting anything
     check_overrides(settings.env_overrides)
     cls = resolve_agent(settings)
@@ -387,8 +385,6 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
 
 
 def _requested_renderer(config: dict[str, Any]) -> str:
-    from multion.task.env import EnvConfig
-
     return str(config.get("camera", {}).get("renderer", EnvConfig().camera.renderer))
 
 

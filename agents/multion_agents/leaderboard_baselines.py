@@ -20,6 +20,11 @@ from multion.leaderboard.storage import (
     find_team,
     revoke_tokens,
 )
+from multion_agents.cli_submit import oracle_maps, play_run, run_config
+from multion_agents.registry import agent_class
+from multion_client.client import Client
+from multion_client.errors import Unauthorized
+from multion_client.run import RunEnv
 
 BASELINE_AGENTS = ("random", "random-oracle-found", "explorer", "oracle-planner")
 
@@ -27,8 +32,6 @@ BASELINE_AGENTS = ("random", "random-oracle-found", "explorer", "oracle-planner"
 def agents_for(allowed_sensors: Sequence[str], names: Sequence[str] | None = None) -> list[str]:
     """The baselines whose sensors the track allows (``random-oracle-found`` needs
     ``goal_distance``, ``oracle-planner`` the oracle map)."""
-    from multion_agents.registry import agent_class
-
     return [
         name
         for name in names or BASELINE_AGENTS
@@ -46,8 +49,6 @@ def baseline_token(db: Database) -> str:
 
 def server_tracks(server: str) -> list[dict[str, Any]]:
     """The tracks the server hosts (name, sensors, metric, phases)."""
-    from multion_client.client import Client
-
     client = Client(server)
     try:
         return list(client.challenge()["tracks"])
@@ -66,11 +67,6 @@ def play_baselines(
     """Play the baselines on every (track, phase) of the server selected; returns the run ids.
 
     ``db`` must be the server's own database: the token is written there."""
-    from multion_agents.cli_submit import oracle_maps, play_run, run_config
-    from multion_agents.registry import agent_class
-    from multion_client.errors import Unauthorized
-    from multion_client.run import RunEnv
-
     hosted = server_tracks(server)
     unknown = sorted(set(tracks or ()) - {t["name"] for t in hosted})
     if unknown:

@@ -6,7 +6,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from multion.task.dataset import DatasetError, parse_task
+from multion.scenes.obj_export import export_obj
+from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim.simulator import Simulator
+from multion.task.dataset import DatasetError, load_dataset, parse_task
+from multion.task.generate import generate_dataset
+from multion.task.multion_import import import_multion
+from multion.viz import scene_picture
 from multion_client.constants import NUM_CATEGORIES
 
 
@@ -42,8 +48,6 @@ def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_dataset(args: argparse.Namespace) -> int:
     if args.action == "generate":
-        from multion.task.generate import generate_dataset
-
         if args.episodes <= 0:
             print("--episodes must be positive", file=sys.stderr)
             return 2
@@ -60,7 +64,6 @@ def run_dataset(args: argparse.Namespace) -> int:
         return 0
     if args.action == "import-multion":
         return _import_multion(args)
-    from multion.task.dataset import load_dataset
 
     try:
         episodes = load_dataset(args.path)
@@ -78,8 +81,6 @@ def run_dataset(args: argparse.Namespace) -> int:
 
 
 def _import_multion(args: argparse.Namespace) -> int:
-    from multion.task.multion_import import import_multion
-
     if not args.path.is_file():
         print(f"episode file not found: {args.path}", file=sys.stderr)
         return 2
@@ -116,23 +117,17 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_scene(args: argparse.Namespace) -> int:
-    from multion.scenes.registry import is_mesh_scene, layout_for
-
     try:
         layout = None if is_mesh_scene(args.scene_id) else layout_for(args.scene_id)
     except ValueError as error:
         print(error, file=sys.stderr)
         return 2
     if args.action == "export":
-        from multion.scenes.obj_export import export_obj
-
         if layout is None:
             print("only procedural scenes can be exported", file=sys.stderr)
             return 2
         print(f"wrote {export_obj(layout, args.out)}")
         return 0
-    from multion.sim.simulator import Simulator
-    from multion.viz import scene_picture
 
     sim = Simulator()
     try:

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from multion.config.episode import Episode
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim.geodesic import distance_field, shortest_path
 from multion.sim.simulator import Simulator
-from multion.task.episode import Episode
 from multion.viz import PictureFrame, label_font, picture_frame, scene_picture, world_to_pixel
 from multion_client.constants import GOAL_RGBA
 

@@ -9,8 +9,9 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
+from multion.config.episode import Episode, Goal
+from multion.config.task import EnvConfig, TaskConfig
+from multion.task.env import MultiONEnv
 from multion_agents.agent import Agent, AgentError
 from multion_agents.evaluate import EvalSettings, env_config, run_episode
 from multion_agents.registry import AGENT_NAMES, agent_class, make_agent

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from multion.config.episode import Episode, Goal
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, MapConfig, TaskConfig
 from multion.pictures import gps_to_world
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
-from multion.task.maps import MapConfig
+from multion.task.env import MultiONEnv
 from multion_agents.agent import Agent, AgentError
 from multion_agents.baselines.mapping import CameraModel, detect_goals, goal_shaped
 from multion_agents.baselines.navigation import (

@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from multion.api.local_server import LocalServer
-from multion.task.episode import Episode
+from multion.config.episode import Episode
 from multion_agents import cli_eval
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

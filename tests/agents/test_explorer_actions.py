@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multion.api.config_io import env_config_to_dict
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.config.codec import env_config_to_dict
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
+from multion.task.env import MultiONEnv
 from multion_agents.registry import make_agent
 from v2_episodes import v2_episode
 

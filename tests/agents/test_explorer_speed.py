@@ -1,7 +1,7 @@
 """The explorer's fast paths (issue 23) give exactly what the code they replaced gave.
 
 Each rewritten function is compared with its old version (kept in
-``multion_agents.baselines.explorer_reference``) on random inputs, and the two agents are run
+``multion_agents.bench.explorer_reference``) on random inputs, and the two agents are run
 side by side on the same observations. ``test_explorer_actions.py`` pins the actions themselves.
 """
 
@@ -15,9 +15,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion_agents.baselines import explorer_reference as ref
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
+from multion.task.env import MultiONEnv
 from multion_agents.baselines.explorer import ExplorerAgent, ExplorerSettings, _close
 from multion_agents.baselines.mapping import (
     CameraModel,
@@ -33,6 +33,7 @@ from multion_agents.baselines.navigation import (
     interpolate,
     interpolate_many,
 )
+from multion_agents.bench import explorer_reference as ref
 from v2_episodes import v2_episode
 
 SEEDS = st.integers(0, 2**32 - 1)
@@ -253,7 +254,7 @@ def test_fast_and_reference_explorers_act_alike_on_a_val_episode() -> None:
 def test_the_explorer_bench_times_both_agents_and_stops_on_a_different_action(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from multion_agents.bench_explorer import run_explorer_bench
+    from multion_agents.bench.explorer import run_explorer_bench
 
     results = run_explorer_bench(image=64, houses=1, steps=30)
     assert results["steps"] == 30

@@ -8,7 +8,7 @@ import dataclasses
 
 import pytest
 
-from multion.ranges import ConfigError
+from multion.config.ranges import ConfigError
 from multion_agents import cli_eval
 from multion_agents.baselines.explorer import ExplorerAgent, ExplorerSettings
 from multion_agents.baselines.oracle_planner import OraclePlannerAgent, OraclePlannerSettings

@@ -16,8 +16,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
-from multion.api.config_io import session_config_from_dict
 from multion.api.local_server import LocalServer
+from multion.config.codec import session_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_client import RemoteEnv, RemoteVectorEnv
 

@@ -21,8 +21,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from multion.api.local_server import LocalServer
-from multion.ranges import Range, field_ranges
-from multion.task.env import EnvConfig
+from multion.config.ranges import Range, field_ranges
+from multion.config.task import EnvConfig
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
 
 WORKER_MB = 3072

@@ -13,9 +13,9 @@ import pytest
 from fastapi.testclient import TestClient
 
 from multion.api.app import create_app
-from multion.api.config_io import session_config_from_dict
 from multion.api.settings import ServerSettings
 from multion.api.workers import WORKER_RESERVED_BYTES
+from multion.config.codec import session_config_from_dict
 from multion.task.memory import estimate_env_bytes, mib
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
 
@@ -124,7 +124,7 @@ def check_memory_comes_back(api: TestClient, config: dict[str, Any]) -> None:
 
 PROBE = """
 import gc, json, sys
-from multion.api.config_io import session_config_from_dict
+from multion.config.codec import session_config_from_dict
 from multion.task.env import MultiONEnv
 from multion.task.memory import estimate_env_bytes
 

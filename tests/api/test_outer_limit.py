@@ -45,7 +45,7 @@ def test_a_value_given_above_the_outer_limit_or_a_tiny_limit_is_refused() -> Non
 
 def _under_limit(limit_bytes: int, *options: str) -> subprocess.Popen[str]:
     """``multion serve`` under ``prlimit --as`` (or the same rlimit set before exec)."""
-    command = [sys.executable, "-m", "multion.cli", "serve", "--log-level", "warning",
+    command = [sys.executable, "-m", "multion_agents.cli", "serve", "--log-level", "warning",
                "--no-access-log", *options]  # fmt: skip
     preexec: Any = None
     if shutil.which("prlimit"):

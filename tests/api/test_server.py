@@ -16,10 +16,11 @@ from fastapi.testclient import TestClient
 
 import multion
 from multion.api.app import create_app
-from multion.api.config_io import ConfigError, env_config_from_dict, env_config_to_dict
 from multion.api.settings import ServerSettings
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, build_observation_space
+from multion.config.codec import ConfigError, env_config_from_dict, env_config_to_dict
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
+from multion.task.env import build_observation_space
 from multion_client.protocol import (
     CONTENT_TYPE,
     SessionInfo,

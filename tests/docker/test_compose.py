@@ -126,7 +126,7 @@ def test_replicas_behind_nginx_finish_a_run_when_its_replica_stops(replicas: Sta
     assert token.startswith("mlb_"), added.stdout
     url = f"http://127.0.0.1:{replicas.port}"
     submit = subprocess.Popen(
-        [sys.executable, "-m", "multion.cli", "submit", "--server", url, "--track", "3-on",
+        [sys.executable, "-m", "multion_agents.cli", "submit", "--server", url, "--track", "3-on",
          "--phase", "minival", "--agent", "random", "--method", "compose-random", "--quiet"],
         env={**os.environ, "MULTION_TOKEN": token},
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,

@@ -26,6 +26,7 @@ from multion.leaderboard.challenge import (
     load_challenge,
 )
 from multion.leaderboard.challenge_file import write_challenge as write_challenge_file
+from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.storage import Database, add_team
 
 SECRET = "test-secret-0123456789abcdef"
@@ -122,6 +123,7 @@ def start_server(
         server = LocalServer(
             options=["--challenge", str(challenge_file), "--database", database,
                      "--max-request-bytes", str(MAX_REQUEST_BYTES), *options],
+            serve_module=SERVE_MODULE,
         )  # fmt: skip
         return server.start()
     finally:

@@ -15,6 +15,7 @@ from server_settings import LEADERBOARD, MAX_REQUEST_BYTES
 from multion.api.app import create_app
 from multion.api.local_server import free_port
 from multion.api.settings import ServerSettings
+from multion.leaderboard.app import LeaderboardExtension
 from multion.leaderboard.clock import ManualClock
 from multion.leaderboard.settings import LeaderboardSettings
 from waiting import wait_until
@@ -31,7 +32,7 @@ class InProcessServer:
         self.url = f"http://127.0.0.1:{port}"
         settings = ServerSettings(port=port, workers=workers, max_request_bytes=MAX_REQUEST_BYTES)
         leaderboard = LeaderboardSettings(challenge=challenge_file, database=database, **LEADERBOARD)
-        app = create_app(settings, leaderboard, clock)
+        app = create_app(settings, [LeaderboardExtension(leaderboard, clock)])
         # log_config=None: uvicorn leaves the test process's logging as pytest set it
         config = uvicorn.Config(app, host="127.0.0.1", port=port, log_config=None,
                                 access_log=False, timeout_graceful_shutdown=10)  # fmt: skip

@@ -16,7 +16,7 @@ from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.models import Run, Team
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web import queries
-from multion.leaderboard.web.bench import bench_challenge, fill_database, run_pages_bench
+from multion_agents.bench.pages import bench_challenge, fill_database, run_pages_bench
 
 
 def fresh_database(request: pytest.FixtureRequest, backend: str, tmp_path: Path) -> str:

@@ -262,7 +262,7 @@ def test_equal_scores_share_a_rank_and_the_best_run_is_the_exports(
 ) -> None:
     import json
 
-    from multion.cli import main
+    from multion_agents.cli import main
 
     v = visit()
     page = v.goto("/leaderboard")

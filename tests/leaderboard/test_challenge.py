@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from multion.config.scenes import SPLIT_SIZES
 from multion.leaderboard.challenge import (
     Challenge,
     ChallengeError,
@@ -25,7 +26,7 @@ from multion.leaderboard.hidden import (
     hidden_houses,
     run_order,
 )
-from multion.scenes.registry import SPLIT_SIZES, layout_for, scene_split
+from multion.scenes.registry import layout_for, scene_split
 
 
 def test_the_tiny_challenge_reads(challenge_file: Path) -> None:

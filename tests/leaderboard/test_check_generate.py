@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from multion.cli import main
 from multion.leaderboard import house_stats
 from multion.leaderboard.challenge import Challenge, HiddenScenes
 from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.house_stats import HouseStats
+from multion_agents.cli import main
 
 
 @pytest.fixture

@@ -25,8 +25,10 @@ from sqlalchemy import select
 from multion.api.app import create_app
 from multion.api.local_server import LocalServer
 from multion.api.settings import ServerSettings
+from multion.leaderboard.app import LeaderboardExtension
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.challenge_file import replace_phase, write_challenge
+from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.models import EpisodePicture, Run, utcnow
 from multion.leaderboard.run_expiry import RESTART_GRACE
 from multion.leaderboard.settings import LeaderboardSettings
@@ -52,7 +54,10 @@ def fault_challenge(challenge: Challenge, directory: Path) -> Path:
 
 def group_server(challenge_file: Path, database: str) -> LocalServer:
     """A server in its own process group (its workers and helpers join it), ready."""
-    server = LocalServer(options=["--challenge", str(challenge_file), "--database", database])
+    server = LocalServer(
+        options=["--challenge", str(challenge_file), "--database", database],
+        serve_module=SERVE_MODULE,
+    )
     server.process = subprocess.Popen(
         server.command, env={**os.environ, **leaderboard_env(), "PYTHONUNBUFFERED": "1"},
         start_new_session=True, preexec_fn=die_with_parent,
@@ -273,7 +278,7 @@ def test_a_helper_that_keeps_failing_charges_no_quota(
         challenge=challenge_file, database=database, warm_up=False, draw_pictures=False,
         token_cache_s=0,
     )  # fmt: skip
-    app = create_app(ServerSettings(), leaderboard)
+    app = create_app(ServerSettings(), [LeaderboardExtension(leaderboard)])
     headers = {"authorization": f"Bearer {token}", "content-type": CONTENT_TYPE}
     create = CreateRun("1-on", "test-standard", "m", sensors=["goal"]).to_wire()
     with TestClient(app, raise_server_exceptions=False) as http:

@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from multion.cli import main
 from multion.leaderboard.challenge import load_challenge
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.queries import leaderboards
+from multion_agents.cli import main
 
 
 def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -97,7 +97,7 @@ def test_admin_submit_baselines_export_replay(
 
 
 def test_the_bench_measures_a_run_against_a_session() -> None:
-    from multion.leaderboard.bench import run_leaderboard_bench
+    from multion_agents.bench.leaderboard import run_leaderboard_bench
 
     result = run_leaderboard_bench(size=16, steps=20, verbose=False, rooms=1)
     assert result["session_sps"] > 0 and result["run_sps"] > 0
@@ -158,7 +158,7 @@ def test_a_changed_secret_is_refused_by_serve_and_replay(
     other = make_challenge(other_dir)
     other.write_text(other.read_text().replace(secret, "another-secret-0123456789abcdef"))
     done = subprocess.run(
-        [sys.executable, "-m", "multion.cli", "serve", "--challenge", str(other),
+        [sys.executable, "-m", "multion_agents.cli", "serve", "--challenge", str(other),
          "--database", database, "--port", "9"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip

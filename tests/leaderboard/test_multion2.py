@@ -10,8 +10,8 @@ import httpx
 import numpy as np
 import pytest
 
-from multion.api.config_io import env_config_from_dict
 from multion.api.local_server import LocalServer
+from multion.config.codec import env_config_from_dict
 from multion.leaderboard.challenge import ChallengeError, challenge_from_dict, load_challenge
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.storage import Database, add_team

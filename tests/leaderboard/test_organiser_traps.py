@@ -15,7 +15,6 @@ from typing import Any
 import pytest
 from fastapi import FastAPI
 
-from multion.cli import main
 from multion.leaderboard.app import check_leaderboard
 from multion.leaderboard.challenge import Challenge, load_challenge
 from multion.leaderboard.challenge_file import replace_phase, write_challenge
@@ -24,6 +23,7 @@ from multion.leaderboard.results import summarize
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.queries import leaderboards
+from multion_agents.cli import main
 
 START = dt.datetime(2026, 1, 1, tzinfo=dt.timezone.utc)
 

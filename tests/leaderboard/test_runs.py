@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from sqlalchemy import select
 
-from multion.api.config_io import session_config_from_dict
+from multion.config.codec import session_config_from_dict
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.models import EpisodeRecord, Run

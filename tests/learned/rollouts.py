@@ -6,8 +6,9 @@ import math
 
 import torch
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, build_observation_space
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
+from multion.task.env import build_observation_space
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.rollout import Rollout, compute_gae
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from multion.api.config_io import env_config_from_dict, env_config_to_dict
+from multion.config.codec import env_config_from_dict, env_config_to_dict
 from multion_agents.agent import AgentError
 from multion_agents.evaluate import EvalSettings, evaluate, resolve_config
 from multion_agents.learned.agent import learned_agent_class

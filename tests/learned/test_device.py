@@ -7,8 +7,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, build_observation_space
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
+from multion.task.env import build_observation_space
 from multion_agents.learned.gru import MaskedGRU
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import Args, ppo_loss

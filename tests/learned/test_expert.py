@@ -11,14 +11,14 @@ import pytest
 import torch
 from rollouts import SIZE, random_rollout, space_for
 
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.learned.env_groups import EnvGroups
-from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
+from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import Args, ppo_loss, train
 from multion_agents.learned.rollout import collect, start_episodes
-from multion_agents.learned.rollout_envs import EXPERT_ACTION, NO_LABEL, expert_labels
+from multion_agents.learned.rollout_envs import NO_LABEL, expert_labels
 from multion_client.constants import Action
 
 
@@ -176,7 +176,7 @@ def test_training_with_imitation_logs_its_loss_and_agreement(
 def test_train_cli_rejects_bad_imitation(tmp_path: Path, capsys, flags, message) -> None:
     import re
 
-    from multion.cli import main
+    from multion_agents.cli import main
 
     code = main(["train", *flags, "--frames", "64", "--out", str(tmp_path)])
     assert code == 2

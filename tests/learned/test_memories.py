@@ -7,8 +7,9 @@ import math
 import pytest
 import torch
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, build_observation_space
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
+from multion.task.env import build_observation_space
 from multion_agents.learned import map_ops
 from multion_agents.learned.episodic import FRMQN, SMT, masked_attention
 from multion_agents.learned.learned_maps import EgoMap, ObjRecogMap, recognition_label

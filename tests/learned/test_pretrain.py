@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from multion.api.config_io import env_config_from_dict, env_config_to_dict
+from multion.config.codec import env_config_from_dict, env_config_to_dict
 from multion_agents.learned.checkpoint import build_policy, load_checkpoint
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.ppo import Args, train
@@ -171,7 +171,7 @@ def test_train_pretrains_once_and_resume_keeps_it(tmp_path: Path, room_dataset: 
     ],
 )
 def test_train_cli_rejects_bad_pretraining(tmp_path: Path, capsys, flags, message) -> None:
-    from multion.cli import main
+    from multion_agents.cli import main
 
     code = main(["train", *flags, "--frames", "64", "--out", str(tmp_path)])
     assert code == 2

@@ -344,7 +344,7 @@ def test_found_prior_sets_the_untrained_policys_found_probability() -> None:
 
 
 def test_train_cli_rejects_a_bad_found_prior(tmp_path: Path, capsys) -> None:
-    from multion.cli import main
+    from multion_agents.cli import main
 
     code = main(["train", "--found-prior", "1.5", "--frames", "64", "--out", str(tmp_path)])
     assert code == 2
@@ -354,7 +354,7 @@ def test_train_cli_rejects_a_bad_found_prior(tmp_path: Path, capsys) -> None:
 
 @pytest.mark.parametrize("recipe", ["default", "v3"])
 def test_training_bench_measures_both_rates_in_one_run(capsys, recipe: str) -> None:
-    from multion_agents.bench_train import bench_settings, run_train_bench
+    from multion_agents.bench.train import bench_settings, run_train_bench
 
     agent = "no-map" if recipe == "default" else None  # v3: the recipe's oracle-map
     settings = bench_settings(recipe, agent, 36, 2, 2, "cpu")
@@ -373,7 +373,7 @@ def test_training_bench_measures_both_rates_in_one_run(capsys, recipe: str) -> N
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the message of a machine without one")
 def test_the_cuda_training_bench_says_plainly_it_needs_a_gpu(capsys) -> None:
-    from multion.cli import main
+    from multion_agents.cli import main
 
     assert main(["bench", "--only", "train", "--device", "cuda"]) == 2
     assert "needs a CUDA GPU" in capsys.readouterr().out
@@ -405,7 +405,7 @@ def test_a_curriculum_trains_on_near_goals_first_then_on_the_tasks_own(tmp_path:
 def test_train_cli_rejects_a_bad_curriculum(
     tmp_path: Path, capsys, stages: list[str], message: str
 ) -> None:
-    from multion.cli import main
+    from multion_agents.cli import main
 
     flags = [arg for stage in stages for arg in ("--curriculum", stage)]
     code = main(["train", *flags, "--frames", "64", "--out", str(tmp_path)])

@@ -284,7 +284,7 @@ def test_train_and_eval_share_the_set_parser(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     pytest.importorskip("torch")
-    from multion.cli import main
+    from multion_agents.cli import main
 
     assert (
         main(["train", "--set", "task.found_budget", "--frames", "64", "--out", str(tmp_path)]) == 2

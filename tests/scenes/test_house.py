@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from multion.scenes.house import HouseConfig, generate_house
+from multion.config.scenes import HouseConfig
+from multion.scenes.house import generate_house
 from multion.scenes.layout import Box, SceneLayout
 from multion.scenes.palette import GOAL_MARGIN
 from multion.scenes.textures import PATTERNS, texture_image

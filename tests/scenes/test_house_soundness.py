@@ -83,8 +83,8 @@ def test_the_checks_catch_a_roof_taken_for_the_floor():
 def test_sized_houses_have_their_own_grid_cache_revision():
     # sized houses changed without GENERATOR_VERSION (the default houses did not): their cached
     # grids must be rebuilt, the default houses' kept
+    from multion.config.sim import NavGridConfig
     from multion.sim.grid_cache import cache_key
-    from multion.sim.navgrid import NavGridConfig
 
     assert "sized_revision" not in cache_key("house-00061", NavGridConfig())
     assert '"sized_revision": 1' in cache_key("house-00014-r1", NavGridConfig())

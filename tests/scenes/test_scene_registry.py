@@ -4,13 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from multion.scenes.registry import (
-    SPLIT_SIZES,
-    is_mesh_scene,
-    layout_for,
-    scene_ids,
-    scene_split,
-)
+from multion.config.scenes import SPLIT_SIZES
+from multion.scenes.registry import is_mesh_scene, layout_for, scene_ids, scene_split
 
 
 def test_splits_have_matterport_counts_and_are_disjoint():

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multion.config.sim import NavGridConfig
 from multion.sim import grid_cache, simulator
-from multion.sim.navgrid import NavGridConfig
 from multion.sim.simulator import Simulator
 
 ROOM = "room-6x4"

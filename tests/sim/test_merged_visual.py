@@ -10,13 +10,14 @@ import math
 import numpy as np
 import pytest
 
+from multion.config.sim import CameraConfig, NavGridConfig
 from multion.scenes.layout import Box
 from multion.scenes.registry import layout_for
 from multion.scenes.textures import texture_image
 from multion.sim.bullet import pybullet as p
-from multion.sim.camera import EGL_LIGHT_POSITION, EGL_PLUGIN_LIGHT, Camera, CameraConfig
+from multion.sim.camera import EGL_LIGHT_POSITION, EGL_PLUGIN_LIGHT, Camera
 from multion.sim.merged_visual import build_atlas, merged_visual
-from multion.sim.navgrid import NavGridConfig, build_navgrid
+from multion.sim.navgrid import build_navgrid
 from multion.sim.simulator import Simulator
 from multion.sim.world import PyBulletWorld
 

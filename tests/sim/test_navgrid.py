@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
+from multion.config.sim import NavGridConfig
 from multion.scenes.obj_export import export_obj
 from multion.scenes.registry import layout_for
 from multion.sim.geodesic import distance_field, geodesic_distance
-from multion.sim.navgrid import NavGridConfig, build_navgrid
+from multion.sim.navgrid import build_navgrid
 from multion.sim.simulator import Simulator
 from multion.sim.world import PyBulletWorld
 

@@ -14,11 +14,13 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from multion.config.episode import Episode, Goal
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
 from multion.sim import camera as camera_module
-from multion.sim.camera import CameraConfig, RendererUnavailableError
+from multion.sim.camera import RendererUnavailableError
 from multion.sim.simulator import Simulator
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
+from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
 
 SIZE = 64

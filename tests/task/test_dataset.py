@@ -131,8 +131,8 @@ def test_parse_task():
 
 
 def test_files_record_their_versions_and_rooms_need_no_generator_version(episodes, tmp_path):
+    from multion.config.episode import Episode, Goal
     from multion.task.dataset import VERSION, read_header
-    from multion.task.episode import Episode, Goal
 
     header = read_header(save_dataset(tmp_path / "d.json.gz", episodes, 3, "val"))
     assert header["version"] == VERSION == 3

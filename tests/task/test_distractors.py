@@ -7,18 +7,17 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from multion.config.episode import Episode, Goal
+from multion.config.task import EnvConfig, EpisodeConstraints, MapConfig, TaskConfig
 from multion.sim.simulator import Simulator
 from multion.task.dataset import (
     DatasetError,
-    EpisodeConstraints,
     check_episode,
     load_dataset,
     sample_episode,
     save_dataset,
 )
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
-from multion.task.maps import MapConfig
+from multion.task.env import MultiONEnv
 from multion_client.constants import NUM_CATEGORIES, Action
 
 SCENE = "room-10x4"

@@ -10,13 +10,14 @@ import numpy as np
 import pybullet_data
 import pytest
 
+from multion.config.episode import Episode, Goal
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, MapConfig, TaskConfig
 from multion.scenes.registry import layout_for
-from multion.sim.camera import CameraConfig, resolve_renderer
+from multion.sim.camera import resolve_renderer
 from multion.sim.goal_objects import MODELS, goal_yaw
 from multion.sim.world import PyBulletWorld
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
-from multion.task.maps import MapConfig
+from multion.task.env import MultiONEnv
 from multion_client.constants import OBJECT_CATEGORIES, goal_categories
 
 EXCLUDED = ("duck", "bunny", "bicycle", "domino", "laikago")

@@ -6,8 +6,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import multion  # noqa: F401  (registers the environment ids)
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
+from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
 
 SENSORS = ("rgb", "depth", "goal", "goal_onehot", "gps", "compass", "oracle_map", "oracle_ego_map")

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 import trimesh
 
+from multion.config.task import EnvConfig, TaskConfig
 from multion.scenes.obj_export import export_obj
 from multion.scenes.registry import layout_for
 from multion.task.dataset import DatasetError, load_dataset, packaged_dataset_path
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.env import MultiONEnv
 from multion.task.multion_import import (
     Y_UP_TO_Z_UP,
     category_of,
@@ -164,7 +165,7 @@ def test_command_line(tmp_path, originals, scans, imported):
     source = multinav_file(tmp_path / "val.json.gz", originals[:2])
     out = imported.path.parent / "two.json.gz"  # beside the fixture's: its scan is converted
     done = subprocess.run(
-        [sys.executable, "-m", "multion.cli", "dataset", "import-multion", str(source),
+        [sys.executable, "-m", "multion_agents.cli", "dataset", "import-multion", str(source),
          "--scenes", str(scans), "--out", str(out)],
         capture_output=True, text=True, timeout=600,
     )
@@ -172,7 +173,7 @@ def test_command_line(tmp_path, originals, scans, imported):
     assert "2 episodes" in done.stdout and "multion eval --dataset" in done.stdout
     assert len(load_dataset(out)) == 2
     missing = subprocess.run(
-        [sys.executable, "-m", "multion.cli", "dataset", "import-multion", str(source),
+        [sys.executable, "-m", "multion_agents.cli", "dataset", "import-multion", str(source),
          "--scenes", str(tmp_path / "nowhere"), "--out", str(out)],
         capture_output=True, text=True, timeout=120,
     )

@@ -2,6 +2,7 @@
 
 import pytest
 
+from multion.config.task import EnvConfig, TaskConfig
 from multion.scenes.registry import GENERATOR_VERSION, scene_ids
 from multion.task.dataset import (
     DISTRACTOR_VARIANT,
@@ -9,7 +10,7 @@ from multion.task.dataset import (
     packaged_dataset_path,
     read_header,
 )
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.env import MultiONEnv
 
 
 @pytest.mark.parametrize("split", ["val", "test"])

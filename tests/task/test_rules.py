@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from multion.task.env import EnvConfig, EpisodeOverError, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
+from multion.config.episode import Episode, Goal
+from multion.config.task import EnvConfig, TaskConfig
+from multion.task.env import EpisodeOverError, MultiONEnv
 from multion_client.constants import Action
 
 F, FWD, LEFT, RIGHT = Action.FOUND, Action.MOVE_FORWARD, Action.TURN_LEFT, Action.TURN_RIGHT

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from multion.sim.camera import CameraConfig
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode, Goal
-from multion.task.maps import MapConfig
+from multion.config.episode import Episode, Goal
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, MapConfig, TaskConfig
+from multion.task.env import MultiONEnv
 from multion_client.constants import GOAL_CATEGORIES, MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN, Action
 
 

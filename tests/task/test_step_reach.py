@@ -8,12 +8,13 @@ import math
 import numpy as np
 import pytest
 
+from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
 from multion.scenes.registry import scene_ids
 from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import EpisodeConstraints, can_step, iter_chunks, sample_episode
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.task.dataset import can_step, iter_chunks, sample_episode
+from multion.task.env import MultiONEnv
 from multion.task.step_reach import steps_reach_goals
 from v2_episodes import v2_episode
 
@@ -127,7 +128,7 @@ def test_the_best_first_search_agrees_with_the_breadth_first_reference() -> None
     """Issue 30: the search that replaced the breadth-first one answers the same, on draws
     that pass and draws that fail (the pocket, goals behind it), also when it widens to layers
     at once (no greedy expansions) or after a few."""
-    from multion.bench_reset import breadth_first_reach
+    from multion_agents.bench.reset import breadth_first_reach
 
     simulator = Simulator()
     rng = np.random.default_rng(3)

@@ -42,7 +42,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy import ndimage
 
-from multion.ranges import bounded, check_fields, one_of
+from multion.config.ranges import bounded, check_fields, one_of
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.field_steps import FieldSteps
 from multion_agents.baselines.mapping import (

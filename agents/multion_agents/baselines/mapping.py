@@ -21,8 +21,12 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from multion.config.sim import CameraConfig
 from multion_agents.baselines.navigation import StartFrameGrid
 from multion_client.constants import NUM_CATEGORIES
+
+_SENSOR = CameraConfig()
+"""The environment's default camera: :class:`CameraModel`'s defaults, read, not copied."""
 
 
 @dataclass(frozen=True)
@@ -36,11 +40,11 @@ class CameraModel:
     as "nothing seen up to there", one at or below ``near`` as "something closer". Beyond 5 m a
     0.1 m map cell is under a pixel's footprint, and the floor is seen at a grazing angle."""
 
-    hfov_deg: float = 79.0
-    height: float = 0.88
-    min_depth: float = 0.0
-    max_depth: float = 10.0
-    normalized: bool = True
+    hfov_deg: float = _SENSOR.hfov_deg
+    height: float = _SENSOR.sensor_height
+    min_depth: float = _SENSOR.min_depth
+    max_depth: float = _SENSOR.max_depth
+    normalized: bool = _SENSOR.normalize_depth
     """Depth observations in [0, 1] over ``[min_depth, max_depth]`` (else metres)."""
     near_limit: float = 0.5
     far_limit: float = 5.0

@@ -33,7 +33,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from multion.ranges import bounded, check_fields
+from multion.config.ranges import bounded, check_fields
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.lattice_search import LatticeSearch, key_of
 from multion_agents.baselines.navigation import (

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from multion.config.codec import env_config_from_dict
+from multion.task.env import build_observation_space
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.map_ops import MapGeometry
 from multion_agents.learned.models import model_spec
@@ -102,9 +104,6 @@ def build_policy(
 ) -> RecurrentPolicy:
     """The (untrained) policy of model ``agent`` for environments configured by ``env_config``,
     with a GRU of ``hidden_size`` units (768, the reference's, by default)."""
-    from multion.api.config_io import env_config_from_dict
-    from multion.task.env import build_observation_space
-
     config = env_config_from_dict(env_config)
     space = build_observation_space(config)
     return model_spec(agent).build(space, MapGeometry.from_env_config(config), hidden_size)

@@ -18,12 +18,15 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from multion.api.config_io import env_config_to_dict
+from multion.config.codec import env_config_to_dict
+from multion.config.task import MapConfig
 from multion.task.env import MultiONEnv
-from multion.task.maps import MapConfig, OracleMap
+from multion.task.maps import OracleMap
 from multion_agents.baselines.oracle_planner import OraclePlannerAgent, OraclePlannerSettings
-from multion_agents.learned.rollout_envs import EXPERT_ACTION
 
+EXPERT_ACTION = "expert_action"
+"""The info key of an imitation label: the expert's action for the observation returned with it
+(:class:`OraclePlannerLabels`)."""
 EXPERT_SENSORS = ("goal", "gps", "compass")
 EXPERT_SETTINGS = OraclePlannerSettings(stuck_visits=sys.maxsize)
 """The planner as the expert: without lattice searches (see ``OraclePlannerLabels``)."""

@@ -36,6 +36,9 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
+from multion.config.codec import env_config_from_dict
+from multion.config.task import EnvConfig
+
 GLOBAL_SIZE = 63
 """Side of the learned global map, cells: 50.4 m at 0.8 m, ±25 m around the start (the paper's
 map is 300 × 300 cells; our procedural houses are < 25 m across, so this is never left). A
@@ -67,10 +70,8 @@ class MapGeometry:
 
     @classmethod
     def from_env_config(cls, config: Any) -> MapGeometry:
-        """From a :class:`multion.task.env.EnvConfig` or its nested-dict form."""
+        """From a :class:`multion.config.task.EnvConfig` or its nested-dict form."""
         if isinstance(config, dict):
-            from multion.api.config_io import env_config_from_dict
-
             config = env_config_from_dict(config)
         camera, maps = config.camera, config.maps
         return cls(
@@ -96,8 +97,6 @@ class MapGeometry:
 
 def default_geometry() -> MapGeometry:
     """The geometry of the default environment config (for tests and quick experiments)."""
-    from multion.task.env import EnvConfig
-
     return MapGeometry.from_env_config(EnvConfig())
 
 

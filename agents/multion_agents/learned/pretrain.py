@@ -27,7 +27,12 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from multion.ranges import bounded, check_fields, one_of
+from multion.config.codec import env_config_from_dict
+from multion.config.ranges import bounded, check_fields, one_of
+from multion.sim.geodesic import distance_field
+from multion.task.dataset import packaged_dataset_path
+from multion.task.env import MultiONEnv, build_observation_space
+from multion.task.maps import OracleMap
 from multion_agents.learned.policy import Batch, RecurrentPolicy
 from multion_agents.learned.training_log import TrainingLog
 from multion_client.constants import Action
@@ -107,11 +112,6 @@ def sample_map_crops(
     """``count`` labelled crops at random poses in episodes of ``env_config`` on ``split`` (a
     random episode, so mostly a new house, every ``poses_per_scene`` poses; ``seed`` picks the
     episodes and poses)."""
-    from multion.api.config_io import env_config_from_dict
-    from multion.sim.geodesic import distance_field
-    from multion.task.env import MultiONEnv
-    from multion.task.maps import OracleMap
-
     wanted = {**env_config, "sensors": ["goal"], "episodes_per_scene": 1, "split": split}
     if split != "train":
         wanted.pop("dataset", None)  # the split's packaged episodes, not a training file
@@ -187,9 +187,6 @@ def _logits(
 
 def blank_frames(policy: RecurrentPolicy, env_config: dict[str, Any]) -> Batch:
     """One all-zero frame (1, 1, ...) of each observation ``policy`` reads in ``env_config``."""
-    from multion.api.config_io import env_config_from_dict
-    from multion.task.env import build_observation_space
-
     space = build_observation_space(env_config_from_dict(env_config))
     if MAP_SENSOR not in policy.sensors:
         raise ValueError(
@@ -256,9 +253,6 @@ def _fit(
     log: TrainingLog,
     progress: bool,
 ) -> dict[str, float]:
-    from multion.api.config_io import env_config_from_dict
-    from multion.task.dataset import packaged_dataset_path
-
     blank = blank_frames(policy, env_config)
     train_crops = sample_map_crops(
         env_config, settings.samples, settings.seed, settings, "train", progress

@@ -16,12 +16,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
 
+from multion.config.codec import env_config_from_dict
+from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
+from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
+from multion_client.vector import RemoteVectorEnv
 
 SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
-EXPERT_ACTION = "expert_action"
-"""The info key of an imitation label: the expert's action for the observation returned with it
-(:mod:`.expert`)."""
 NO_LABEL = -1
 """The label of a step without one (the last step of an episode), left out of the loss."""
 
@@ -75,8 +76,6 @@ def parse_curriculum(texts: Sequence[str]) -> Curriculum:
 def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None:
     """A ``ValueError`` (or the config's own ``ConfigError``, naming ``online_max_geodesic``
     and its range) before any environment starts, rather than at a stage switch."""
-    from multion.api.config_io import env_config_from_dict
-
     if not curriculum:
         return
     if env_config.get("dataset") is not None:
@@ -98,12 +97,9 @@ def stage_config(env_config: dict[str, Any], curriculum: Curriculum, frames: int
 
 def _make_local_env(config: dict[str, Any], expert: bool = False) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
-    from multion.api.config_io import env_config_from_dict
-    from multion.task.env import MultiONEnv
 
     if not expert:
         return MultiONEnv(env_config_from_dict(config))
-    from multion_agents.learned.expert import EXPERT_SENSORS, OraclePlannerLabels
 
     sensors = list(dict.fromkeys([*config["sensors"], *EXPERT_SENSORS]))
     return OraclePlannerLabels(MultiONEnv(env_config_from_dict({**config, "sensors": sensors})))
@@ -121,7 +117,6 @@ def make_vector_env(
                 "--imitation-coef labels steps with a planner beside the simulator: it needs "
                 "local environments, not --server"
             )
-        from multion_client.vector import RemoteVectorEnv
 
         counts = [
             num_envs // len(servers) + (i < num_envs % len(servers)) for i in range(len(servers))

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from multion.config.task import TaskConfig
 from multion.task.dataset import parse_task
-from multion.task.env import TaskConfig
 from multion_agents.report.stats import HEADLINE
 
 METRICS_FILE = "metrics.json"

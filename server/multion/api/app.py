@@ -6,8 +6,9 @@ import asyncio
 import contextlib
 import logging
 import secrets
-from collections.abc import AsyncIterator
-from typing import TYPE_CHECKING
+from collections.abc import AsyncIterator, Sequence
+from contextlib import AbstractAsyncContextManager
+from typing import Protocol
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -29,10 +30,6 @@ from multion_client.errors import (
 )
 from multion_client.protocol import API_VERSION
 
-if TYPE_CHECKING:
-    from multion.leaderboard.clock import Clock
-    from multion.leaderboard.settings import LeaderboardSettings
-
 log = logging.getLogger("multion.api")
 
 DESCRIPTION = """\
@@ -42,22 +39,35 @@ clients only send actions. The `multion_client` package (`Client`, `RemoteEnv`,
 `RemoteVectorEnv`) speaks this protocol."""
 
 
+class AppExtension(Protocol):
+    """A service the app serves beside the sessions, such as the leaderboard
+    (``multion.leaderboard.app.LeaderboardExtension``): passed in by whoever composes the
+    server, so that this layer never imports the ones above it."""
+
+    authenticates_teams: bool
+    """It sets ``app.state.authenticate`` (team tokens), which ``sessions = 'token'`` needs."""
+
+    def install(self, app: FastAPI) -> None:
+        """Check its inputs (raising on bad ones) and add its routes, as the app is built."""
+
+    def lifespan(
+        self, app: FastAPI, registry: SessionRegistry
+    ) -> AbstractAsyncContextManager[None]:
+        """What runs while the app serves, inside the worker pool's lifespan."""
+
+
 def create_app(
-    settings: ServerSettings | None = None,
-    leaderboard: LeaderboardSettings | None = None,
-    clock: Clock | None = None,
+    settings: ServerSettings | None = None, extensions: Sequence[AppExtension] = ()
 ) -> FastAPI:
     """A MultiON server app; its lifespan starts and stops the simulator workers.
 
-    With ``leaderboard`` (a challenge file and a results database) it also serves the run
-    routes of :mod:`multion.leaderboard`; without, it behaves as a plain session server.
-    ``clock`` is what the runs' deadlines follow (None: the wall clock; tests pass a
-    :class:`~multion.leaderboard.clock.ManualClock`).
+    ``extensions`` are served beside the sessions (the leaderboard's run routes and pages);
+    without any the app is a plain session server.
     """
     settings, warning = fit_outer_memory_limit(settings or ServerSettings())
     if warning:  # `multion serve` fitted them already; an app built another way says it here
         log.warning(warning)
-    if settings.sessions == "token" and leaderboard is None:
+    if settings.sessions == "token" and not any(e.authenticates_teams for e in extensions):
         raise ValueError(
             "sessions = 'token' needs a challenge (--challenge FILE): team tokens come from "
             "the leaderboard"
@@ -77,13 +87,10 @@ def create_app(
         app.state.settings, app.state.registry = settings, registry
         reaper = asyncio.create_task(registry.reap_forever())
         try:
-            if leaderboard is None:
+            async with contextlib.AsyncExitStack() as running:
+                for extension in extensions:
+                    await running.enter_async_context(extension.lifespan(app, registry))
                 yield
-            else:
-                from multion.leaderboard.app import leaderboard_lifespan
-
-                async with leaderboard_lifespan(app, leaderboard, challenge, registry, clock):
-                    yield
         finally:
             reaper.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -99,10 +106,8 @@ def create_app(
     install_openapi(app)
     app.include_router(meta.router)
     app.include_router(sessions.router)
-    if leaderboard is not None:
-        from multion.leaderboard.app import check_leaderboard
-
-        challenge = check_leaderboard(app, leaderboard)
+    for extension in extensions:
+        extension.install(app)
     app.add_exception_handler(MultiONError, _api_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(HTTPException, _http_error)

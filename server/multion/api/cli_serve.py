@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
+import uvicorn
+from fastapi import FastAPI
+from pydantic import ValidationError
+
+from multion.api.app import create_app
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
 
 # Options that map one-to-one onto ServerSettings fields (None: keep the MULTION_* / default).
@@ -75,21 +79,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-access-log", action="store_true", help="do not log every request (faster)"
     )
-    parser.add_argument(
-        "--challenge",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="turn the leaderboard on: a challenge file (tracks, phases, secret); see "
-        "docs/leaderboard.md",
-    )
-    parser.add_argument(
-        "--database",
-        default=None,
-        metavar="URL",
-        help="the leaderboard's results database (default sqlite:///leaderboard.db; "
-        "postgresql+psycopg://… for several replicas)",
-    )
 
 
 def add_http_stack_arguments(parser: argparse.ArgumentParser, whose: str = "") -> None:
@@ -119,51 +108,26 @@ def settings_from_args(args: argparse.Namespace) -> ServerSettings:
     return ServerSettings(**{k: v for k, v in given.items() if v is not None})
 
 
-def run(args: argparse.Namespace) -> int:
-    """Serve until interrupted; returns the exit status."""
-    import uvicorn
-    from pydantic import ValidationError
-
-    from multion.api.app import create_app
-
+def checked_settings(args: argparse.Namespace) -> ServerSettings | None:
+    """The settings of ``args`` fitted to this process's memory limit; None (and the error
+    printed) where they cannot be used."""
     try:
         settings = settings_from_args(args)
     except ValidationError as error:
         print(f"multion serve: invalid option: {error}")
-        return 2
+        return None
     try:
         settings, warning = fit_outer_memory_limit(settings)
     except ValueError as error:
         print(f"multion serve: {error}", file=sys.stderr)
-        return 2
+        return None
     if warning:
         print(f"multion serve: warning: {warning}", file=sys.stderr)
-    leaderboard = None
-    # the leaderboard is on with --challenge or $MULTION_LEADERBOARD_CHALLENGE (docs' Serving)
-    challenge_file = getattr(args, "challenge", None) or os.environ.get(
-        "MULTION_LEADERBOARD_CHALLENGE"
-    )
-    if challenge_file or getattr(args, "database", None):
-        from multion.leaderboard.challenge import ChallengeError
-        from multion.leaderboard.settings import LeaderboardSettings
-        from multion.leaderboard.storage import StorageError
+    return settings
 
-        if not challenge_file:
-            print("multion serve: --database needs --challenge FILE")
-            return 2
-        given = {"challenge": challenge_file, "database": args.database}
-        try:
-            leaderboard = LeaderboardSettings(**{k: v for k, v in given.items() if v})
-            app = create_app(settings, leaderboard)
-        except (ValidationError, ChallengeError, StorageError) as error:
-            print(f"multion serve: {error}")
-            return 2
-    else:
-        try:
-            app = create_app(settings)
-        except ValueError as error:
-            print(f"multion serve: {error}")
-            return 2
+
+def serve(app: FastAPI, settings: ServerSettings, args: argparse.Namespace) -> int:
+    """Serve ``app`` until interrupted; returns the exit status."""
     uvicorn.run(
         app,
         host=settings.host,
@@ -177,8 +141,22 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def run(args: argparse.Namespace) -> int:
+    """A plain session server (``multion serve`` without a challenge; the command itself is
+    :mod:`multion.leaderboard.cli_serve`, which can add the leaderboard)."""
+    settings = checked_settings(args)
+    if settings is None:
+        return 2
+    try:
+        app = create_app(settings)
+    except ValueError as error:
+        print(f"multion serve: {error}")
+        return 2
+    return serve(app, settings, args)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m multion.api.cli_serve``: the same as ``multion serve``."""
+    """``python -m multion.api.cli_serve``: ``multion serve`` without the leaderboard."""
     parser = argparse.ArgumentParser(prog="multion serve", description=__doc__)
     add_arguments(parser)
     return run(parser.parse_args(argv))

@@ -27,17 +27,24 @@ class LocalServer:
     """``with LocalServer(workers=2) as server: ... server.url ...``; always stopped on exit.
 
     ``options`` are extra ``multion serve`` arguments, e.g. ``["--idle-timeout-s", "5"]``.
+    ``serve_module`` is the module run with ``python -m``: the plain session server, or
+    ``multion.leaderboard.cli_serve.SERVE_MODULE`` for ``--challenge`` (this layer does not
+    know the leaderboard).
     """
 
     def __init__(
-        self, workers: int = 1, options: list[str] | None = None, start_timeout_s: float = 60.0
+        self,
+        workers: int = 1,
+        options: list[str] | None = None,
+        start_timeout_s: float = 60.0,
+        serve_module: str = "multion.api.cli_serve",
     ) -> None:
         self.host, self.port = "127.0.0.1", free_port()
         self.url = f"http://{self.host}:{self.port}"
         self.command = [
             sys.executable,
             "-m",
-            "multion.api.cli_serve",
+            serve_module,
             "--host",
             self.host,
             "--port",

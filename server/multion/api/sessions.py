@@ -16,10 +16,10 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from multion.api.config_io import ConfigError, session_config_from_dict
 from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
+from multion.config.codec import ConfigError, session_config_from_dict
 from multion.task.env import check_reset_options
 from multion.task.errors import BadResetOptionError
 from multion.task.memory import estimate_env_bytes, mib

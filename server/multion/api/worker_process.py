@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
-from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.config.codec import ConfigError, session_config_from_dict
 from multion.processes import give_back_memory, ignore_stop_signals, limit_address_space
 from multion.task.env import MultiONEnv
 from multion.task.errors import (

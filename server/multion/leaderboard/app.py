@@ -1,8 +1,8 @@
 """Turning the leaderboard on in a server: the challenge, the database and the run service.
 
-``create_app(settings, leaderboard)`` calls :func:`check_leaderboard` when it builds the app (so
-a bad challenge file or database fails at once) and :func:`leaderboard_lifespan` inside its
-lifespan, once the session registry exists.
+``create_app(settings, [LeaderboardExtension(leaderboard)])`` calls :func:`check_leaderboard`
+when it builds the app (so a bad challenge file or database fails at once) and
+:func:`leaderboard_lifespan` inside its lifespan, once the session registry exists.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import AsyncIterator
+from dataclasses import dataclass
 
 from fastapi import FastAPI
 
@@ -81,6 +82,28 @@ async def leaderboard_lifespan(
         await service.close()
         pictures.close()
         db.close()
+
+
+@dataclass
+class LeaderboardExtension:
+    """The leaderboard as an extension of the session server:
+    ``create_app(settings, [LeaderboardExtension(leaderboard_settings)])``."""
+
+    settings: LeaderboardSettings
+    clock: Clock | None = None
+    """What the runs' deadlines follow (None: the wall clock; tests pass a ManualClock)."""
+    authenticates_teams: bool = True
+    challenge: Challenge | None = None
+    """Read by :meth:`install`, when the app is built."""
+
+    def install(self, app: FastAPI) -> None:
+        self.challenge = check_leaderboard(app, self.settings)
+
+    def lifespan(
+        self, app: FastAPI, registry: SessionRegistry
+    ) -> contextlib.AbstractAsyncContextManager[None]:
+        assert self.challenge is not None, "install() runs first, when the app is built"
+        return leaderboard_lifespan(app, self.settings, self.challenge, registry, self.clock)
 
 
 async def _warm_up(service: RunService) -> None:

@@ -49,9 +49,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from multion.api.config_io import ConfigError, env_config_from_dict
+from multion.config.codec import ConfigError, env_config_from_dict
+from multion.config.task import SENSORS
 from multion.scenes.registry import HOUSE_CONFIG, MAX_SIZED_ROOMS
-from multion.task.env import SENSORS
 
 STANDARD_SENSORS = ("rgb", "depth", "goal", "goal_onehot", "gps", "compass")
 """What a *standard* track may receive (the MultiON challenge's sensors)."""

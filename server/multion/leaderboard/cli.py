@@ -22,18 +22,38 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib
 import io
 import json
 import os
 import sys
 import tempfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from multion.leaderboard.challenge import ChallengeError, load_challenge
+from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
+from multion.leaderboard.house_stats import HEADER, house_stats, val_stats
+from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
+from multion.leaderboard.replay import rescore
+from multion.leaderboard.storage import (
+    Database,
+    StorageError,
+    add_team,
+    add_token,
+    check_secret,
+    current_revision,
+    find_team,
+    revoke_tokens,
+)
+from multion.leaderboard.web.queries import leaderboards
+from multion.scenes.registry import layout_for
+from multion.sim.house_check import points_outside_rooms
+from multion_client.errors import MultiONError
+
 if TYPE_CHECKING:
+    from multion.config.episode import Episode
     from multion.leaderboard.challenge import Challenge
-    from multion.task.episode import Episode
 
 DEFAULT_DATABASE = "sqlite:///leaderboard.db"
 
@@ -95,13 +115,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true")
 
 
-def run(args: argparse.Namespace) -> int:
-    from multion.leaderboard.challenge import ChallengeError
-    from multion.leaderboard.storage import StorageError
-    from multion_client.errors import MultiONError
-
+def run(args: argparse.Namespace, more_actions: Mapping[str, Action] | None = None) -> int:
+    """Run ``args.action``: one of this module's, or of ``more_actions`` (``baselines``)."""
+    actions = {**_ACTIONS, **(more_actions or {})}
+    if args.action not in actions:
+        print(
+            f"multion leaderboard {args.action}: needs the agents (multion_agents)", file=sys.stderr
+        )
+        return 2
     try:
-        return int(_ACTIONS[args.action](args) or 0)
+        return int(actions[args.action](args) or 0)
     except (ChallengeError, StorageError, MultiONError, ValueError) as error:
         print(f"multion leaderboard {args.action}: {error}", file=sys.stderr)
         return 2
@@ -109,8 +132,6 @@ def run(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------- actions
 def _challenge(args: argparse.Namespace) -> Any:
-    from multion.leaderboard.challenge import load_challenge
-
     if args.challenge is None:
         raise ValueError("give --challenge FILE (or set MULTION_LEADERBOARD_CHALLENGE)")
     return load_challenge(args.challenge)
@@ -125,17 +146,13 @@ def _database_url(args: argparse.Namespace) -> tuple[str, str]:
     return DEFAULT_DATABASE, "the default; give --database URL or set MULTION_LEADERBOARD_DATABASE"
 
 
-def _db(args: argparse.Namespace) -> Any:
+def existing_database(args: argparse.Namespace) -> Database:
     """The existing database (never created here: a typo must not make an empty one)."""
-    from multion.leaderboard.storage import Database
-
     url, source = _database_url(args)
     return Database.open_existing(url, hint=f" ({source})")
 
 
 def _init(args: argparse.Namespace) -> int:
-    from multion.leaderboard.storage import Database, current_revision
-
     db = Database.open(_database_url(args)[0])
     print(
         f"{db.engine.url.render_as_string(hide_password=True)}: schema {current_revision(db.engine)}"
@@ -146,12 +163,11 @@ def _init(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> int:
     challenge = _challenge(args)
-    from multion.leaderboard.models import utcnow
 
     phases = sum(len(t.phases) for t in challenge.tracks)
     print(
-        f"{args.challenge}: challenge {challenge.name!r}, {_count(len(challenge.tracks), 'track')}, "
-        f"{_count(phases, 'phase')}: OK"
+        f"{args.challenge}: challenge {challenge.name!r}, {counted(len(challenge.tracks), 'track')}, "
+        f"{counted(phases, 'phase')}: OK"
     )
     for warning in challenge.warnings(utcnow()):
         print(f"  warning: {warning}")
@@ -163,9 +179,6 @@ def _check(args: argparse.Namespace) -> int:
 def _generate(challenge: Challenge) -> int:
     """Build every phase's hidden houses and episodes; their statistics beside val's. Refuses
     (exit status 1) a challenge whose houses or episodes are unsound (issue 33)."""
-    from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
-    from multion.leaderboard.house_stats import HEADER, house_stats, val_stats
-
     hidden = HiddenEpisodes(challenge, in_subprocess=False)
     rows = [val_stats().row("packaged val (calibrated)")]
     problems: list[str] = []
@@ -187,7 +200,7 @@ def _generate(challenge: Challenge) -> int:
     print(HEADER)
     print("\n".join(rows))
     if problems:
-        print(f"error: {_count(len(problems), 'problem')} in the hidden houses or episodes:")
+        print(f"error: {counted(len(problems), 'problem')} in the hidden houses or episodes:")
         print("\n".join(f"  {p}" for p in problems[:20]))
         return 1
     return 0
@@ -195,9 +208,6 @@ def _generate(challenge: Challenge) -> int:
 
 def _episode_problems(episodes: list[Episode]) -> list[str]:
     """Starts and goals that are not inside a room (or a doorway)."""
-    from multion.scenes.registry import layout_for
-    from multion.sim.house_check import points_outside_rooms
-
     problems = []
     for e in episodes:
         points = [e.start_position[:2]] + [g.position[:2] for g in e.goals]
@@ -206,13 +216,11 @@ def _episode_problems(episodes: list[Episode]) -> list[str]:
     return problems
 
 
-def _count(n: int, noun: str) -> str:
+def counted(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _tracks(args: argparse.Namespace) -> int:
-    from multion.leaderboard.models import utcnow
-
     challenge = _challenge(args)
     now = utcnow()
     for track in challenge.tracks:
@@ -238,10 +246,7 @@ def _tracks(args: argparse.Namespace) -> int:
 def _team(args: argparse.Namespace) -> int:
     from sqlalchemy import select
 
-    from multion.leaderboard.models import Team
-    from multion.leaderboard.storage import add_team
-
-    db = _db(args)
+    db = existing_database(args)
     try:
         with db.sessions.begin() as session:
             if args.team_action == "add":
@@ -260,9 +265,7 @@ def _team(args: argparse.Namespace) -> int:
 
 
 def _token(args: argparse.Namespace) -> int:
-    from multion.leaderboard.storage import add_token, find_team, revoke_tokens
-
-    db = _db(args)
+    db = existing_database(args)
     try:
         with db.sessions.begin() as session:
             team = find_team(session, args.name)
@@ -286,8 +289,6 @@ def _token(args: argparse.Namespace) -> int:
 def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
     """Every run as a flat row (team, track, phase, method, state, metrics with intervals)."""
     from sqlalchemy import select
-
-    from multion.leaderboard.models import Run, Team
 
     query = select(Run, Team.name).join(Team).order_by(Run.created_at)
     for name in ("track", "phase", "state"):
@@ -328,16 +329,13 @@ def shown_rows(
     """The rows of the runs the leaderboard page shows now, in its order: the page's own query
     (:func:`~multion.leaderboard.web.queries.leaderboards`), so sealed phases before their
     date and runs that played nothing are left out here too."""
-    from multion.leaderboard.models import utcnow
-    from multion.leaderboard.web.queries import leaderboards
-
     by_id = {row["run_id"]: row for row in rows}
     boards = leaderboards(session, challenge, utcnow())
     return [by_id[r.run_id] for board in boards for r in board.rows if r.run_id in by_id]
 
 
 def _runs(args: argparse.Namespace) -> int:
-    db = _db(args)
+    db = existing_database(args)
     try:
         with db.sessions() as session:
             _check_filters(session, args)
@@ -368,8 +366,6 @@ def _check_filters(session: Any, args: argparse.Namespace) -> None:
     typo must not read as "no runs")."""
     from sqlalchemy import distinct, select
 
-    from multion.leaderboard.models import Run, Team
-
     for option, column in (("team", Team.name), ("track", Run.track), ("phase", Run.phase)):
         given = getattr(args, option)
         if given is None:
@@ -386,9 +382,7 @@ def _check_filters(session: Any, args: argparse.Namespace) -> None:
 def _export(args: argparse.Namespace) -> int:
     from sqlalchemy import select
 
-    from multion.leaderboard.models import EpisodeRecord
-
-    db = _db(args)
+    db = existing_database(args)
     try:
         with db.sessions() as session:
             rows = run_rows(session)
@@ -425,11 +419,8 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from multion.leaderboard.replay import rescore
-    from multion.leaderboard.storage import check_secret
-
     challenge = _challenge(args)
-    db = _db(args)
+    db = existing_database(args)
     try:
         with db.sessions.begin() as session:
             check_secret(session, challenge.secret, remember=False)
@@ -446,21 +437,6 @@ def _replay(args: argparse.Namespace) -> int:
               + (" (stored records updated)" if args.write else " (use --write to re-score)"))  # fmt: skip
         return 0 if args.write else 1
     print("  identical to the stored records")
-    return 0
-
-
-def _baselines(args: argparse.Namespace) -> int:
-    # The agents live in multion_agents (as `multion submit` does): imported by name, so the
-    # leaderboard package never depends on them.
-    baselines = importlib.import_module("multion_agents.leaderboard_baselines")
-    db = _db(args)
-    try:
-        run_ids = baselines.play_baselines(
-            db, args.server, args.track, args.phase, args.agents, not args.quiet
-        )
-    finally:
-        db.close()
-    print(f"{_count(len(run_ids), 'baseline run')} played")
     return 0
 
 
@@ -486,5 +462,8 @@ _ACTIONS = {
     "runs": _runs,
     "export": _export,
     "replay": _replay,
-    "baselines": _baselines,
 }
+"""The actions of this layer; ``baselines`` plays agents, which live above it: the
+``multion leaderboard`` command (``multion_agents.cli_leaderboard``) adds it to :func:`run`."""
+
+Action = Callable[[argparse.Namespace], int]

@@ -33,13 +33,13 @@ from typing import TypeVar
 
 import numpy as np
 
+from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.processes import ignore_stop_signals
 from multion.scenes.registry import house_id, sized_house_id
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
 from multion.task.dataset import sample_episode, variant_name
-from multion.task.episode import Episode
 from multion.task.generate import generate_episodes
 
 HIDDEN_HOUSE_BASE = 10**9

@@ -11,9 +11,9 @@ import logging
 from typing import Any
 
 from multion.api.sessions import SessionRegistry
+from multion.config.episode import Episode
 from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import Lane, LiveRun
-from multion.task.episode import Episode
 from multion_client import errors
 from multion_client.protocol import CreateSession, Reset, Step, decode, space_from_wire
 

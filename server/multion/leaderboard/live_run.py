@@ -14,12 +14,12 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from multion.config.episode import Episode
 from multion.leaderboard.challenge import Phase, Track
 from multion.leaderboard.hidden import RunDraw
 from multion.leaderboard.models import Run
 from multion.leaderboard.results import missed_metrics
 from multion.leaderboard.run_store import EpisodeResult, LaneState, RunState
-from multion.task.episode import Episode
 
 
 @dataclass

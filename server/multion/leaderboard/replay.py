@@ -9,7 +9,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
-from multion.api.config_io import session_config_from_dict
+from multion.config.codec import session_config_from_dict
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import draw_of

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from multion.api.config_io import ConfigError, session_config_from_dict
+from multion.config.codec import ConfigError, session_config_from_dict
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion_client import errors
 from multion_client.run_protocol import CreateRun

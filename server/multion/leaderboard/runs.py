@@ -30,6 +30,7 @@ from typing import Any, NoReturn
 from sqlalchemy import select
 
 from multion.api.sessions import SessionRegistry
+from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.clock import Clock, SystemClock
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
@@ -49,7 +50,6 @@ from multion.leaderboard.run_store import (
     save_state,
 )
 from multion.leaderboard.storage import Database
-from multion.task.episode import Episode
 from multion_client import errors
 from multion_client.protocol import encode
 from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunStatus, StartEpisode

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multion.config.scenes import PlanConfig
 from multion.scenes.layout import Door
 
 Cell = tuple[int, int, int, int]  # (x0, y0, x1, y1) in grid steps
@@ -29,44 +30,6 @@ MIN_KEPT_SHARE = 0.6
 the whole rectangle). Houses of few rooms drew cuts that left one room in a plate three times its
 size: the navigable grid then took the roof for the floor (issue 33). Every default house keeps
 more than 70 %, so none of them changes."""
-
-
-@dataclass(frozen=True)
-class PlanConfig:
-    """Knobs of the floor plan (metres unless said otherwise)."""
-
-    min_room_side: float = 2.5
-    """Free interior of a room, at least, along both axes."""
-    split_fraction: tuple[float, float] = (0.35, 0.65)
-    """Where a cell is cut, along its long side."""
-    corridor_width: tuple[float, float] = (1.2, 1.6)
-    """Free width of a corridor."""
-    corridor_probability: float = 0.6
-    """Chance that a cell at least ``corridor_min_length`` long is split by a corridor."""
-    corridor_min_length: float = 9.0
-    max_corridors: int = 2
-    corner_cuts: tuple[int, int] = (0, 2)
-    """How many corner cells are removed from the rectangle (inclusive range)."""
-    min_shared_wall: float = 1.3
-    """Two cells are neighbours if they share this much wall (wall centre to wall centre)."""
-    door_width: tuple[float, float] = (0.9, 1.1)
-    extra_door_probability: float = 0.3
-    """Chance that a neighbour pair off the spanning tree gets a door too (a loop)."""
-    opening_probability: float = 0.3
-    """Chance that a door between two rooms (not corridors) is a wide opening instead."""
-    opening_min_wall: float = 2.0
-    """Openings only where the shared wall is at least this long."""
-    wall_thickness: float = 0.15
-    grid: float = 0.05
-
-    def __post_init__(self) -> None:
-        if self.door_width[1] > self.min_shared_wall - self.wall_thickness:
-            raise ValueError("door_width must fit in min_shared_wall minus the wall thickness")
-        for name in ("corridor_probability", "extra_door_probability", "opening_probability"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
-        if not 0 <= self.corner_cuts[0] <= self.corner_cuts[1] <= 3:
-            raise ValueError(f"corner_cuts must be a range within 0..3, got {self.corner_cuts}")
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from multion.config.scenes import PlacementConfig
 from multion.scenes.layout import Box, Rgba
 from multion.scenes.palette import (
     BRIGHT,
@@ -53,20 +54,6 @@ class Item:
     parts: tuple[Part, ...]
     centre: bool = False  # stands in the middle of the room instead of against a wall
     anywhere: bool = False  # clutter: anywhere in the room, turned by a multiple of 90°
-
-
-@dataclass(frozen=True)
-class PlacementConfig:
-    """How carefully furniture is placed."""
-
-    wall_gap: float = 0.02  # gap between furniture and the wall behind it
-    item_gap: float = 0.05  # minimum gap between two items
-    clearance: float = 0.15  # agent radius (0.1) plus a margin, for the free-area check
-    check_radii: tuple[float, ...] = (0.05, 0.075, 0.1, 0.125, 0.15, 0.175)
-    cell: float = 0.05  # raster resolution of the connectivity check
-    max_depth_fraction: float = 0.6  # an item reaches at most this far across the room
-    min_free_fraction: float = 0.35  # this much of the room stays free (at ``clearance``)
-    attempts: int = 30  # random placements tried per item before giving up on it
 
 
 def _p(u0: float, v0: float, z0: float, u1: float, v1: float, z1: float, rgba: Rgba) -> Part:

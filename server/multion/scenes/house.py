@@ -20,67 +20,16 @@ A room's ``rect`` is its free interior: the cell shrunk by half a wall on every 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from multion.scenes.floorplan import PlanConfig, make_plan
+from multion.config.scenes import HouseConfig
+from multion.scenes.floorplan import make_plan
 from multion.scenes.furniture import furnish_room
 from multion.scenes.layout import Box, Door, Room, SceneLayout
 from multion.scenes.palette import CEILING, ROOM_COLOURS, ROOM_TEXTURES, muted, varied
 
 Rect = tuple[float, float, float, float]  # (x0, y0, x1, y1)
-
-
-@dataclass(frozen=True)
-class HouseConfig:
-    """Knobs of the house generator; the defaults are calibrated to play like Matterport3D's
-    buildings (``scripts/calibrate_houses.py``): 8–16 rooms and corridors, about 150–400 m²,
-    about half of it navigable."""
-
-    min_rooms: int = 8
-    """Rooms including corridors, after corner cuts; valid range 1..max_rooms."""
-    max_rooms: int = 16
-    """Valid range min_rooms..40."""
-    room_area: tuple[float, float] = (11.0, 24.0)
-    """m² per room (wall centre to wall centre), drawn per room to size the footprint."""
-    footprint_aspect: tuple[float, float] = (1.2, 2.0)
-    """Long side / short side of the footprint's rectangle."""
-    plan: PlanConfig = PlanConfig()
-    wall_height: float = 2.6
-    floor_thickness: float = 0.05
-    ceiling_thickness: float = 0.05
-    door_clear_depth: float = 1.0
-    """No furniture this far in front of a door, on both sides."""
-    door_clear_margin: float = 0.15
-    """… nor this far beside the door opening."""
-    furniture_density: float = 1.0
-    """Multiplies each furniture item's probability; 0 = empty rooms. Valid range 0..5."""
-    clutter: int = 6
-    """Rounds of clutter (tables, islands, lamps, boxes, plants … in the middle of rooms) tried
-    per room after the furniture along the walls; 0 leaves the middle free. Valid range 0..10."""
-    colour_variation: float = 0.04
-    """Per-channel shade variation per house."""
-    max_attempts: int = 200
-    """Floor-plan retries before the footprint is enlarged by 5 %."""
-
-    def __post_init__(self) -> None:
-        if not 1 <= self.min_rooms <= self.max_rooms <= 40:
-            raise ValueError(
-                f"need 1 <= min_rooms <= max_rooms <= 40, got {self.min_rooms}, {self.max_rooms}"
-            )
-        if not 0.0 <= self.furniture_density <= 5.0:
-            raise ValueError(f"furniture_density must be in [0, 5], got {self.furniture_density}")
-        if not 0 <= self.clutter <= 10:
-            raise ValueError(f"clutter must be in 0..10, got {self.clutter}")
-
-    @property
-    def wall_thickness(self) -> float:
-        return self.plan.wall_thickness
-
-    @property
-    def min_room_side(self) -> float:
-        return self.plan.min_room_side
 
 
 def _room_types(rng: np.random.Generator, rects: list[Rect], corridors: frozenset[int]) -> list[str]:

@@ -18,12 +18,11 @@ import dataclasses
 import functools
 import re
 
-from multion.scenes.house import HouseConfig, generate_house
+from multion.config.scenes import SPLIT_SIZES, HouseConfig
+from multion.scenes.house import generate_house
 from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
 
-SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
-SPLITS: tuple[str, ...] = tuple(SPLIT_SIZES)
 MAX_ROOM_SIDE_M = 50.0
 """A ``room-WxD`` side is at most this (the grid, and so memory, grows with the room's area)."""
 GENERATOR_VERSION = 2

@@ -22,63 +22,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from multion.ranges import bounded, check_fields, one_of, require
+from multion.config.sim import RENDERERS, CameraConfig
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 
-RENDERERS = ("tiny", "egl", "auto")
 EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
 """Debian packages of Mesa's EGL, which the ``egl`` renderer needs on a machine without a GPU."""
 
 
 class RendererUnavailableError(ValueError):
     """``camera.renderer = "egl"`` on a machine where the EGL plugin does not load."""
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    """The RGB-D sensor (SPEC §2; the reference code's values)."""
-
-    width: int = bounded(256, 1, 1024)
-    """Image width in pixels (1024 bounds an image's memory, about 100 bytes a pixel)."""
-    height: int = bounded(256, 1, 1024)
-    hfov_deg: float = bounded(79.0, 1.0, 170.0)
-    """Horizontal field of view, degrees."""
-    sensor_height: float = bounded(0.88, 0.05, 3.0)
-    """Camera height above the floor, metres."""
-    min_depth: float = bounded(0.0, 0.0, 100.0)
-    max_depth: float = bounded(10.0, 0.0, 100.0, low_open=True)
-    normalize_depth: bool = True
-    """Depth in metres clipped to ``[min_depth, max_depth]``, then mapped to ``[0, 1]``.
-    [0, 10] m, normalised, is habitat's default, which the reference code keeps
-    (saimwani/multiON ``habitat/config/default.py`` lines 303-305: ``MIN_DEPTH 0.0``,
-    ``MAX_DEPTH 10.0``, ``NORMALIZE_DEPTH True``; ``configs/tasks/multinav_mp3d.yaml`` does not
-    change them, and ``habitat_baselines/rl/ppo/policy.py`` line 318 multiplies depth by 10 to get
-    metres back). The default was [0.5, 5] m until issue 31."""
-    near: float = bounded(0.02, 0.001, 1.0)
-    """Near clipping plane, metres."""
-    far: float = bounded(60.0, 1.0, 1000.0)
-    """Far clipping plane, metres."""
-    renderer: str = one_of("tiny", RENDERERS)
-    """PyBullet renderer, one of ``tiny`` (CPU TinyRenderer, identical pixels everywhere),
-    ``egl`` (the EGL plugin: GPU, or Mesa's llvmpipe on a CPU; an error where it cannot load)
-    or ``auto`` (EGL when it loads, else tiny)."""
-
-    def __post_init__(self) -> None:
-        check_fields(self, "camera")
-        require(
-            self.min_depth < self.max_depth,
-            f"camera.min_depth ({self.min_depth}) must be below camera.max_depth "
-            f"({self.max_depth})",
-        )
-        require(
-            self.near < self.far, f"camera.near ({self.near}) must be below camera.far ({self.far})"
-        )
-
-    @property
-    def vfov_deg(self) -> float:
-        half = math.radians(self.hfov_deg) / 2
-        return math.degrees(2 * math.atan(math.tan(half) * self.height / self.width))
 
 
 @dataclass(frozen=True)

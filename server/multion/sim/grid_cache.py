@@ -23,13 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
+from multion.config.sim import NavGridConfig
 from multion.scenes.registry import (
     GENERATOR_VERSION,
     SIZED_HOUSE_REVISION,
     is_mesh_scene,
     is_sized_house,
 )
-from multion.sim.navgrid import NAVGRID_VERSION, NavGrid, NavGridConfig
+from multion.sim.navgrid import NAVGRID_VERSION, NavGrid
 
 CACHE_ENV = "MULTION_NAVGRID_CACHE"
 """Environment variable: the cache directory, or ``off`` to disable the cache."""

@@ -19,51 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from multion.ranges import Range, bounded, check_fields, require
+from multion.config.sim import NavGridConfig
 from multion.sim.world import PyBulletWorld
 
 NAVGRID_VERSION = 1
 """Version of :func:`build_navgrid`'s algorithm. Bump it whenever a change alters the cells it
 computes: navigable grids cached on disk under an older version are then rebuilt."""
-MAX_OBSTACLE_SWEEPS = 8
-
-
-@dataclass(frozen=True)
-class NavGridConfig:
-    """How the navigable grid is computed."""
-
-    cell_size: float = bounded(0.05, 0.02, 0.25)
-    """Side of a grid cell in metres (cells, ray casts and memory grow as its inverse square)."""
-    agent_radius: float = bounded(0.1, 0.02, 1.0)
-    """Free space is eroded by this radius (the simulator sets it from ``agent.radius``)."""
-    agent_height: float = bounded(1.5, 0.2, 3.0)
-    """Geometry below this height above the floor blocks the agent (from ``agent.height``)."""
-    max_step_height: float = bounded(0.05, 0.0, 0.5)
-    """A surface this close to the floor height still counts as floor."""
-    obstacle_heights: tuple[float, ...] = (0.3, 1.45)
-    """Heights above the floor of the horizontal ray sweeps that catch walls and tall furniture:
-    1 to 8 heights, each in [0, 3] metres."""
-    view_height: float = bounded(0.88, 0.05, 3.0)
-    """Height of the sweep whose hits block the line of sight (from ``camera.sensor_height``)."""
-    floor_z: float | None = None
-    """Floor height in [-1000, 1000] metres; ``None`` finds it from the geometry."""
-    margin: float = bounded(0.25, 0.0, 5.0)
-    """Extra border around the scene bounds, in metres."""
-
-    def __post_init__(self) -> None:
-        check_fields(self, "navgrid")
-        heights = Range(0.0, 3.0)
-        require(
-            1 <= len(self.obstacle_heights) <= MAX_OBSTACLE_SWEEPS
-            and all(heights.allows(h) for h in self.obstacle_heights),
-            f"navgrid.obstacle_heights = {self.obstacle_heights!r:.80} is out of range: allowed "
-            f"1 to {MAX_OBSTACLE_SWEEPS} heights, each in {heights.describe()}",
-        )
-        require(
-            self.floor_z is None or Range(-1000.0, 1000.0).allows(self.floor_z),
-            f"navgrid.floor_z = {self.floor_z!r:.80} is out of range: allowed null or "
-            "[-1000, 1000]",
-        )
 
 
 @dataclass

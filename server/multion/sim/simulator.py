@@ -10,36 +10,19 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import OrderedDict
-from dataclasses import dataclass
 
 import numpy as np
 
-from multion.ranges import bounded, check_fields
+from multion.config.sim import AgentConfig, CameraConfig, NavGridConfig
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim import grid_cache
-from multion.sim.camera import Camera, CameraConfig, CameraImage
-from multion.sim.navgrid import NavGrid, NavGridConfig, build_navgrid
+from multion.sim.camera import Camera, CameraImage
+from multion.sim.navgrid import NavGrid, build_navgrid
 from multion.sim.world import PyBulletWorld
 from multion_client.constants import Action
 
 _GRID_CACHE: OrderedDict[tuple[str, NavGridConfig], NavGrid] = OrderedDict()
 _GRID_CACHE_SIZE = 32
-
-
-@dataclass(frozen=True)
-class AgentConfig:
-    """The agent's body and its action magnitudes (paper §3)."""
-
-    radius: float = bounded(0.1, 0.02, 1.0)
-    """Metres; free space is eroded by it."""
-    height: float = bounded(1.5, 0.2, 3.0)
-    forward_step: float = bounded(0.25, 0.01, 2.0)
-    """Metres per MOVE_FORWARD."""
-    turn_angle_deg: float = bounded(30.0, 0.1, 180.0)
-    """Degrees per TURN_LEFT / TURN_RIGHT."""
-
-    def __post_init__(self) -> None:
-        check_fields(self, "agent")
 
 
 def load_world(scene_id: str, renderer: str = "tiny") -> PyBulletWorld:

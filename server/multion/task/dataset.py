@@ -21,17 +21,17 @@ import json
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from multion.config.episode import Episode, Goal
+from multion.config.sim import AgentConfig
+from multion.config.task import EpisodeConstraints
 from multion.scenes.registry import GENERATOR_VERSION
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
-from multion.sim.simulator import AgentConfig
-from multion.task.episode import Episode, Goal
 from multion.task.errors import DatasetError
 from multion.task.step_reach import step_headings, steps_reach_goals
 from multion_client.constants import NUM_CATEGORIES
@@ -41,40 +41,6 @@ VERSION = 3
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "datasets"
 
 
-@dataclass(frozen=True)
-class EpisodeConstraints:
-    """What a generated episode must satisfy (paper §5)."""
-
-    min_geodesic: float = 2.0
-    max_geodesic: float = 20.0
-    min_goal_separation: float = 1.0
-    """Euclidean metres between any two goals, so cylinders never overlap."""
-    min_distractor_separation: float = 3.5
-    """Euclidean metres from a distractor to every goal: more than twice the 1.5 m success
-    distance, so a FOUND within reach of a distractor is never within reach of a goal (geodesic
-    distances are at least the Euclidean ones)."""
-    max_tries: int = 200
-    mobile_start: bool = True
-    """Refuse starts where no MOVE_FORWARD succeeds in any heading the agent can turn to (5 of
-    the 8,000 episodes of the version 2 datasets started so). A quick test before ``step_paths``."""
-    step_paths: bool = True
-    """Refuse episodes where the agent's own moves (0.25 m steps, 30° turns) cannot bring it
-    within ``reach`` of every goal (:func:`multion.task.step_reach.steps_reach_goals`): the grid
-    can pass gaps no sequence of steps enters."""
-    reach: float = 1.5
-    """The task's success distance (``task.success_distance``) for ``step_paths``."""
-
-    def __post_init__(self) -> None:
-        if not 0 < self.min_geodesic <= self.max_geodesic:
-            raise ValueError(
-                f"need 0 < min_geodesic <= max_geodesic, got {self.min_geodesic}, {self.max_geodesic}"
-            )
-        if self.min_goal_separation < 0 or self.min_distractor_separation < 0:
-            raise ValueError("goal and distractor separations must be >= 0")
-        if self.reach <= 0:
-            raise ValueError(f"reach must be > 0, got {self.reach}")
-        if self.max_tries < 1:
-            raise ValueError(f"max_tries must be >= 1, got {self.max_tries}")
 
 
 def task_name(num_goals: int) -> str:

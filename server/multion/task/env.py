@@ -4,28 +4,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from multion.ranges import bounded, check_fields, one_of, require
-from multion.scenes.registry import SPLITS, scene_ids
-from multion.sim.camera import CameraConfig
+from multion.config.episode import Episode
+from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
+from multion.scenes.registry import scene_ids
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.goal_objects import OBJECT_GOAL_SETS, goal_yaw
-from multion.sim.navgrid import NavGrid, NavGridConfig
-from multion.sim.simulator import AgentConfig, Simulator
+from multion.sim.navgrid import NavGrid
+from multion.sim.simulator import Simulator
 from multion.task.dataset import (
-    EpisodeConstraints,
     load_dataset,
     packaged_dataset_path,
     sample_episode,
     variant_name,
 )
-from multion.task.episode import Episode
 from multion.task.errors import (
     BadEpisodeError,
     BadResetOptionError,
@@ -34,13 +31,11 @@ from multion.task.errors import (
     EpisodeOverError,
     IllegalActionError,
 )
-from multion.task.maps import EgoMapReveal, MapConfig, OracleMap, can_see
+from multion.task.maps import EgoMapReveal, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
 from multion_client.constants import (
     ACTIONS_TEXT,
-    DEFAULT_GOAL_SET,
     GOAL_RGBA,
-    GOAL_SETS,
     NUM_ACTIONS,
     NUM_CATEGORIES,
     SHAPE_RGBA,
@@ -50,20 +45,6 @@ from multion_client.constants import (
 )
 from multion_client.protocol import MAX_SEED
 
-SENSORS = (
-    "rgb",
-    "depth",
-    "goal",
-    "goal_onehot",
-    "gps",
-    "compass",
-    "oracle_map",
-    "oracle_ego_map",
-    "goal_mask",
-    "goal_distance",
-)
-
-
 RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
     "episode_index": (int, "an int"),
     "episode_id": (str, "a string"),
@@ -71,91 +52,6 @@ RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
 }
 """What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
 its id, or inline; with their types."""
-
-
-@dataclass(frozen=True)
-class TaskConfig:
-    """Rules and rewards of MultiON (SPEC §2)."""
-
-    num_goals: int = bounded(3, 1, NUM_CATEGORIES)
-    """m, the number of ordered goals."""
-    success_distance: float = bounded(1.5, 0.0, 20.0, low_open=True)
-    """FOUND succeeds within this geodesic distance of the current goal, metres."""
-    max_steps: int = bounded(2500, 1, 100_000)
-    found_budget: int = bounded(0, 0, 100_000)
-    """Wrong FOUNDs allowed before one ends the episode (0: the first one ends it)."""
-    goal_reward: float = bounded(3.0, -1000.0, 1000.0)
-    slack_reward: float = bounded(-0.01, -1000.0, 1000.0)
-    wrong_found_penalty: float = bounded(0.0, -1000.0, 1000.0)
-    """Subtracted from the reward of a wrong FOUND (the reference code's FALSE_FOUND_PENALTY,
-    off in the paper's runs)."""
-    goal_set: str = one_of(DEFAULT_GOAL_SET, tuple(GOAL_SETS))
-    """Which goal objects are drawn: ``colours``, the paper's 8 coloured cylinders
-    (``goal_radius``, ``goal_height``), or ``shapes``, the supplement's 8 red shapes on thin
-    supports (``shape_size``, ``shape_support_height``; names in
-    ``multion_client.constants.SHAPE_CATEGORIES``), or ``objects``, 8 everyday objects 0.35-0.9 m
-    across from the models PyBullet ships, each at a yaw drawn from the episode id (MultiON 2.0's
-    REAL-OBJECTS track; ``OBJECT_CATEGORIES``, :mod:`multion.sim.goal_objects`). Category ids, FOUND, rewards, ``goal_mask``
-    and the oracle maps do not depend on it: the same episodes serve both sets."""
-    goal_radius: float = bounded(0.05, 0.01, 0.5)
-    goal_height: float = bounded(0.75, 0.05, 3.0)
-    shape_size: float = bounded(0.4, 0.05, 1.0)
-    """Horizontal length or diameter of a shape goal, metres (supplement: 0.4)."""
-    shape_support_height: float = bounded(0.6, 0.0, 2.0)
-    """Height of a shape goal's support, metres: the shape sits on top of it."""
-    goals_visible: bool = True
-    """False leaves the goal cylinders out of the rendered world (the paper's hidden-objects
-    ablation); they still count for FOUND, rewards and the oracle maps."""
-    num_distractors: int = bounded(0, 0, NUM_CATEGORIES - 1)
-    """Distractor cylinders per episode, of categories that are not among its goals (the MultiON
-    2022 challenge's setting); valid range 0..8 - num_goals. 0 is the paper's task. They are drawn,
-    in ``goal_mask`` and the oracle maps with their category + 1 like goals; a FOUND near one is a
-    wrong FOUND (counted in ``distractor_founds``). Episodes come from the dataset, which must have
-    this many distractors per episode (the packaged ``m-on-distractors`` sets have 3)."""
-
-    def __post_init__(self) -> None:
-        check_fields(self, "task")
-
-
-@dataclass(frozen=True)
-class EnvConfig:
-    """Everything that defines a MultiON environment."""
-
-    task: TaskConfig = field(default_factory=TaskConfig)
-    agent: AgentConfig = field(default_factory=AgentConfig)
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    navgrid: NavGridConfig = field(default_factory=NavGridConfig)
-    maps: MapConfig = field(default_factory=MapConfig)
-    sensors: tuple[str, ...] = ("rgb", "depth", "goal")
-    split: str = one_of("val", SPLITS)
-    """Which scenes and packaged episodes: train (sampled online), val or test."""
-    dataset: str | None = None
-    """A dataset file; None uses the packaged one for (m, split), or samples online for train."""
-    episodes_per_scene: int = bounded(25, 1, 1_000_000)
-    """Online (train) sampling draws this many episodes in a scene before moving to another:
-    a scene switch rebuilds the PyBullet world, and early training episodes are a few steps."""
-    online_max_geodesic: float = bounded(
-        EpisodeConstraints.max_geodesic,
-        EpisodeConstraints.min_geodesic,
-        EpisodeConstraints.max_geodesic,
-    )
-    """Online (train) sampling keeps each goal within this geodesic distance, metres, of the
-    start or the previous goal; below the datasets' 20 m it makes a curriculum's easy stage
-    (``multion train --curriculum``). Packaged and file datasets ignore it."""
-
-    def __post_init__(self) -> None:
-        check_fields(self, "")
-        unknown = [s for s in self.sensors if s not in SENSORS]
-        require(not unknown, f"unknown sensor(s) {unknown}; known sensors: {list(SENSORS)}")
-        repeated = sorted({s for s in self.sensors if self.sensors.count(s) > 1})
-        require(not repeated, f"sensor(s) {repeated} named more than once in sensors")
-        require(
-            self.task.num_goals + self.task.num_distractors <= NUM_CATEGORIES,
-            f"task.num_distractors must be in 0..{NUM_CATEGORIES - self.task.num_goals} with "
-            f"{self.task.num_goals} goals (categories are not shared), "
-            f"got {self.task.num_distractors}",
-        )
-
 
 class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     """Multi-object navigation in a 3D home (MultiON, NeurIPS 2020).

@@ -8,16 +8,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from multion.config.episode import Episode
+from multion.config.task import EpisodeConstraints
 from multion.scenes.registry import scene_ids
 from multion.sim.simulator import Simulator
-from multion.task.dataset import (
-    EpisodeConstraints,
-    iter_chunks,
-    sample_episode,
-    save_dataset,
-    variant_name,
-)
-from multion.task.episode import Episode
+from multion.task.dataset import iter_chunks, sample_episode, save_dataset, variant_name
 
 
 def generate_episodes(

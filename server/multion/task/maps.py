@@ -29,43 +29,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from multion.ranges import bounded, check_fields, require
+from multion.config.episode import Goal
+from multion.config.task import MapConfig
 from multion.sim.navgrid import NavGrid
-from multion.task.episode import Goal
 from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN
-
-
-@dataclass(frozen=True)
-class MapConfig:
-    """Oracle map and visibility settings."""
-
-    cell_size: float = bounded(0.8, 0.05, 5.0)
-    """Side of an oracle-map cell, metres (paper: 0.8)."""
-    ego_size: int = bounded(50, 1, 1001)
-    """Side of the egocentric crop, cells. 50 cells of 0.8 m (40 m × 40 m) is the reference
-    code's oracle crop (``habitat/core/env.py`` lines 291-293; ``MapCNN(50, ...)`` in
-    ``habitat_baselines/rl/ppo/policy.py`` lines 412, 419). For an even size the agent is in cell
-    ``(ego_size // 2, ego_size // 2)``, as in the reference (module docstring). The default was 13
-    until issue 31 (the reference's ``egocentric_map_size: 13`` is the learned maps'
-    projection grid, not this crop); checkpoints record the size they were trained with."""
-    goal_cells: int = bounded(3, 1, 15)
-    """Side of the square of cells marking each goal object, cells (odd: the goal's cell in the
-    middle). 3 is the reference's ``grid_loc ± 1`` (``habitat/core/env.py`` line 279); 1 marks
-    the goal's cell alone (the default until issue 31)."""
-    free_fraction: float = bounded(0.5, 0.0, 1.0)
-    """A coarse cell is free when at least this fraction of its fine cells is navigable."""
-    view_distance: float = bounded(5.0, 0.1, 50.0)
-    """How far the agent sees, metres (supplement: 5 m)."""
-    view_rays: int = bounded(80, 1, 1000)
-    """Rays traced across the field of view to reveal the ego map."""
-
-    def __post_init__(self) -> None:
-        check_fields(self, "maps")
-        require(self.goal_cells % 2 == 1, f"maps.goal_cells must be odd, got {self.goal_cells}")
 
 
 class OracleMap:

@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from multion.task.episode import Episode
+from multion.config.episode import Episode
 
 MetricValue = float | int | str | None | list[float] | list[bool]
 

@@ -10,8 +10,8 @@ project's simulator (``multion bench --only memory`` prints measured against est
 
 from __future__ import annotations
 
+from multion.config.task import EnvConfig
 from multion.scenes.registry import MAX_ROOM_SIDE_M
-from multion.task.env import EnvConfig
 
 MiB = 2**20
 

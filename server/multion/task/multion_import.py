@@ -39,11 +39,12 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from multion.config.episode import Episode, Goal
+from multion.config.sim import NavGridConfig
 from multion.sim.geodesic import FieldCache, geodesic_distance
-from multion.sim.navgrid import NavGrid, NavGridConfig
+from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import load_world, navgrid_for
 from multion.task.dataset import DatasetError, check_episode, save_dataset
-from multion.task.episode import Episode, Goal
 from multion_client.constants import REFERENCE_CATEGORY_NAMES, REFERENCE_TO_CATEGORY
 
 HABITAT_SCENE_PREFIX = "data/scene_datasets/"

@@ -15,8 +15,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from multion.config.sim import AgentConfig
 from multion.sim.navgrid import NavGrid
-from multion.sim.simulator import AgentConfig
 
 GREEDY_EXPANSIONS = 3_000
 """Positions the best-first search expands one at a time, per goal, before it widens to whole

@@ -6,12 +6,14 @@ from fastapi import APIRouter
 from gymnasium import spaces
 from starlette.concurrency import run_in_threadpool
 
-from multion.api.config_io import config_ranges, env_config_to_dict
 from multion.api.deps import MsgpackResponse, Registry, Settings
 from multion.api.openapi import answers
+from multion.config.codec import config_ranges, env_config_to_dict
+from multion.config.sim import RENDERERS
+from multion.config.task import SENSORS, EnvConfig
 from multion.reference import DEFAULT_SOURCES
-from multion.sim.camera import RENDERERS, resolve_renderer
-from multion.task.env import SENSORS, EnvConfig, MultiONEnv, build_observation_space
+from multion.sim.camera import resolve_renderer
+from multion.task.env import MultiONEnv, build_observation_space
 from multion.task.memory import mib
 from multion_client.constants import GOAL_CATEGORIES, GOAL_SETS, NUM_ACTIONS, Action
 from multion_client.protocol import (

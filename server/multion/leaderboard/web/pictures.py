@@ -31,7 +31,8 @@ import numpy as np
 from sqlalchemy import Select, delete, exists, or_, select, update
 from sqlalchemy.orm import Session
 
-from multion.api.config_io import session_config_from_dict
+from multion.config.codec import session_config_from_dict
+from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodePicture, EpisodeRecord, Run, utcnow
 from multion.leaderboard.results import RANKED_STATES
@@ -39,7 +40,6 @@ from multion.leaderboard.storage import Database
 from multion.pictures import episode_picture, gps_to_world
 from multion.processes import ignore_stop_signals, limit_address_space
 from multion.task.env import MultiONEnv
-from multion.task.episode import Episode
 
 log = logging.getLogger("multion.leaderboard.pictures")
 

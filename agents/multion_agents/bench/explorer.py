@@ -2,8 +2,8 @@
 issue 23, measured in one run on the same observations.
 
 The env plays packaged 3-ON val episodes; at every step both agents, the explorer as it is
-(:class:`~.baselines.explorer.ExplorerAgent`) and as it was
-(:class:`~.baselines.explorer_reference.ReferenceExplorerAgent`), get the same observation, one
+(:class:`~multion_agents.baselines.explorer.ExplorerAgent`) and as it was
+(:class:`~.explorer_reference.ReferenceExplorerAgent`), get the same observation, one
 after the other (which goes first alternates, so neither always finds the caches warm). Their
 actions must be equal, or the bench stops: the speed-up is worth nothing if a decision changed.
 The explorer plays without its look-ahead (issue 22), which changes decisions on purpose.
@@ -15,12 +15,13 @@ from __future__ import annotations
 import os
 import time
 
-from multion.sim.camera import CameraConfig
+from multion.config.episode import Episode
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
 from multion.task.dataset import load_dataset, packaged_dataset_path
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
-from multion.task.episode import Episode
+from multion.task.env import MultiONEnv
 from multion_agents.baselines.explorer import ExplorerAgent, ExplorerSettings, StepTimes
-from multion_agents.baselines.explorer_reference import ReferenceExplorerAgent
+from multion_agents.bench.explorer_reference import ReferenceExplorerAgent
 
 TARGET = 2.0
 """The issue's target: the explorer thinks at least twice as fast per step."""

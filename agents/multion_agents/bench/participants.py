@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from multion.api.local_server import LocalServer
-from multion.leaderboard.bench_lanes import bench_server_options
+from multion.leaderboard.cli_serve import SERVE_MODULE
+from multion_agents.bench.lanes import bench_server_options
 from multion_client.run import RunEnv
 
 MAX_PARTICIPANTS = 64
@@ -57,7 +58,7 @@ def run_participants_bench(
         options, tokens = bench_server_options(
             Path(directory), names, size, episodes, max_steps, rooms
         )
-        with LocalServer(workers=2, options=options) as server:
+        with LocalServer(workers=2, options=options, serve_module=SERVE_MODULE) as server:
             latencies: list[list[float]] = [[] for _ in range(participants)]
             counts = [0] * participants
 

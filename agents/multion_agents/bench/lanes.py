@@ -20,6 +20,7 @@ import numpy as np
 from multion.api.local_server import LocalServer
 from multion.leaderboard.challenge import Challenge, HiddenScenes, Limits, Phase, Track
 from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.storage import Database, add_team
 from multion_client.run import RunEnv
 
@@ -102,7 +103,7 @@ def run_lanes_bench(
         options, (token,) = bench_server_options(
             Path(directory), ["baselines"], size, episodes, max_steps, rooms
         )
-        with LocalServer(workers=2, options=options) as server:
+        with LocalServer(workers=2, options=options, serve_module=SERVE_MODULE) as server:
             timed_run(server.url, token, 2)  # warm up: houses built, workers' scenes loaded
             one, steps_one = timed_run(server.url, token, 1)
             two, steps_two = timed_run(server.url, token, 2)

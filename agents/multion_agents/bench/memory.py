@@ -15,9 +15,10 @@ import subprocess
 import sys
 import time
 
-from multion.api.config_io import env_config_from_dict
 from multion.api.local_server import LocalServer
+from multion.config.codec import env_config_from_dict
 from multion.task.memory import estimate_env_bytes, mib
+from multion_client import Client
 
 LARGEST: dict = {
     "camera": {"width": 1024, "height": 1024},
@@ -30,7 +31,7 @@ LARGEST: dict = {
 
 _PEAK_PROBE = """
 import json, sys
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 
 def status(key):
@@ -69,8 +70,6 @@ def bench_memory(sessions: int = 64) -> dict[str, float]:
 
 
 def _sessions_open_and_closed(count: int) -> dict[str, float]:
-    from multion_client import Client
-
     config = {"split": "val", "sensors": ["rgb", "depth", "goal", "oracle_map"]}
     per_env = estimate_env_bytes(env_config_from_dict(config))
     room_mb = mib(count * per_env) + 1024 + 512

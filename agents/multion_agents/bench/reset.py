@@ -16,10 +16,10 @@ from unittest import mock
 
 import numpy as np
 
-from multion.api.config_io import env_config_from_dict
+from multion.config.codec import env_config_from_dict
+from multion.config.sim import AgentConfig
 from multion.sim.geodesic import FieldCache
 from multion.sim.navgrid import NavGrid
-from multion.sim.simulator import AgentConfig
 from multion.task.env import MultiONEnv
 from multion.task.step_reach import step_headings
 

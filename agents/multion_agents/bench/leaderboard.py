@@ -27,6 +27,7 @@ from multion.leaderboard.challenge import (
     load_challenge,
 )
 from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.storage import Database, add_team
 from multion_client.env import RemoteEnv
@@ -72,7 +73,7 @@ def run_leaderboard_bench(
             token = add_team(session, "bench")[1]
         db.close()
         options = ["--challenge", str(path), "--database", database, *(server_options or [])]
-        with LocalServer(workers=1, options=options) as server:
+        with LocalServer(workers=1, options=options, serve_module=SERVE_MODULE) as server:
             sensors = ["rgb", "depth", "goal"]
             config = {
                 **track.env_config(track.phases[0], tuple(sensors)),

@@ -23,10 +23,11 @@ from typing import Any
 import numpy as np
 
 from multion.api.local_server import LocalServer
-from multion.sim.camera import CameraConfig
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
 from multion.sim.simulator import Simulator
 from multion.task.dataset import sample_episode
-from multion.task.env import EnvConfig, MultiONEnv
+from multion.task.env import MultiONEnv
 from multion_client import RemoteEnv, RemoteVectorEnv
 
 BLOCK_STEPS = 20

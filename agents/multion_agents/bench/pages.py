@@ -19,10 +19,14 @@ from typing import Any
 
 import numpy as np
 
+from multion.api.app import create_app
+from multion.api.settings import ServerSettings
+from multion.leaderboard.app import LeaderboardExtension
 from multion.leaderboard.challenge import Challenge, HiddenScenes, Phase, Track
 from multion.leaderboard.challenge_file import write_challenge
 from multion.leaderboard.models import EpisodeRecord, Run, Team
 from multion.leaderboard.results import summarize
+from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database
 
 TARGET_MS = 100.0
@@ -102,10 +106,6 @@ def run_pages_bench(
     """Median and 95th-percentile server milliseconds per page; prints them with the target."""
     from fastapi.testclient import TestClient
 
-    from multion.api.app import create_app
-    from multion.api.settings import ServerSettings
-    from multion.leaderboard.settings import LeaderboardSettings
-
     with tempfile.TemporaryDirectory(prefix="multion-pages-bench-") as directory:
         challenge = write_challenge(bench_challenge(episodes), Path(directory) / "challenge.toml")
         url = f"sqlite:///{Path(directory) / 'results.db'}"
@@ -118,9 +118,13 @@ def run_pages_bench(
             )
         app = create_app(
             ServerSettings(workers=1),
-            LeaderboardSettings(
-                challenge=challenge, database=url, warm_up=False, draw_pictures=False
-            ),
+            [
+                LeaderboardExtension(
+                    LeaderboardSettings(
+                        challenge=challenge, database=url, warm_up=False, draw_pictures=False
+                    )
+                )
+            ],
         )
         pages = {
             "leaderboard": "/leaderboard",

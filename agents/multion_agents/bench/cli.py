@@ -5,7 +5,7 @@ process are not. ``sim`` measures the task's frames per second with each availab
 (TinyRenderer, EGL) at 256² and 128² on the same poses, and compares each with PyBullet's bare
 ``getCameraImage``; ``cache`` times house builds with a cold and a warm navigable-grid cache
 and a 100-episode oracle-planner evaluation without and with the cache; ``http`` compares the
-server with the in-process env. ``explorer`` (in ``multion_agents.bench_explorer``) times the
+server with the in-process env. ``explorer`` (in ``multion_agents.bench.explorer``) times the
 explorer baseline's thinking before and after issue 23 on the same observations.
 """
 
@@ -24,11 +24,24 @@ import gymnasium as gym
 import numpy as np
 
 from multion.api.cli_serve import add_http_stack_arguments
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig, TaskConfig
+from multion.scenes.registry import layout_for
 from multion.sim import grid_cache, simulator
 from multion.sim.bullet import pybullet as p
-from multion.sim.camera import EGL_LIGHT_POSITION, CameraConfig, resolve_renderer
-from multion.task.env import EnvConfig, MultiONEnv, TaskConfig
+from multion.sim.camera import EGL_LIGHT_POSITION, EGL_PLUGIN_LIGHT, Camera, resolve_renderer
+from multion.sim.world import DEFAULT_LIGHTING, PyBulletWorld
+from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
+from multion_agents.bench.explorer import run_explorer_bench
+from multion_agents.bench.http import run_http_bench
+from multion_agents.bench.lanes import run_lanes_bench
+from multion_agents.bench.leaderboard import run_leaderboard_bench
+from multion_agents.bench.memory import bench_memory
+from multion_agents.bench.pages import run_pages_bench
+from multion_agents.bench.participants import run_participants_bench
+from multion_agents.bench.reset import run_reset_bench
+from multion_agents.evaluate import EvalSettings, evaluate
 
 SCENE = "house-00061"
 
@@ -110,45 +123,29 @@ def run(args: argparse.Namespace) -> int:
             return 2
         bench_sim(args.steps, args.episodes, args.renderer)
     if "reset" in parts:
-        from multion.bench_reset import run_reset_bench
-
         run_reset_bench()
     if "cache" in parts:
         bench_cache(args.eval_episodes)
     if "memory" in parts:
-        from multion.api.bench_memory import bench_memory
-
         bench_memory()
     if "http" in parts:
-        from multion.api.bench_http import run_http_bench
-
         run_http_bench(server_options=["--http", args.http, "--loop", args.loop])
     if "lanes" in parts:
-        from multion.leaderboard.bench_lanes import run_lanes_bench
-
         run_lanes_bench()
     if "participants" in parts:
-        from multion.leaderboard.bench_participants import run_participants_bench
-
         try:
             run_participants_bench(args.participants)
         except ValueError as error:
             print(f"multion bench: --participants: {error}", file=sys.stderr)
             return 2
     if "leaderboard" in parts:
-        from multion.leaderboard.bench import run_leaderboard_bench
-
         run_leaderboard_bench(server_options=["--http", args.http, "--loop", args.loop])
     if "pages" in parts:
-        from multion.leaderboard.web.bench import run_pages_bench
-
         run_pages_bench()
     if "explorer" in parts:
-        from multion_agents.bench_explorer import run_explorer_bench
-
         run_explorer_bench(args.explorer_image, args.explorer_houses, args.explorer_steps)
     if "train" in parts:
-        from multion_agents.bench_train import bench_settings, run_train_bench
+        from multion_agents.bench.train import bench_settings, run_train_bench
 
         settings = bench_settings(
             args.train_recipe, args.train_agent, args.train_image_size, args.train_envs,
@@ -294,10 +291,6 @@ def _appearance_rates(
 ) -> tuple[float, float]:
     """Renders/s of the bench scene with plain colours (textures off, default light) and as it
     is (textured floors and walls, its own light), at the same poses, back to back."""
-    from multion.scenes.registry import layout_for
-    from multion.sim.camera import Camera
-    from multion.sim.world import DEFAULT_LIGHTING, PyBulletWorld
-
     layout = layout_for(SCENE)
     plain_layout = dataclasses.replace(
         layout,
@@ -334,10 +327,6 @@ def _egl_rates(
     """EGL renders/s of the bench scene at the same poses, back to back, with one body per box
     or the boxes merged into one mesh, and with the plugin's own light (its shadow pass runs)
     or the cameras' far light (``sim.camera.EGL_LIGHT_POSITION``); records them and the draws."""
-    from multion.scenes.registry import layout_for
-    from multion.sim.camera import EGL_PLUGIN_LIGHT, Camera
-    from multion.sim.world import PyBulletWorld
-
     for merge in (False, True):
         world = PyBulletWorld.from_layout(layout_for(SCENE), "egl", merge=merge)
         bodies = "merged" if merge else "per_box"
@@ -445,8 +434,6 @@ def _build_seconds(scene: str) -> float:
 
 def _eval_seconds(episodes: int) -> float:
     """Wall time of ``multion eval --agent oracle-planner --task 3-on --split val``."""
-    from multion_agents.evaluate import EvalSettings, evaluate
-
     settings = EvalSettings(agent="oracle-planner", num_goals=3, split="val", episodes=episodes)
     start = time.perf_counter()
     evaluate(settings, progress=False)

@@ -1,6 +1,6 @@
 """Environment configs as plain dicts (the wire form) and back, with clear errors.
 
-A session's config is an :class:`~multion.task.env.EnvConfig` written as nested dicts, e.g.
+A session's config is an :class:`~multion.config.task.EnvConfig` written as nested dicts, e.g.
 ``{"task": {"num_goals": 2}, "camera": {"width": 64, "height": 64}}``; missing fields keep their
 defaults. It may also carry ``"episodes": [Episode dicts]`` to play instead of a dataset.
 """
@@ -14,9 +14,9 @@ import typing
 from collections.abc import Mapping
 from typing import Any
 
-from multion.ranges import ConfigError, field_ranges
-from multion.task.env import EnvConfig
-from multion.task.episode import Episode
+from multion.config.episode import Episode
+from multion.config.ranges import ConfigError, field_ranges
+from multion.config.task import EnvConfig
 
 __all__ = [
     "ConfigError",

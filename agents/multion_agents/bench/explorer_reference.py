@@ -1,7 +1,7 @@
 """The explorer as it was before issue 23 made it faster: the oracle for its speed-up.
 
 Only the parts that were rewritten are here, verbatim: :class:`ReferenceExplorerAgent` is
-:class:`~.explorer.ExplorerAgent` with those parts put back. Two uses, nothing else:
+:class:`~multion_agents.baselines.explorer.ExplorerAgent` with those parts put back. Two uses, nothing else:
 ``tests/agents/test_explorer_speed.py`` checks that both take the same decisions on the same
 inputs, and ``multion bench --only explorer`` measures the speed-up on the same observations.
 The action sequences pinned by ``tests/agents/test_explorer_actions.py`` were recorded with
