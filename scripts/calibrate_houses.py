@@ -142,17 +142,29 @@ def calibrate(
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tasks", type=int, nargs="*", default=[1, 2, 3])
-    parser.add_argument("--episodes", type=int, default=1000,
-                        help="evenly spaced packaged val episodes per task (default 1000)")
-    parser.add_argument("--generate", type=int, default=0,
-                        help="instead, play this many freshly generated val episodes per task")
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=1000,
+        help="evenly spaced packaged val episodes per task (default 1000)",
+    )
+    parser.add_argument(
+        "--generate",
+        type=int,
+        default=0,
+        help="instead, play this many freshly generated val episodes per task",
+    )
     parser.add_argument("--seed", type=int, default=0, help="the agent's seed")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--houses", action="store_true", help="print the val houses' sizes only")
-    parser.add_argument("--out", type=Path,
-                        help="also write each task's run to OUT/random-oracle-found-Mon/")
-    parser.add_argument("--from-runs", type=Path,
-                        help="read DIR/random-oracle-found-Mon/metrics.json instead of playing")
+    parser.add_argument(
+        "--out", type=Path, help="also write each task's run to OUT/random-oracle-found-Mon/"
+    )
+    parser.add_argument(
+        "--from-runs",
+        type=Path,
+        help="read DIR/random-oracle-found-Mon/metrics.json instead of playing",
+    )
     args = parser.parse_args()
     if args.from_runs is not None:
         return 0 if from_runs(args.from_runs, args.tasks) else 1

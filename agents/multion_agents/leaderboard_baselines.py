@@ -70,7 +70,9 @@ def play_baselines(
     hosted = server_tracks(server)
     unknown = sorted(set(tracks or ()) - {t["name"] for t in hosted})
     if unknown:
-        raise ValueError(f"--track {', '.join(unknown)}: the server has {[t['name'] for t in hosted]}")
+        raise ValueError(
+            f"--track {', '.join(unknown)}: the server has {[t['name'] for t in hosted]}"
+        )
     selected = [t for t in hosted if not tracks or t["name"] in tracks]
     known_phases = sorted({p["name"] for t in selected for p in t["phases"]})
     missing = sorted(set(phases or ()) - set(known_phases))

@@ -56,7 +56,14 @@ GOAL_RGBA: tuple[tuple[float, float, float, float], ...] = (
 )
 NUM_CATEGORIES = len(GOAL_CATEGORIES)
 REFERENCE_CATEGORY_NAMES: tuple[str, ...] = (
-    "red", "green", "blue", "yellow", "white", "pink", "black", "cyan"
+    "red",
+    "green",
+    "blue",
+    "yellow",
+    "white",
+    "pink",
+    "black",
+    "cyan",
 )
 """The reference code's goal order and names (saimwani/multiON ``habitat/core/env.py`` l. 252-253,
 ``cylinder_<name>``): MultiON episode files and habitat agents' ``multiobjectgoal`` use it."""
@@ -117,6 +124,7 @@ def goal_categories(goal_set: str = DEFAULT_GOAL_SET) -> tuple[str, ...]:
     if goal_set not in GOAL_SETS:
         raise ValueError(f"unknown goal set {goal_set!r}; goal sets: {', '.join(GOAL_SETS)}")
     return GOAL_SETS[goal_set]
+
 
 # Oracle-map cell values (channel 0: occupancy, channel 1: goal category + 1, 0 for none).
 MAP_UNKNOWN = 0  # outside the scene, or not yet discovered (ego map)

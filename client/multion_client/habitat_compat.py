@@ -88,8 +88,10 @@ def to_action(choice: Any) -> int:
     number = action_id(value)
     if number is None:
         names = ", ".join(f"{a.value} or {a.name!r}" for a in Action)
-        raise ValueError(f"act() returned {choice!r:.80}; an action is one of {names}, "
-                         "or {'action': one of those}")
+        raise ValueError(
+            f"act() returned {choice!r:.80}; an action is one of {names}, "
+            "or {'action': one of those}"
+        )
     return number
 
 
@@ -117,7 +119,9 @@ IDENTITY = tuple(range(len(CATEGORY_TO_REFERENCE)))
 """The order of the goal sets other than ``colours``, which the reference does not have."""
 
 
-def reference_map(crop: np.ndarray, offset: int, order: Sequence[int] = CATEGORY_TO_REFERENCE) -> np.ndarray:
+def reference_map(
+    crop: np.ndarray, offset: int, order: Sequence[int] = CATEGORY_TO_REFERENCE
+) -> np.ndarray:
     """An oracle map crop with its object ids in ``order`` (the reference's), + ``offset``."""
     out = np.array(crop, copy=True)
     objects = out[..., 1]
@@ -245,8 +249,9 @@ class Challenge:
             batch = [habitat_observations(o, self._depth, self._order) for o in observations]
             actions = list(batched_act(batch, masks))
             if len(actions) != len(active):
-                raise ValueError(f"act() returned {len(actions)} actions for {len(active)} "
-                                 "observations")
+                raise ValueError(
+                    f"act() returned {len(actions)} actions for {len(active)} observations"
+                )
             still: list[RunEnv] = []
             next_obs: list[Mapping[str, np.ndarray]] = []
             next_masks: list[float] = []

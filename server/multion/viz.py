@@ -195,7 +195,8 @@ def _scale_bar(draw: ImageDraw.ImageDraw, frame: PictureFrame, font) -> None:
     left, top, right, bottom = draw.textbbox((0, 0), "1 m", font=font)
     x0, y = 8, height - 10
     draw.rectangle(
-        [x0 - 3, y - (bottom - top) - 6, x0 + ppm + (right - left) + 10, y + 5], fill=(255, 255, 255)
+        [x0 - 3, y - (bottom - top) - 6, x0 + ppm + (right - left) + 10, y + 5],
+        fill=(255, 255, 255),
     )
     draw.line([(x0, y), (x0 + ppm, y)], fill=TEXT, width=3)
     draw.text((x0 + ppm + 5 - left, y - (bottom - top) - top + 2), "1 m", fill=TEXT, font=font)

@@ -356,7 +356,9 @@ def test_killed_worker_is_replaced(api: TestClient, small_config: dict[str, Any]
             for sid in (doomed, survivor):
                 call(api, "POST", session_path(sid, "reset"), {})
             os.kill(victim["pid"], signal.SIGKILL)
-            wait_until(lambda: health()["workers_replaced"] == replaced + 1, 30, 0.05, "a new worker")
+            wait_until(
+                lambda: health()["workers_replaced"] == replaced + 1, 30, 0.05, "a new worker"
+            )
             status, code, message = error_of(
                 call(api, "POST", session_path(doomed, "step"), {"actions": [1]})
             )
@@ -402,7 +404,9 @@ def test_a_silent_worker_is_killed_and_replaced(small_config: dict[str, Any]) ->
             )
             assert (status, code) == (503, "worker_failed") and "did not answer" in message
             assert 2.5 < time.monotonic() - started < 10
-        wait_until(lambda: call(api, "GET", "/v1/health")[1]["status"] == "ok", 30, 0.05, "status ok")
+        wait_until(
+            lambda: call(api, "GET", "/v1/health")[1]["status"] == "ok", 30, 0.05, "status ok"
+        )
         assert call(api, "GET", "/v1/health")[1]["workers_replaced"] == 1
         with session(api, small_config) as sid:
             assert call(api, "POST", session_path(sid, "reset"), {})[0] == 200

@@ -31,7 +31,9 @@ class InProcessServer:
         port = free_port()
         self.url = f"http://127.0.0.1:{port}"
         settings = ServerSettings(port=port, workers=workers, max_request_bytes=MAX_REQUEST_BYTES)
-        leaderboard = LeaderboardSettings(challenge=challenge_file, database=database, **LEADERBOARD)
+        leaderboard = LeaderboardSettings(
+            challenge=challenge_file, database=database, **LEADERBOARD
+        )
         app = create_app(settings, [LeaderboardExtension(leaderboard, clock)])
         # log_config=None: uvicorn leaves the test process's logging as pytest set it
         config = uvicorn.Config(app, host="127.0.0.1", port=port, log_config=None,

@@ -48,7 +48,11 @@ def test_boards_rank_each_teams_best_run_with_ties(
         db.close()
     assert len(boards) == 6
     for board in boards:
-        runs = [(r, team) for r, team in stored if (r.track, r.phase) == (board.track.name, board.phase.name)]
+        runs = [
+            (r, team)
+            for r, team in stored
+            if (r.track, r.phase) == (board.track.name, board.phase.name)
+        ]
         best: dict[str, float] = {}
         for run, team in runs:
             best[team] = max(best.get(team, -1.0), run.summary["ppl"]["mean"])

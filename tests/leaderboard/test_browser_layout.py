@@ -103,9 +103,7 @@ def test_numbers_sit_under_right_aligned_headings_and_names_break_between_words(
     assert "overlaps the leader's" in page.locator(".lead").inner_text()
 
 
-def test_on_a_desktop_a_long_method_leaves_the_score_whole(
-    visit: Any, long_named: str
-) -> None:
+def test_on_a_desktop_a_long_method_leaves_the_score_whole(visit: Any, long_named: str) -> None:
     v = visit(**WIDTHS["desktop"])
     page = v.goto("/leaderboard/teams/kappa")
     heading = page.locator("table.runs th", has_text="ranking metric")
@@ -122,7 +120,10 @@ def test_the_guide_is_a_rendered_page(visit: Any, played: dict[str, PlayedRun], 
     v.shot(f"{width}-guide")
     assert page.locator("h1").inner_text() == "Participants' guide"
     assert page.locator("pre.guide").count() == 0
-    assert page.locator("article.guide h2").all_inner_texts() == ["For participants", "The protocol"]
+    assert page.locator("article.guide h2").all_inner_texts() == [
+        "For participants",
+        "The protocol",
+    ]
     height = page.evaluate("document.documentElement.scrollHeight")
     assert height < (7000 if width == "desktop" else 16000), height  # was 10,500 and 23,000
     assert page.evaluate("document.documentElement.scrollWidth") <= page.viewport_size["width"]
@@ -181,7 +182,9 @@ def test_axe_finds_no_violations(
     for path in [*_pages(played, long_named), "/leaderboard/guide"]:
         page = v.goto(path)
         page.evaluate(axe)  # through the DevTools protocol: the page's CSP allows no inline script
-        result = page.evaluate("axe.run(document).then(r => r.violations.map(v => [v.id, v.impact, v.nodes.length]))")
+        result = page.evaluate(
+            "axe.run(document).then(r => r.violations.map(v => [v.id, v.impact, v.nodes.length]))"
+        )
         if result:
             found[path] = result
     assert found == {}, found

@@ -64,7 +64,9 @@ def test_a_written_challenge_reads_back_equal(tmp_path: Path) -> None:
     path = write_challenge(every, tmp_path / "every.toml")
     assert load_challenge(path) == every
     assert "run_timeout_s = 600" in path.read_text()
-    plain = Challenge("plain", "plain-secret-0123456789", (Track("1-on", 1, phases=(Phase("p", 1),)),))
+    plain = Challenge(
+        "plain", "plain-secret-0123456789", (Track("1-on", 1, phases=(Phase("p", 1),)),)
+    )
     text = challenge_toml(plain)
     assert "[limits]" not in text and "[hidden]" not in text and "kind" not in text
     assert load_challenge(write_challenge(plain, tmp_path / "plain.toml")) == plain
@@ -80,7 +82,11 @@ def test_a_written_challenge_reads_back_equal(tmp_path: Path) -> None:
             r"max_consecutive_timeouts must be in \[1, 1000\], got 0",
         ),
         ("rooms = [1, 1]", "rooms = [3, 17]", r"hidden.rooms\[1\] must be in \[3, 16\]"),
-        ("num_goals = 1\ncamera", 'num_goals = 1\nkind = "cheating"\ncamera', "kind must be one of"),
+        (
+            "num_goals = 1\ncamera",
+            'num_goals = 1\nkind = "cheating"\ncamera',
+            "kind must be one of",
+        ),
         ("episodes = 3", "episodes = 0", r"episodes must be in \[1, 100000\], got 0"),
         ("total_quota = 1", 'total_quota = 1\nfeedback = "sealed"', "needs sealed_until"),
         (

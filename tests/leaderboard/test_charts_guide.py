@@ -37,14 +37,18 @@ def test_the_baselines_best_so_far_is_one_line_per_method():
 def test_time_ticks_are_few_enough_to_stay_apart_and_dots_stay_off_the_axes():
     runs = [_run(k, "random", 0.0 if k == 0 else 0.1 * k, 20 * k) for k in range(6)]
     svg = best_over_time(runs, "PPL")
-    ticks = re.findall(r'<text x="([\d.]+)" y="[\d.]+" text-anchor="(\w+)" class="tick">(\d\d:\d\d:\d\d)<', svg)
+    ticks = re.findall(
+        r'<text x="([\d.]+)" y="[\d.]+" text-anchor="(\w+)" class="tick">(\d\d:\d\d:\d\d)<', svg
+    )
     assert 2 <= len(ticks) <= 4, ticks  # at a phone's text size five would run together
     xs = [float(x) for x, _, _ in ticks]
     assert all(b - a >= 8 * 0.6 * 17 for a, b in zip(xs, xs[1:], strict=False))
     assert "2026-11-25" in svg  # the date on its own line, under the first time
     axis_x = 52
     bottom = 12 + 200
-    for cx, cy in re.findall(r'<circle cx="([\d.]+)" cy="([\d.]+)" r="3.5"[^>]*class="run-dot"', svg):
+    for cx, cy in re.findall(
+        r'<circle cx="([\d.]+)" cy="([\d.]+)" r="3.5"[^>]*class="run-dot"', svg
+    ):
         assert float(cx) > axis_x + 3.5 and float(cy) < bottom - 3.5
 
 
@@ -55,7 +59,9 @@ def test_the_guide_renders_only_the_participants_parts():
     assert "<h1>" not in html  # the page has its own
     assert "<pre><code" in html and "multion submit" in html
     assert "For organisers" not in html and "## " not in html
-    assert "<script" not in render_guide("# x\n\n## For participants\n\n<script>alert(1)</script>\n")
+    assert "<script" not in render_guide(
+        "# x\n\n## For participants\n\n<script>alert(1)</script>\n"
+    )
     assert participant_markdown("intro\n\n## Tests\n\nno\n").strip() == "intro"
 
 

@@ -71,10 +71,10 @@ class Shell:
             ["bash", "-c", script], cwd=self.cwd, env=self.env, capture_output=True, text=True,
             timeout=900,
         )  # fmt: skip
-        assert done.returncode == 0, f"`{line}` failed ({done.returncode}):\n{done.stdout}\n{done.stderr}"
-        self.env = dict(
-            item.split("=", 1) for item in dump.read_text().split("\0") if "=" in item
+        assert done.returncode == 0, (
+            f"`{line}` failed ({done.returncode}):\n{done.stdout}\n{done.stderr}"
         )
+        self.env = dict(item.split("=", 1) for item in dump.read_text().split("\0") if "=" in item)
         self.outputs.append((line, done.stdout))
         return done.stdout
 

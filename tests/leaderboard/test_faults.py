@@ -46,9 +46,7 @@ def fault_challenge(challenge: Challenge, directory: Path) -> Path:
     episode helper) with room for a few runs."""
     standard = challenge.tracks[0].phase("test-standard")
     assert standard is not None
-    fresh = dataclasses.replace(
-        standard, total_quota=None, daily_quota=5, episodes_per_run="fresh"
-    )
+    fresh = dataclasses.replace(standard, total_quota=None, daily_quota=5, episodes_per_run="fresh")
     return write_challenge(replace_phase(challenge, "1-on", fresh), directory / "challenge.toml")
 
 
@@ -197,7 +195,11 @@ def _group_members(pgid: int) -> list[str]:
         except (OSError, IndexError):
             continue
         if int(fields[2]) == pgid and fields[0] != "Z":
-            members.append(stat.parent.name + " " + (stat.parent / "cmdline").read_bytes()[:80].decode(errors="replace"))
+            members.append(
+                stat.parent.name
+                + " "
+                + (stat.parent / "cmdline").read_bytes()[:80].decode(errors="replace")
+            )
     return members
 
 
@@ -302,7 +304,10 @@ def test_a_helper_that_keeps_failing_charges_no_quota(
         assert "BrokenProcessPool" not in str(answer) and "child process" not in str(answer)
     [run] = runs_of(database)  # the second run was never created
     assert (run.id, run.state, run.end_reason, run.refunded) == (
-        info["run_id"], "failed", "server_error", True
+        info["run_id"],
+        "failed",
+        "server_error",
+        True,
     )
     db = Database.open(database)
     with db.sessions() as session:

@@ -56,7 +56,9 @@ def play_settings(
     server: LocalServer, new_team: Callable[[str], str], monkeypatch: pytest.MonkeyPatch
 ) -> Iterator[None]:
     monkeypatch.setenv("MULTION_SERVER", server.url)
-    monkeypatch.setenv("MULTION_TOKEN", new_team(f"habitat-{np.random.default_rng().integers(1e9)}"))
+    monkeypatch.setenv(
+        "MULTION_TOKEN", new_team(f"habitat-{np.random.default_rng().integers(1e9)}")
+    )
     monkeypatch.setenv("MULTION_TRACK", "1-on")
     monkeypatch.setenv("MULTION_PHASE", "minival")
     monkeypatch.setenv("MULTION_METHOD", "habitat agent")
@@ -71,7 +73,10 @@ def test_habitat_agent_plays_a_run_unchanged(play_settings: None) -> None:
     first = agent.seen[0]
     assert set(first) == {"rgb", "depth", "multiobjectgoal", "gps", "compass"}
     assert first["rgb"].shape == (32, 32, 3) and first["rgb"].dtype == np.uint8
-    assert first["depth"].shape == (32, 32, 1) and 0.0 <= first["depth"].min() <= first["depth"].max() <= 1.0
+    assert (
+        first["depth"].shape == (32, 32, 1)
+        and 0.0 <= first["depth"].min() <= first["depth"].max() <= 1.0
+    )
     goal = first["multiobjectgoal"]
     assert goal.dtype == np.int64 and goal.shape == (1,) and 0 <= goal[0] < 8
     assert first["gps"].tolist() == [0.0, 0.0] and first["compass"].shape == (1,)
@@ -84,7 +89,9 @@ def test_habitat_agent_plays_a_run_unchanged(play_settings: None) -> None:
     assert third["compass"][0] == pytest.approx(0.0, abs=1e-6)
 
 
-def test_batched_agent_plays_over_lanes(play_settings: None, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_batched_agent_plays_over_lanes(
+    play_settings: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("MULTION_NUM_ENVS", "2")
     agent = BatchedRandom()
     habitat.Challenge().submit(agent)

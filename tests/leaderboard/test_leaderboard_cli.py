@@ -78,7 +78,9 @@ def test_admin_submit_baselines_export_replay(
     # exactly the runs the leaderboard page shows: one per team, one per baseline method
     db_ = Database.open(database)
     with db_.sessions() as session:
-        boards = leaderboards(session, load_challenge(challenge_file), dt.datetime(9999, 1, 1, tzinfo=dt.timezone.utc))
+        boards = leaderboards(
+            session, load_challenge(challenge_file), dt.datetime(9999, 1, 1, tzinfo=dt.timezone.utc)
+        )
     db_.close()
     shown = {row.run_id for board in boards for row in board.rows}
     assert {r["run_id"] for r in best} == shown

@@ -55,7 +55,9 @@ def test_a_late_action_finds_its_episode_scored_as_it_stood(
     env.abandon()
 
 
-def test_a_silent_client_loses_its_run(hasty: InProcessServer, new_team: Callable[[str], str]) -> None:
+def test_a_silent_client_loses_its_run(
+    hasty: InProcessServer, new_team: Callable[[str], str]
+) -> None:
     client = Client(hasty.url, token=new_team("silent"))
     info = client.create_run(CreateRun("1-on", "minival", "silent", ["goal"]))
     client.start_episode(info.run_id, 0)
@@ -74,7 +76,9 @@ def test_a_silent_client_loses_its_run(hasty: InProcessServer, new_team: Callabl
         client.start_episode(info.run_id, 1)
 
 
-def test_a_run_the_server_broke_is_refunded(hasty: InProcessServer, new_team: Callable[[str], str]) -> None:
+def test_a_run_the_server_broke_is_refunded(
+    hasty: InProcessServer, new_team: Callable[[str], str]
+) -> None:
     client = Client(hasty.url, token=new_team("unlucky"))
     info = client.create_run(CreateRun("1-on", "test-standard", "unlucky", ["goal"]))
     client.start_episode(info.run_id, 0)

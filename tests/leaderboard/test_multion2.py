@@ -38,8 +38,12 @@ def small_copy(directory: Path) -> Path:
         assert before in text
         text = text.replace(before, after)
     path = directory / "multion-2.0-small.toml"
-    path.write_text(f'{text}\n'.replace('secret_env = "MULTION_CHALLENGE_SECRET"',
-                                         f'secret = "{SECRET["MULTION_CHALLENGE_SECRET"]}"'))
+    path.write_text(
+        f"{text}\n".replace(
+            'secret_env = "MULTION_CHALLENGE_SECRET"',
+            f'secret = "{SECRET["MULTION_CHALLENGE_SECRET"]}"',
+        )
+    )
     return path
 
 
@@ -80,9 +84,7 @@ def test_track_rules_are_checked_with_their_ranges() -> None:
         load(num_distractors="3")
 
 
-def test_create_play_score_and_show(
-    tmp_path: Path, launch: Callable[..., LocalServer]
-) -> None:
+def test_create_play_score_and_show(tmp_path: Path, launch: Callable[..., LocalServer]) -> None:
     challenge_file = small_copy(tmp_path)
     challenge = load_challenge(challenge_file)
     track = challenge.tracks[1]

@@ -80,17 +80,24 @@ def test_a_past_seal_is_said_by_check_tracks_and_serve(
     assert code == 0 and "2 tracks, 4 phases: OK" in out and "warning" not in out
     sealed = challenge.tracks[1].phases[1]
     assert sealed.sealed_until == dt.datetime(2999, 1, 1, tzinfo=dt.timezone.utc)
-    past_seal = dataclasses.replace(sealed, sealed_until=dt.datetime(2001, 1, 1, tzinfo=dt.timezone.utc))
+    past_seal = dataclasses.replace(
+        sealed, sealed_until=dt.datetime(2001, 1, 1, tzinfo=dt.timezone.utc)
+    )
     past = write_challenge(  # a wrong year: 2001 for 2999
         replace_phase(challenge, "1-on-oracle", past_seal), tmp_path / "past.toml"
     )
     code, out, _ = run_cli(capsys, "leaderboard", "check", "--challenge", str(past))
     assert code == 0
-    assert "warning: phase 1-on-oracle/test-challenge: sealed_until 2001-01-01T00:00:00+00:00 is in the past" in out
+    assert (
+        "warning: phase 1-on-oracle/test-challenge: sealed_until 2001-01-01T00:00:00+00:00 is in the past"
+        in out
+    )
     code, out, _ = run_cli(capsys, "leaderboard", "tracks", "--challenge", str(past))
     assert "sealed until 2001-01-01T00:00:00+00:00 (passed: results shown to everyone)" in out
     track = challenge.tracks[0]  # one track, one phase: no "1 tracks"
-    alone = dataclasses.replace(challenge, tracks=(dataclasses.replace(track, phases=track.phases[:1]),))
+    alone = dataclasses.replace(
+        challenge, tracks=(dataclasses.replace(track, phases=track.phases[:1]),)
+    )
     one = write_challenge(alone, tmp_path / "one.toml")
     code, out, _ = run_cli(capsys, "leaderboard", "check", "--challenge", str(one))
     assert code == 0 and "1 track, 1 phase: OK" in out

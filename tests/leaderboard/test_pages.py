@@ -44,14 +44,14 @@ def test_the_leaderboard_ranks_each_teams_best_run(
     minival = board(answer.text, "1-on", "minival")
     shown = rows(minival)
     # alpha's two runs give one row (its best), beta one, the baseline one
-    best_alpha = max(
-        (played["alpha-1"], played["alpha-2"]), key=lambda r: r.summary["ppl"]["mean"]
-    )
+    best_alpha = max((played["alpha-1"], played["alpha-2"]), key=lambda r: r.summary["ppl"]["mean"])
     expected = [best_alpha, played["beta"], played["baseline"]]
     assert sorted(re.search(r'data-run="(\w+)"', r).group(1) for r in shown) == sorted(
         r.run_id for r in expected
     )
-    ppl = [float(re.search(r'data-metric="ppl">.*?"mean">([\d.]+)', r, re.S).group(1)) for r in shown]
+    ppl = [
+        float(re.search(r'data-metric="ppl">.*?"mean">([\d.]+)', r, re.S).group(1)) for r in shown
+    ]
     assert ppl == sorted(ppl, reverse=True)
     for row in shown:
         run = next(r for r in expected if r.run_id in row)

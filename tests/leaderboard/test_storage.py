@@ -43,7 +43,14 @@ def db(
         url = request.getfixturevalue("postgres_url")
     database = Database.open(url)
     with database.engine.begin() as connection:  # a clean slate on the shared PostgreSQL
-        for table in ("episode_pictures", "episodes", "runs", "tokens", "teams", "secret_fingerprint"):
+        for table in (
+            "episode_pictures",
+            "episodes",
+            "runs",
+            "tokens",
+            "teams",
+            "secret_fingerprint",
+        ):
             connection.exec_driver_sql(f"DELETE FROM {table}")
     yield database
     database.close()
@@ -52,7 +59,15 @@ def db(
 def test_migrations_make_the_schema(db: Database) -> None:
     assert current_revision(db.engine) == "0005"
     tables = set(inspect(db.engine).get_table_names())
-    assert {"teams", "tokens", "runs", "episodes", "secret_fingerprint", "episode_pictures", "alembic_version"} <= tables
+    assert {
+        "teams",
+        "tokens",
+        "runs",
+        "episodes",
+        "secret_fingerprint",
+        "episode_pictures",
+        "alembic_version",
+    } <= tables
     Database.open(str(db.engine.url.render_as_string(hide_password=False))).close()  # idempotent
     if db.engine.dialect.name == "sqlite":
         with db.engine.connect() as connection:

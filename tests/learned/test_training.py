@@ -62,7 +62,12 @@ def test_every_model_runs_forward_and_backward_on_env_shapes(name: str) -> None:
     actions = torch.randint(0, 4, (steps, batch))
     starts = torch.tensor([[1.0, 1.0], [0.0, 0.0], [0.0, 1.0]])
     replay = policy.evaluate_actions(frames, actions, starts, policy.initial_state(batch), actions)
-    logprob, entropy, value, aux = replay.logprob, replay.entropy, replay.value, replay.auxiliary_loss
+    logprob, entropy, value, aux = (
+        replay.logprob,
+        replay.entropy,
+        replay.value,
+        replay.auxiliary_loss,
+    )
     assert logprob.shape == entropy.shape == value.shape == (steps, batch)
     loss = -logprob.mean() + value.pow(2).mean() + (aux if aux is not None else 0.0)
     loss.backward()

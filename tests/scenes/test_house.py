@@ -77,7 +77,11 @@ def test_room_counts_footprints_and_shapes_are_matterport_like():
     assert 100 <= min(areas) and max(areas) <= 500 and np.mean(areas) >= 180
     # corridors, non-rectangular footprints (corner cuts) and wide openings all occur
     assert sum(int(house(s).metadata["corridor_count"]) > 0 for s in SEEDS) >= 10
-    cut = [s for s in SEEDS if float(house(s).metadata["footprint_area"]) < np.prod(footprint(house(s))) - 1]
+    cut = [
+        s
+        for s in SEEDS
+        if float(house(s).metadata["footprint_area"]) < np.prod(footprint(house(s))) - 1
+    ]
     assert len(cut) >= 10
     assert any(d.width > 1.5 for s in SEEDS for d in house(s).doors)
     for s in SEEDS:
@@ -85,7 +89,9 @@ def test_room_counts_footprints_and_shapes_are_matterport_like():
 
 
 def test_config_controls_room_count_and_furniture():
-    layout = generate_house(3, HouseConfig(min_rooms=5, max_rooms=5, furniture_density=0.0, clutter=0))
+    layout = generate_house(
+        3, HouseConfig(min_rooms=5, max_rooms=5, furniture_density=0.0, clutter=0)
+    )
     assert len(layout.rooms) == 5
     assert boxes_of(layout, "furniture") == []
     with pytest.raises(ValueError):
@@ -179,7 +185,9 @@ def test_floor_slabs_cover_every_room_and_the_ceiling_is_on_top():
             x0, y0, x1, y1 = room.rect
             for x in np.linspace(x0 - T / 2 + 0.01, x1 + T / 2 - 0.01, 12):
                 for y in np.linspace(y0 - T / 2 + 0.01, y1 + T / 2 - 0.01, 12):
-                    assert any(covers(f, x, y) for f in floors), f"seed {s}: hole at {x:.2f},{y:.2f}"
+                    assert any(covers(f, x, y) for f in floors), (
+                        f"seed {s}: hole at {x:.2f},{y:.2f}"
+                    )
         (ceiling,) = boxes_of(layout, "ceiling")
         assert ceiling.min_corner[2] == pytest.approx(layout.wall_height)
 
@@ -262,7 +270,11 @@ def free_space(layout: SceneLayout, radius: float = 0.1, cell: float = 0.05):
         floor |= (gx >= x0) & (gx <= x1) & (gy >= y0) & (gy <= y1)
     free = floor.copy()
     for box in layout.boxes:
-        if box.kind in ("wall", "furniture") and box.min_corner[2] < 1.5 and box.max_corner[2] > 0.05:
+        if (
+            box.kind in ("wall", "furniture")
+            and box.min_corner[2] < 1.5
+            and box.max_corner[2] > 0.05
+        ):
             x0, y0, x1, y1 = xy_rect(box)
             cols = slice(*np.searchsorted(xs, [x0 - radius - cell, x1 + radius + cell]))
             rows = slice(*np.searchsorted(ys, [y0 - radius - cell, y1 + radius + cell]))

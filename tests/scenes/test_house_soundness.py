@@ -68,7 +68,9 @@ def test_the_checks_catch_a_roof_taken_for_the_floor():
     # a room under a roof four times its size: the ray search finds the roof's top as the floor
     room = make_room(3.0, 3.0, scene_id="roofed")
     roof = Box((3.0, 3.0, 2.625), (6.0, 6.0, 0.025), (1.0, 1.0, 1.0, 1.0), "ceiling")
-    layout = SceneLayout("roofed", (*[b for b in room.boxes if b.kind != "ceiling"], roof), room.rooms)
+    layout = SceneLayout(
+        "roofed", (*[b for b in room.boxes if b.kind != "ceiling"], roof), room.rooms
+    )
     assert any("roof" in p for p in geometry_problems(layout))
     world = PyBulletWorld.from_layout(layout, "tiny")
     try:

@@ -75,19 +75,23 @@ def imported(tmp_path_factory, originals, scans):
 def multinav_file(path, episodes, scale=1.7):
     items = []
     for e in episodes:
-        items.append({
-            "episode_id": e.episode_id,
-            "scene_id": "mp3d/scan61/scan61.glb",
-            "start_position": list(world_to_habitat(e.start_position)),
-            "start_rotation": rotation_from_yaw(e.start_yaw, scale),
-            "info": {"geodesic_distance": sum(e.geodesic_distances)},
-            "goals": [
-                {"object_category": reference_name(g.category),
-                 "position": list(world_to_habitat(g.position))}
-                for g in e.goals
-            ],
-            "object_category": [reference_name(g.category) for g in e.goals],
-        })
+        items.append(
+            {
+                "episode_id": e.episode_id,
+                "scene_id": "mp3d/scan61/scan61.glb",
+                "start_position": list(world_to_habitat(e.start_position)),
+                "start_rotation": rotation_from_yaw(e.start_yaw, scale),
+                "info": {"geodesic_distance": sum(e.geodesic_distances)},
+                "goals": [
+                    {
+                        "object_category": reference_name(g.category),
+                        "position": list(world_to_habitat(g.position)),
+                    }
+                    for g in e.goals
+                ],
+                "object_category": [reference_name(g.category) for g in e.goals],
+            }
+        )
     with gzip.open(path, "wt") as handle:
         json.dump({"episodes": items}, handle)
     return path
@@ -100,7 +104,14 @@ def test_frames_and_categories():
     # identity: habitat's agent looks along -z, which is +y here
     assert yaw_from_rotation([0, 0, 0, 1]) == pytest.approx(math.pi / 2)
     assert [GOAL_CATEGORIES[category_of(f"cylinder_{n}")] for n in REFERENCE_CATEGORY_NAMES] == [
-        "red", "green", "blue", "yellow", "white", "magenta", "black", "cyan"
+        "red",
+        "green",
+        "blue",
+        "yellow",
+        "white",
+        "magenta",
+        "black",
+        "cyan",
     ]
     with pytest.raises(ValueError, match="cylinder_red"):
         category_of("guitar")
@@ -115,7 +126,9 @@ def test_import_agrees_with_the_original_episodes(originals, imported):
     assert [e.episode_id for e in imported] == [e.episode_id for e in originals]
     for new, old in zip(imported, originals, strict=True):
         assert new.start_position == pytest.approx(old.start_position, abs=1e-4)
-        assert math.remainder(new.start_yaw - old.start_yaw, 2 * math.pi) == pytest.approx(0, abs=1e-5)
+        assert math.remainder(new.start_yaw - old.start_yaw, 2 * math.pi) == pytest.approx(
+            0, abs=1e-5
+        )
         assert [g.category for g in new.goals] == [g.category for g in old.goals]
         for a, b in zip(new.goals, old.goals, strict=True):
             assert a.position == pytest.approx(b.position, abs=1e-4)
@@ -128,7 +141,8 @@ def test_import_agrees_with_the_original_episodes(originals, imported):
 def test_imported_dataset_plays_on_the_scan(originals, imported):
     result = imported
     config = EnvConfig(
-        task=TaskConfig(num_goals=2), sensors=("rgb", "goal", "gps", "compass"),
+        task=TaskConfig(num_goals=2),
+        sensors=("rgb", "goal", "gps", "compass"),
         dataset=str(result.path),
     )
     env = MultiONEnv(config)
@@ -165,16 +179,40 @@ def test_command_line(tmp_path, originals, scans, imported):
     source = multinav_file(tmp_path / "val.json.gz", originals[:2])
     out = imported.path.parent / "two.json.gz"  # beside the fixture's: its scan is converted
     done = subprocess.run(
-        [sys.executable, "-m", "multion_agents.cli", "dataset", "import-multion", str(source),
-         "--scenes", str(scans), "--out", str(out)],
-        capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            "-m",
+            "multion_agents.cli",
+            "dataset",
+            "import-multion",
+            str(source),
+            "--scenes",
+            str(scans),
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert done.returncode == 0, done.stderr
     assert "2 episodes" in done.stdout and "multion eval --dataset" in done.stdout
     assert len(load_dataset(out)) == 2
     missing = subprocess.run(
-        [sys.executable, "-m", "multion_agents.cli", "dataset", "import-multion", str(source),
-         "--scenes", str(tmp_path / "nowhere"), "--out", str(out)],
-        capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "multion_agents.cli",
+            "dataset",
+            "import-multion",
+            str(source),
+            "--scenes",
+            str(tmp_path / "nowhere"),
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert missing.returncode == 2 and "--scenes" in missing.stderr

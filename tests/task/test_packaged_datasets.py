@@ -24,7 +24,9 @@ def test_packaged_dataset(split, m):
     for episode in episodes:
         assert len(episode.geodesic_distances) == m
         assert all(2.0 <= d <= 20.0 for d in episode.geodesic_distances)
-    assert read_header(packaged_dataset_path(m, split))["scene_generator_version"] == GENERATOR_VERSION
+    assert (
+        read_header(packaged_dataset_path(m, split))["scene_generator_version"] == GENERATOR_VERSION
+    )
 
 
 @pytest.mark.parametrize("split", ["val", "test"])
@@ -35,7 +37,9 @@ def test_packaged_distractor_datasets(split):
     assert len(episodes) == 1000 and {e.scene_id for e in episodes} == set(scene_ids(split))
     for episode in episodes:
         goals = {g.category for g in episode.goals}
-        assert len(episode.distractors) == 3 and not goals & {d.category for d in episode.distractors}
+        assert len(episode.distractors) == 3 and not goals & {
+            d.category for d in episode.distractors
+        }
 
 
 def test_env_uses_the_packaged_dataset_by_default():

@@ -48,7 +48,9 @@ class LatticeSearch:
         self._pending: Edge | None = None
         self._route: deque[Edge] = deque()
 
-    def act(self, position: np.ndarray, heading: int, value: Callable[[np.ndarray], float]) -> int | None:
+    def act(
+        self, position: np.ndarray, heading: int, value: Callable[[np.ndarray], float]
+    ) -> int | None:
         here = key_of(position)
         self.points[here] = np.asarray(position, dtype=np.float64).copy()
         self.tried.setdefault(here, set())

@@ -42,10 +42,15 @@ def bench_challenge(episodes: int, tracks: tuple[tuple[str, int], ...] = TRACKS)
         secret=secrets.token_urlsafe(24),
         hidden=HiddenScenes(rooms=(1, 1)),
         tracks=tuple(
-            Track(name, num_goals=m, camera={"width": 32, "height": 32}, phases=(
-                Phase("minival", episodes=episodes, houses=1, feedback="episodes"),
-                Phase("test-standard", episodes=episodes, houses=1),
-            ))  # fmt: skip
+            Track(
+                name,
+                num_goals=m,
+                camera={"width": 32, "height": 32},
+                phases=(
+                    Phase("minival", episodes=episodes, houses=1, feedback="episodes"),
+                    Phase("test-standard", episodes=episodes, houses=1),
+                ),
+            )  # fmt: skip
             for name, m in tracks
         ),
     )
@@ -77,8 +82,13 @@ def fill_database(url: str, runs: int, episodes: int, seed: int = 0) -> list[str
                 session.add(run)
                 session.add_all(
                     EpisodeRecord(
-                        run_id=run.id, position=i, episode_index=i, episode_id=f"e{i}",
-                        end_reason=r["end_reason"], metrics=r, actions="1" * r["steps"],
+                        run_id=run.id,
+                        position=i,
+                        episode_index=i,
+                        episode_id=f"e{i}",
+                        end_reason=r["end_reason"],
+                        metrics=r,
+                        actions="1" * r["steps"],
                     )  # fmt: skip
                     for i, r in enumerate(records)
                 )
@@ -148,11 +158,7 @@ def run_pages_bench(
     if verbose:
         print(f"{'page':22s} {'median ms':>10s} {'p95 ms':>8s}")
         for name in pages:
-            print(
-                f"{name:22s} {result[f'{name} median ms']:10.1f} {result[f'{name} p95 ms']:8.1f}"
-            )
+            print(f"{name:22s} {result[f'{name} median ms']:10.1f} {result[f'{name} p95 ms']:8.1f}")
         ratio = TARGET_MS / result["leaderboard median ms"]
-        print(
-            f"leaderboard page: target {TARGET_MS:.0f} ms / median = {ratio:.2f} (≥ 1 meets it)"
-        )
+        print(f"leaderboard page: target {TARGET_MS:.0f} ms / median = {ratio:.2f} (≥ 1 meets it)")
     return result

@@ -105,9 +105,7 @@ def _unit(compass: Tensor) -> tuple[Tensor, Tensor]:
     return torch.cos(yaw), torch.sin(yaw)
 
 
-def world_cell(
-    gps: Tensor, size: int, cell_size: float
-) -> tuple[Tensor, Tensor, Tensor]:
+def world_cell(gps: Tensor, size: int, cell_size: float) -> tuple[Tensor, Tensor, Tensor]:
     """The global-map cell (row, col) holding each position of ``gps`` (B, 2), and whether it
     lies inside the map."""
     centre = size // 2

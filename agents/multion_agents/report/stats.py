@@ -29,6 +29,7 @@ HEADLINE: tuple[tuple[str, str], ...] = (
     ("ppl", "PPL"),
 )
 
+
 def paired_difference(
     first: Sequence[float], second: Sequence[float], resamples: int = RESAMPLES, seed: int = 0
 ) -> Estimate:

@@ -178,7 +178,6 @@ def _ignore(worker: Worker) -> None:
     pass
 
 
-
 class WorkerPool:
     """``size`` worker slots; a slot whose worker dies gets a new worker at once."""
 

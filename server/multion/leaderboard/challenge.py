@@ -429,7 +429,9 @@ def _track(raw: Any, index: int) -> Track:
         if key in d:
             _typed(d[key], int, f"{where}.{key}")
     if "success_distance" in d:
-        d["success_distance"] = float(_typed(d["success_distance"], (int, float), f"{where}.success_distance"))
+        d["success_distance"] = float(
+            _typed(d["success_distance"], (int, float), f"{where}.success_distance")
+        )
     if "goal_set" in d:
         _typed(d["goal_set"], str, f"{where}.goal_set")
     return Track(

@@ -184,7 +184,9 @@ def add_team(session: Session, name: str) -> tuple[Team, str]:
         raise StorageError(f"team name {name!r}: {TEAM_RULE}")
     same = _same_name(session, name)
     if same is not None:
-        differs = "" if same.name == name else f" (names may not differ by case alone: {same.name!r})"
+        differs = (
+            "" if same.name == name else f" (names may not differ by case alone: {same.name!r})"
+        )
         raise StorageError(
             f"a team named {name!r} already exists{differs} (`multion leaderboard token add`)"
         )

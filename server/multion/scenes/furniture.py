@@ -302,8 +302,9 @@ def plant(rng: np.random.Generator) -> Item:
 
 def kitchen_island(rng: np.random.Generator) -> Item:
     w, d = _snap(rng.uniform(1.2, 2.0)), _snap(rng.uniform(0.8, 1.0))
-    body, top = _mat(rng, "wood_light", "linen", "wood_mid", "paint_red", "paint_blue"), _mat(
-        rng, "stone", "ceramic"
+    body, top = (
+        _mat(rng, "wood_light", "linen", "wood_mid", "paint_red", "paint_blue"),
+        _mat(rng, "stone", "ceramic"),
     )
     seat = _mat(rng, "metal", "wood_dark", "paint_white", "paint_yellow")
     parts = [_p(0.05, 0.45, 0, w - 0.05, 0.45 + d - 0.05, 0.88, body),

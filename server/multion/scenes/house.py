@@ -32,7 +32,9 @@ from multion.scenes.palette import CEILING, ROOM_COLOURS, ROOM_TEXTURES, muted, 
 Rect = tuple[float, float, float, float]  # (x0, y0, x1, y1)
 
 
-def _room_types(rng: np.random.Generator, rects: list[Rect], corridors: frozenset[int]) -> list[str]:
+def _room_types(
+    rng: np.random.Generator, rects: list[Rect], corridors: frozenset[int]
+) -> list[str]:
     """Corridors and long narrow rooms are hallways; the biggest room is the living room, the
     smallest a bathroom; then a kitchen and a bedroom, and a mix of the rest."""
     areas = [(r[2] - r[0]) * (r[3] - r[1]) for r in rects]
@@ -56,7 +58,14 @@ def _room_types(rng: np.random.Generator, rects: list[Rect], corridors: frozense
 
 
 def _box(
-    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgba, kind: str,
+    x0: float,
+    y0: float,
+    z0: float,
+    x1: float,
+    y1: float,
+    z1: float,
+    rgba,
+    kind: str,
     texture: str = "",
 ) -> Box:
     # Round to a micrometre so walls that should meet do meet, without float crumbs between them.

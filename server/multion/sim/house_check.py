@@ -128,12 +128,16 @@ def grid_problems(
     outside = ~_in_any(places, xy)
     if outside.any():
         x, y = xy[int(np.argmax(outside))]
-        problems.append(f"{int(outside.sum())} navigable cells outside rooms, e.g. ({x:.2f}, {y:.2f})")
+        problems.append(
+            f"{int(outside.sum())} navigable cells outside rooms, e.g. ({x:.2f}, {y:.2f})"
+        )
     # a cell centre may sit up to a cell off the exact boundary of the eroded free space
     clearance = agent_radius - grid.cell_size
     for b in layout.boxes:
         low, high = b.min_corner[2] - layout.floor_z, b.max_corner[2] - layout.floor_z
-        blocking = b.kind == "wall" or (b.kind == "furniture" and low < agent_height and high > 0.05)
+        blocking = b.kind == "wall" or (
+            b.kind == "furniture" and low < agent_height and high > 0.05
+        )
         if blocking and len(xy):
             near = _distance_to(_rect(b), xy) < clearance
             if near.any():

@@ -117,7 +117,9 @@ def build_navgrid(world: PyBulletWorld, config: NavGridConfig = NavGridConfig())
 
     # close one-cell cracks in the floor (slab seams, small holes in scans): rays through them
     # would otherwise cut doors in two once eroded
-    floor_map = ndimage.binary_closing(floor.reshape(rows, cols), structure=np.ones((3, 3), dtype=bool))
+    floor_map = ndimage.binary_closing(
+        floor.reshape(rows, cols), structure=np.ones((3, 3), dtype=bool)
+    )
     floor_map &= inside.reshape(rows, cols)
 
     # 3. short crossing rays per cell, only where they can change the answer
@@ -127,7 +129,9 @@ def build_navgrid(world: PyBulletWorld, config: NavGridConfig = NavGridConfig())
         obstacle[candidates] |= _crossing_hits(world, centres[candidates], floor_z + height, cs)
     view_blocked = np.zeros(len(centres), dtype=bool)
     in_scene = np.flatnonzero(inside)
-    view_blocked[in_scene] = _crossing_hits(world, centres[in_scene], floor_z + config.view_height, cs)
+    view_blocked[in_scene] = _crossing_hits(
+        world, centres[in_scene], floor_z + config.view_height, cs
+    )
 
     free = floor_map & ~obstacle.reshape(rows, cols)
     # 4. erosion by the agent radius, then the largest 8-connected region

@@ -41,8 +41,6 @@ VERSION = 3
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "datasets"
 
 
-
-
 def task_name(num_goals: int) -> str:
     return f"{num_goals}-on"
 
@@ -50,7 +48,9 @@ def task_name(num_goals: int) -> str:
 def parse_task(name: str | int) -> int:
     """``"3-on"``, ``"3-ON"``, ``"3on"`` or ``3`` → 3; a clear ``ValueError`` otherwise."""
     text = str(name).strip().lower().replace("_", "-")
-    number = text[: -len("-on")] if text.endswith("-on") else text[:-2] if text.endswith("on") else text
+    number = (
+        text[: -len("-on")] if text.endswith("-on") else text[:-2] if text.endswith("on") else text
+    )
     if not number.isdigit() or not 1 <= int(number) <= NUM_CATEGORIES:
         raise ValueError(f"unknown task {name!r}: use 1-on … {NUM_CATEGORIES}-on")
     return int(number)
@@ -114,7 +114,9 @@ def load_dataset(
     if not isinstance(raw, list) or not raw:
         raise DatasetError(f'{path}: "episodes" must be a non-empty list')
     made_by = data.get("scene_generator_version")
-    houses = any(str(item.get("scene_id", "")).startswith("house-") for item in raw if isinstance(item, dict))
+    houses = any(
+        str(item.get("scene_id", "")).startswith("house-") for item in raw if isinstance(item, dict)
+    )
     if houses and made_by != GENERATOR_VERSION:
         raise DatasetError(
             f"{path}: its episodes were sampled in houses of scene generator version {made_by!r}, "
@@ -162,9 +164,7 @@ def check_episode(episode: Episode, num_goals: int | None = None) -> str | None:
     if bad:
         return f"distractor category {bad[0]} is not in 0..{NUM_CATEGORIES - 1}"
     if len(set(others)) != len(others) or set(others) & set(categories):
-        return (
-            f"distractor categories {others} repeat or overlap the goal categories {categories}"
-        )
+        return f"distractor categories {others} repeat or overlap the goal categories {categories}"
     values = [
         *episode.start_position,
         episode.start_yaw,
@@ -271,9 +271,11 @@ def sample_episode(
         )
         if not all(constraints.min_geodesic <= d <= constraints.max_geodesic for d in measured):
             continue  # the footprint distance can differ from the cell distance by a few cm
-        distractors = _sample_distractors(
-            rng, cells, goals, num_distractors, constraints, z
-        ) if num_distractors else ()
+        distractors = (
+            _sample_distractors(rng, cells, goals, num_distractors, constraints, z)
+            if num_distractors
+            else ()
+        )
         if distractors is None:
             continue
         start_xy = (round(float(start[0]), 4), round(float(start[1]), 4))
@@ -317,7 +319,10 @@ def _sample_distractors(
     """``count`` distractors on navigable ``cells`` away from the goals, or None if none fit."""
     ok = np.ones(len(cells), dtype=bool)
     for goal in goals:
-        ok &= np.hypot(*(cells - np.asarray(goal.position[:2])).T) >= constraints.min_distractor_separation
+        ok &= (
+            np.hypot(*(cells - np.asarray(goal.position[:2])).T)
+            >= constraints.min_distractor_separation
+        )
     free = [c for c in range(NUM_CATEGORIES) if c not in {g.category for g in goals}]
     categories = rng.choice(free, size=count, replace=False)
     placed: list[Goal] = []

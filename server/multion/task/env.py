@@ -53,6 +53,7 @@ RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
 """What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
 its id, or inline; with their types."""
 
+
 class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     """Multi-object navigation in a 3D home (MultiON, NeurIPS 2020).
 

@@ -47,13 +47,20 @@ def generate_episodes(
             while made < quota:
                 episode_id = f"{split}-{name}-{len(episodes):05d}"
                 episode = sample_episode(
-                    grid, scene, num_goals, rng, episode_id, constraints,
+                    grid,
+                    scene,
+                    num_goals,
+                    rng,
+                    episode_id,
+                    constraints,
                     num_distractors=num_distractors,
                 )
                 if episode is None:
                     failures += 1
                     if failures > 3:
-                        raise RuntimeError(f"{scene}: cannot place {num_goals} goals under the constraints")
+                        raise RuntimeError(
+                            f"{scene}: cannot place {num_goals} goals under the constraints"
+                        )
                     continue
                 episodes.append(episode)
                 made += 1
@@ -65,8 +72,14 @@ def generate_episodes(
 
 
 def generate_dataset(
-    out: str | Path, num_goals: int, split: str, count: int, seed: int = 0,
-    scenes: Sequence[str] | None = None, progress: bool = True, num_distractors: int = 0,
+    out: str | Path,
+    num_goals: int,
+    split: str,
+    count: int,
+    seed: int = 0,
+    scenes: Sequence[str] | None = None,
+    progress: bool = True,
+    num_distractors: int = 0,
 ) -> Path:
     """Generate and write a dataset file; returns its path."""
     episodes = generate_episodes(

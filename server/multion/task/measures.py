@@ -307,9 +307,7 @@ class SeenBeforeCurrent(Measure):
         return out
 
 
-def seen_split(
-    metrics: Iterable[Mapping[str, Any]], goal: int
-) -> tuple[list[float], list[float]]:
+def seen_split(metrics: Iterable[Mapping[str, Any]], goal: int) -> tuple[list[float], list[float]]:
     """1.0 / 0.0 (goal ``goal`` found or not) for the episodes in which goal ``goal - 1`` was
     found, split into those where ``goal`` was seen before that (by :class:`SeenBeforeCurrent`)
     and those where it was not: the supplement's seen / not-seen analysis, from each episode's

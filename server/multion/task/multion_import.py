@@ -182,10 +182,15 @@ def convert_episode(item: Mapping[str, Any], index: int, scene: Path) -> tuple[E
     return episode, float(info.get("geodesic_distance", math.nan))
 
 
-def measure_legs(grid: NavGrid, episode: Episode, fields: FieldCache, goal_radius: float) -> list[float]:
+def measure_legs(
+    grid: NavGrid, episode: Episode, fields: FieldCache, goal_radius: float
+) -> list[float]:
     """start -> g1, g1 -> g2, ... on ``grid``, as the env measures them (to each goal's
     footprint); ``inf`` where a point is off the navigable grid."""
-    points = [np.asarray(episode.start_position[:2]), *(np.asarray(g.position[:2]) for g in episode.goals)]
+    points = [
+        np.asarray(episode.start_position[:2]),
+        *(np.asarray(g.position[:2]) for g in episode.goals),
+    ]
     legs = []
     for before, goal in zip(points, episode.goals, strict=False):
         field = fields.get(grid, np.asarray(goal.position[:2]), goal_radius)

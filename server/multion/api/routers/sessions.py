@@ -61,9 +61,7 @@ SESSION_ERRORS = (e.SessionNotFound, e.WorkerFailed)
         e.WorkerFailed,
     ),
 )
-async def create_session(
-    message: Message, registry: Registry, request: Request
-) -> MsgpackResponse:
+async def create_session(message: Message, registry: Registry, request: Request) -> MsgpackResponse:
     owner = await session_owner(request)
     body = await registry.create(CreateSession.from_wire(message), owner=owner)
     return MsgpackResponse(body, status_code=201)
@@ -77,7 +75,12 @@ async def create_session(
     "`episode` (an Episode map).",
     openapi_extra=request_body(Reset),
     responses=answers(
-        200, Observations, *BODY_ERRORS, e.BadRequest, e.PathNotAllowed, e.InvalidEpisode,
+        200,
+        Observations,
+        *BODY_ERRORS,
+        e.BadRequest,
+        e.PathNotAllowed,
+        e.InvalidEpisode,
         *SESSION_ERRORS,
     ),  # fmt: skip
 )
@@ -93,7 +96,12 @@ async def reset(session_id: str, request: Request) -> MsgpackResponse:
     "2 TURN_LEFT, 3 TURN_RIGHT). All environments step in this one request.",
     openapi_extra=request_body(Step),
     responses=answers(
-        200, StepResult, *BODY_ERRORS, e.BadRequest, e.InvalidAction, e.EpisodeOver,
+        200,
+        StepResult,
+        *BODY_ERRORS,
+        e.BadRequest,
+        e.InvalidAction,
+        e.EpisodeOver,
         *SESSION_ERRORS,
     ),  # fmt: skip
 )

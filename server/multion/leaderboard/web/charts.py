@@ -72,7 +72,10 @@ def _time_label(
     """(first line, second line): dates for long spans, times (with seconds under 5 minutes)
     for short ones, with the date under the first tick of each day."""
     if span >= dt.timedelta(days=2):
-        return (f"{t:%Y-%m-%d}" if previous is None or previous.year != t.year else f"{t:%m-%d}", "")
+        return (
+            f"{t:%Y-%m-%d}" if previous is None or previous.year != t.year else f"{t:%m-%d}",
+            "",
+        )
     clock = f"{t:%H:%M:%S}" if span < dt.timedelta(minutes=5) else f"{t:%H:%M}"
     if previous is None or previous.date() != t.date():
         return clock, f"{t:%Y-%m-%d}"
@@ -127,17 +130,23 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
     ]
     for tick in ticks:
         ty = y(tick / 100)
-        parts.append(f'<line x1="{LEFT}" y1="{ty:.1f}" x2="{WIDTH - RIGHT}" y2="{ty:.1f}" class="grid"/>')
+        parts.append(
+            f'<line x1="{LEFT}" y1="{ty:.1f}" x2="{WIDTH - RIGHT}" y2="{ty:.1f}" class="grid"/>'
+        )
         parts.append(
             f'<text x="{LEFT - 6}" y="{ty + 4:.1f}" text-anchor="end" class="tick">{tick:g}%</text>'
         )
-    parts.append(f'<line x1="{LEFT}" y1="{bottom}" x2="{WIDTH - RIGHT}" y2="{bottom}" class="axis"/>')
+    parts.append(
+        f'<line x1="{LEFT}" y1="{bottom}" x2="{WIDTH - RIGHT}" y2="{bottom}" class="axis"/>'
+    )
     parts.append(f'<line x1="{LEFT}" y1="{TOP}" x2="{LEFT}" y2="{bottom}" class="axis"/>')
     marks = [times[0]] if single else _spaced_ticks(t0, t1)
     previous = None
     for t in marks:
         tx = x(t)
-        parts.append(f'<line x1="{tx:.1f}" y1="{bottom}" x2="{tx:.1f}" y2="{bottom + 4}" class="axis"/>')
+        parts.append(
+            f'<line x1="{tx:.1f}" y1="{bottom}" x2="{tx:.1f}" y2="{bottom + 4}" class="axis"/>'
+        )
         first, second = _time_label(t, previous, t1 - t0)
         # a long label near an edge starts (or ends) at its tick rather than leaving the chart
         anchor, width = "middle", max(len(first), len(second)) * CHAR_WIDTH * PHONE_TEXT

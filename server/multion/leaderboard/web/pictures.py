@@ -361,9 +361,7 @@ def _insert_new(session: Session, rows: list[dict[str, Any]]) -> int:
         from sqlalchemy.dialects.sqlite import insert
     else:  # pragma: no cover - the two databases the leaderboard supports
         raise NotImplementedError(f"pictures need PostgreSQL or SQLite, not {dialect}")
-    statement = insert(EpisodePicture).on_conflict_do_nothing(
-        index_elements=["run_id", "position"]
-    )
+    statement = insert(EpisodePicture).on_conflict_do_nothing(index_elements=["run_id", "position"])
     # RETURNING, not rowcount: the PostgreSQL driver reports no rowcount for an INSERT (-1)
     returning = statement.returning(EpisodePicture.position)
     return sum(len(session.execute(returning.values(**row)).all()) for row in rows)

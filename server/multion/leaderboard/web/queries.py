@@ -84,8 +84,17 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
     ]
     query = (
         select(
-            Run.id, Run.track, Run.phase, Run.method, Run.paper_url, Run.code_url, Run.baseline,
-            Run.state, Run.finished_at, Team.name, *numbers,
+            Run.id,
+            Run.track,
+            Run.phase,
+            Run.method,
+            Run.paper_url,
+            Run.code_url,
+            Run.baseline,
+            Run.state,
+            Run.finished_at,
+            Team.name,
+            *numbers,
             Run.summary["episodes"].as_integer().label("episodes"),
             Run.summary["end_reasons"]["not_played"].as_integer().label("not_played"),
             Run.summary["end_reasons"]["abandoned"].as_integer().label("abandoned"),
@@ -123,7 +132,9 @@ def _order(row: Any, column: str) -> tuple:
 
 def _scores(row: Any) -> dict[str, Estimate]:
     return {
-        m: Estimate(*(float(getattr(row, f"{m}_{part}") or 0.0) for part in ("mean", "low", "high")))
+        m: Estimate(
+            *(float(getattr(row, f"{m}_{part}") or 0.0) for part in ("mean", "low", "high"))
+        )
         for m in SUMMARY_METRICS
     }
 
@@ -245,9 +256,7 @@ def seen_splits(metrics: Sequence[dict[str, Any]], num_goals: int) -> list[SeenS
     return splits
 
 
-def breakdown(
-    records: Sequence[EpisodeRecord], label_of: dict[int, str]
-) -> list[Breakdown]:
+def breakdown(records: Sequence[EpisodeRecord], label_of: dict[int, str]) -> list[Breakdown]:
     """Aggregates per label (``label_of``: hidden episode index → label, e.g. its house)."""
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for record in records:
@@ -286,8 +295,16 @@ def team_runs(
         return None
     query = (
         select(
-            Run.id, Run.track, Run.phase, Run.method, Run.state, Run.baseline, Run.created_at,
-            Run.finished_at, Run.summary, Run.refunded,
+            Run.id,
+            Run.track,
+            Run.phase,
+            Run.method,
+            Run.state,
+            Run.baseline,
+            Run.created_at,
+            Run.finished_at,
+            Run.summary,
+            Run.refunded,
         )  # fmt: skip
         .where(Run.team_id == team_id)
         .order_by(Run.created_at.desc())
@@ -302,8 +319,14 @@ def team_runs(
         )  # fmt: skip
         runs.append(
             TeamRun(
-                row.id, row.track, row.phase, row.method, row.state, bool(row.baseline),
-                row.created_at, row.finished_at,
+                row.id,
+                row.track,
+                row.phase,
+                row.method,
+                row.state,
+                bool(row.baseline),
+                row.created_at,
+                row.finished_at,
                 stored(row.summary, track.metric) if shown and track is not None else None,
             )  # fmt: skip
         )

@@ -19,9 +19,7 @@ depends_on = None
 def upgrade() -> None:
     # Runs stored before this revision have one lane, kept in the row's own columns.
     with op.batch_alter_table("runs") as batch:
-        batch.add_column(
-            sa.Column("num_envs", sa.Integer(), nullable=False, server_default="1")
-        )
+        batch.add_column(sa.Column("num_envs", sa.Integer(), nullable=False, server_default="1"))
         batch.add_column(sa.Column("lanes", sa.JSON(), nullable=True))
 
 
