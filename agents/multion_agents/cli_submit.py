@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from multion_agents.agent import AgentError
+from multion_agents.agent import Agent, AgentError
 from multion_agents.evaluate import EvalSettings, episode_seed, resolve_agent, resolve_config
 from multion_client.client import Client
 from multion_client.errors import MultiONError, RunOver, ServerUnavailable
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def submit(args: argparse.Namespace, cls: type) -> Any:
+def submit(args: argparse.Namespace, cls: type[Agent]) -> Any:
     """Play every remaining episode of a (new or resumed) run; returns its final RunStatus."""
     token = token_from_env(args.token)
     camera = (cls.config_overrides or {}).get("camera", {})
@@ -132,7 +132,7 @@ def submit(args: argparse.Namespace, cls: type) -> Any:
 
 def play_lanes(
     envs: list[Any],
-    cls: type,
+    cls: type[Agent],
     seed: int = 0,
     image_size: tuple[int, int] | None = None,
     progress: bool = True,
@@ -160,7 +160,7 @@ def play_lanes(
 
 def play_run(
     env: Any,
-    cls: type,
+    cls: type[Agent],
     seed: int = 0,
     image_size: tuple[int, int] | None = None,
     progress: bool = True,
@@ -209,7 +209,7 @@ def _track(challenge: dict[str, Any], name: str) -> dict[str, Any]:
     )
 
 
-def _check_overrides(cls: type, track: dict[str, Any]) -> None:
+def _check_overrides(cls: type[Agent], track: dict[str, Any]) -> None:
     missing = [s for s in cls.sensors if s not in track["sensors"]]
     if missing:
         raise ValueError(
@@ -221,7 +221,7 @@ def _check_overrides(cls: type, track: dict[str, Any]) -> None:
         raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
 
 
-def run_config(cls: type, track: dict[str, Any]) -> dict[str, Any]:
+def run_config(cls: type[Agent], track: dict[str, Any]) -> dict[str, Any]:
     """The resolved environment config a run of track ``track`` gives agent ``cls``: the track's
     task and camera, the agent's oracle-map settings, every other field the server's default.
     Images are resized to the agent's own camera size when it asks for one (``_resized``), so
@@ -240,7 +240,7 @@ def run_config(cls: type, track: dict[str, Any]) -> dict[str, Any]:
     return resolve_config(config)
 
 
-def oracle_maps(cls: type) -> dict[str, Any] | None:
+def oracle_maps(cls: type[Agent]) -> dict[str, Any] | None:
     """The agent's oracle-map options, if it reads an oracle map (other tracks refuse them)."""
     if not {"oracle_map", "oracle_ego_map"} & set(cls.sensors):
         return None

@@ -147,7 +147,8 @@ def _with_legend(
     ]
     text = "\n".join(lines)
     probe = ImageDraw.Draw(image)
-    left, top, right, bottom = probe.multiline_textbbox((0, 0), text, font=font)
+    # typed as floats; whole pixels here (the text starts at a whole pixel)
+    left, top, right, bottom = (int(v) for v in probe.multiline_textbbox((0, 0), text, font=font))
     strip = bottom - top + 12
     canvas = Image.new(
         "RGB", (max(image.width, right - left + 12), image.height + strip), (255, 255, 255)

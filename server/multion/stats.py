@@ -14,6 +14,9 @@ import numpy as np
 RESAMPLES = 2000
 CI_METHOD = f"percentile bootstrap over episodes, {RESAMPLES} resamples, 95%"
 
+# one value per episode: a list or a 1-d array
+Samples = Sequence[float] | np.ndarray
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -39,7 +42,7 @@ def resampled_means(data: np.ndarray, resamples: int, seed: int) -> np.ndarray:
     return data[rng.integers(len(data), size=(resamples, len(data)))].mean(axis=1)
 
 
-def bootstrap(values: Sequence[float], resamples: int = RESAMPLES, seed: int = 0) -> Estimate:
+def bootstrap(values: Samples, resamples: int = RESAMPLES, seed: int = 0) -> Estimate:
     """Mean of ``values`` with a 95% percentile-bootstrap interval (NAN for no values)."""
     data = np.asarray(values, dtype=np.float64)
     if len(data) == 0:

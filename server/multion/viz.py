@@ -93,10 +93,10 @@ def draw_layout(
             (x0, y0, _), (x1, y1, _) = box.min_corner, box.max_corner
             draw.rectangle(_rect_pixels(x0, y0, x1, y1, frame), fill=WALL)
     font = label_font(frame)
-    for text, box in room_labels(draw, layout, frame, font, keep_clear):
+    for text, patch in room_labels(draw, layout, frame, font, keep_clear):
         left, top, _, _ = draw.textbbox((0, 0), text, font=font)
-        draw.rectangle(box, fill=LABEL_PATCH)
-        draw.text((box[0] + 2 - left, box[1] + 2 - top), text, fill=ROOM_LABEL, font=font)
+        draw.rectangle(patch, fill=LABEL_PATCH)
+        draw.text((patch[0] + 2 - left, patch[1] + 2 - top), text, fill=ROOM_LABEL, font=font)
     for door in layout.doors:
         cx, cy = door.center
         dx, dy = (door.width / 2, 0.0) if door.axis == "x" else (0.0, door.width / 2)

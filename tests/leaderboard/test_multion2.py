@@ -76,6 +76,8 @@ def test_track_rules_are_checked_with_their_ranges() -> None:
         load(num_distractors=4)
     with pytest.raises(ChallengeError, match="success_distance"):
         load(success_distance=0)
+    with pytest.raises(ChallengeError, match="success_distance must be int or float"):
+        load(success_distance="1")
     with pytest.raises(ChallengeError, match="goal_set"):
         load(goal_set="animals")
     with pytest.raises(ChallengeError, match="found_budget"):

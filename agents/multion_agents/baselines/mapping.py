@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from scipy import ndimage
@@ -74,6 +74,11 @@ class CameraModel:
         """Focal length in pixels of an image ``width`` pixels wide (square pixels)."""
         return (width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
 
+    # an image in, an image out; one reading in, one number out
+    @overload
+    def metres(self, depth: np.ndarray) -> np.ndarray: ...
+    @overload
+    def metres(self, depth: float) -> float: ...
     def metres(self, depth: np.ndarray | float) -> np.ndarray | float:
         """Planar depth in metres, clipped to ``[near, far]``, from depth observation(s)."""
         metres = depth

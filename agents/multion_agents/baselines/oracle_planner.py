@@ -254,7 +254,8 @@ class OraclePlannerAgent(Agent):
 
     def _at_goal(self, position: np.ndarray, here: float) -> bool:
         """Time for FOUND: the goal is on the map and the plan says it is near."""
-        if not (self._layers[..., 1] == self._goal + 1).any():  # type: ignore[operator]
+        assert self._goal is not None  # act() sets it before planning
+        if not (self._layers[..., 1] == self._goal + 1).any():
             return False
         return here <= self.settings.found_distance or self._near_cut_off_goal(position)
 
@@ -264,8 +265,8 @@ class OraclePlannerAgent(Agent):
         one of its cells is within ``cut_off_found`` in a straight line."""
         if not self._cut_off:
             return False
-        assert self._grid is not None
-        rows, cols = np.nonzero(self._layers[..., 1] == self._goal + 1)  # type: ignore[operator]
+        assert self._grid is not None and self._goal is not None
+        rows, cols = np.nonzero(self._layers[..., 1] == self._goal + 1)
         gaps = self._grid.to_xy(rows, cols) - position
         return (
             bool(len(gaps))

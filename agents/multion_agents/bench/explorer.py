@@ -33,10 +33,10 @@ def run_explorer_bench(image: int = 256, houses: int = 3, steps: int = 500) -> d
     """Print and return ms per step of each part for both agents, and the ratios: the first
     3-ON val episode of each of the first ``houses`` val houses, at most ``steps`` steps each."""
     load_before = os.getloadavg()
-    first: dict[str, Episode] = {}
+    first_per_house: dict[str, Episode] = {}
     for episode in load_dataset(packaged_dataset_path(3, "val"), 3):
-        first.setdefault(episode.scene_id, episode)
-    played = list(first.values())[:houses]
+        first_per_house.setdefault(episode.scene_id, episode)
+    played = list(first_per_house.values())[:houses]
     # the look-ahead of issue 22 changes decisions on purpose where the reference turned at
     # random (squeezed, no step downhill); without it both must still act alike
     reference = ReferenceExplorerAgent(seed=0)

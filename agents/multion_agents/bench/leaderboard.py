@@ -84,7 +84,7 @@ def run_leaderboard_bench(
             try:
                 timed = {"session": 0.0, "run": 0.0}
                 done_steps = {"session": 0, "run": 0}
-                envs = {"session": session_env, "run": run_env}
+                envs: dict[str, RemoteEnv | RunEnv] = {"session": session_env, "run": run_env}
                 rng = np.random.default_rng(0)
                 session_env.reset(options={"episode_index": 0})
                 run_env.reset()

@@ -76,11 +76,15 @@ def bench_settings(
     updates: int | None, device: str,
 ) -> TrainBench:  # fmt: skip
     """The recipe's settings, with the command line's values where given."""
-    chosen = {
-        "agent": agent, "image_size": image_size, "envs": envs, "updates": updates,
-    }  # fmt: skip
-    given = {k: v for k, v in chosen.items() if v is not None}
-    return dataclasses.replace(RECIPES[recipe], device=device, **given)
+    base = RECIPES[recipe]
+    return dataclasses.replace(
+        base,
+        device=device,
+        agent=base.agent if agent is None else agent,
+        image_size=base.image_size if image_size is None else image_size,
+        envs=base.envs if envs is None else envs,
+        updates=base.updates if updates is None else updates,
+    )
 
 
 def bare_rate(config: dict, envs: int, steps: int, found_prior: float | None) -> float:

@@ -129,7 +129,7 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         ) from None
     # the sections that shape observations; rewards and episode sources do not matter to eval,
     # nor does the renderer (the evaluating machine picks its own)
-    shaping = {
+    shaping: dict[str, dict[str, Any]] = {
         section: dict(config[section]) for section in ("camera", "maps") if section in config
     }
     shaping.get("camera", {}).pop("renderer", None)

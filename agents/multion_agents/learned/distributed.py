@@ -25,17 +25,20 @@ def average_gradients(policy: nn.Module) -> None:
     """All-reduce the gradients (one flat buffer) and divide by the number of ranks."""
     if not (dist.is_available() and dist.is_initialized()) or dist.get_world_size() == 1:
         return
-    params = [p for p in policy.parameters() if p.requires_grad]
-    for p in params:  # parameters a model did not use this step still take part in the sum
-        if p.grad is None:
+    grads: list[torch.Tensor] = []
+    for p in policy.parameters():
+        if not p.requires_grad:
+            continue
+        if p.grad is None:  # parameters a model did not use this step still take part in the sum
             p.grad = torch.zeros_like(p)
-    flat = torch.cat([p.grad.reshape(-1) for p in params])
+        grads.append(p.grad)
+    flat = torch.cat([g.reshape(-1) for g in grads])
     dist.all_reduce(flat)
     flat /= dist.get_world_size()
     offset = 0
-    for p in params:
-        p.grad.copy_(flat[offset : offset + p.numel()].view_as(p))
-        offset += p.numel()
+    for g in grads:
+        g.copy_(flat[offset : offset + g.numel()].view_as(g))
+        offset += g.numel()
 
 
 def weights_digest(policy: nn.Module) -> str:

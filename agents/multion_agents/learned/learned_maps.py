@@ -169,7 +169,8 @@ class ProjNeuralMap(Memory):
         if image_features is None:
             raise ValueError(f"{type(self).__name__} needs the RGB-D image features")
         geometry = self.geometry
-        metres, valid = map_ops.pool_depth(frames["depth"], image_features.shape[-2:], geometry)
+        height, width = image_features.shape[-2:]
+        metres, valid = map_ops.pool_depth(frames["depth"], (height, width), geometry)
         ego = map_ops.project_egocentric(
             image_features, metres, valid, geometry.hfov_deg, geometry.cell_size
         )
@@ -206,6 +207,7 @@ class EgoMap(ProjNeuralMap):
     """
 
     reads_hidden = True
+    frequencies: Tensor  # a buffer (``register_buffer`` in ``__init__``)
 
     def __init__(
         self,

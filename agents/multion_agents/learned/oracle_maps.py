@@ -36,11 +36,13 @@ class OracleMapMemory(Memory):
         self.sensor, self.dynamic = sensor, dynamic
         self.sensors = (sensor,)
         self.embedding = SemanticMapEmbedding(channels)
-        if sensor in observation_space.spaces and observation_space[sensor].shape[0] != crop_size:
-            raise ValueError(
-                f"{sensor} is {observation_space[sensor].shape[0]} cells wide but maps.ego_size "
-                f"is {crop_size}"
-            )
+        if sensor in observation_space.spaces:
+            shape = observation_space[sensor].shape
+            assert shape is not None  # a map space is a Box
+            if shape[0] != crop_size:
+                raise ValueError(
+                    f"{sensor} is {shape[0]} cells wide but maps.ego_size is {crop_size}"
+                )
         self.cnn = MapCNN(self.embedding.out_channels, crop_size)
         self.out_dim = self.cnn.out_dim
 

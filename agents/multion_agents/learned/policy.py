@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import torch
@@ -116,7 +117,9 @@ class RecurrentPolicy(nn.Module):
         image_dim = 0
         if self.use_rgb or self.use_depth:
             key = "rgb" if self.use_rgb else "depth"
-            size = observation_space[key].shape[0]
+            shape = observation_space[key].shape
+            assert shape is not None  # an image space is a Box
+            size = shape[0]
             self.image_encoder = ImageEncoder(size, self.use_rgb, self.use_depth)
             image_dim = self.image_encoder.out_dim
         self.memory = memory
@@ -232,9 +235,12 @@ class RecurrentPolicy(nn.Module):
         accumulates a full weight gradient per step, which made PPO updates several times
         slower)."""
         gru = self.gru
-        gates_x = nn.functional.linear(inputs, gru.weight_ih_l0, gru.bias_ih_l0)
+        # nn.Module types attribute lookups as Tensor | Module; nn.GRU's weights are Parameters
+        weight_ih, bias_ih = cast(Tensor, gru.weight_ih_l0), cast(Tensor, gru.bias_ih_l0)
+        weight_hh, bias_hh = cast(Tensor, gru.weight_hh_l0), cast(Tensor, gru.bias_hh_l0)
+        gates_x = nn.functional.linear(inputs, weight_ih, bias_ih)
         keep = 1.0 - episode_start.to(gates_x.dtype)
-        outputs = MaskedGRU.apply(gates_x, hidden, keep, gru.weight_hh_l0, gru.bias_hh_l0)
+        outputs = MaskedGRU.apply(gates_x, hidden, keep, weight_hh, bias_hh)
         return outputs, outputs[-1]
 
     # cleanrl-style entry points ---------------------------------------------------------

@@ -118,7 +118,9 @@ def sample_map_crops(
     config = env_config_from_dict(wanted)  # the oracle map shows goals even when unrendered
     found_within = settings.found_fraction * config.task.success_distance
     rng = np.random.default_rng(seed)
-    maps, goals, labels = [], [], []
+    maps: list[np.ndarray] = []
+    goals: list[int] = []
+    labels: list[int] = []
     env = MultiONEnv(config)
     bar = tqdm(total=count, desc="pretraining crops", unit="crop", disable=not progress)
     try:
@@ -193,12 +195,12 @@ def blank_frames(policy: RecurrentPolicy, env_config: dict[str, Any]) -> Batch:
             f"--pretrain-map trains on the {MAP_SENSOR!r} observation; this agent reads "
             f"{', '.join(policy.sensors)}"
         )
-    return {
-        key: torch.as_tensor(np.zeros((1, 1, *space[key].shape), space[key].dtype)).to(
-            policy.device
-        )
-        for key in policy.sensors
-    }
+    frames: Batch = {}
+    for key in policy.sensors:
+        shape = space[key].shape
+        assert shape is not None  # only a Dict space has no shape
+        frames[key] = torch.as_tensor(np.zeros((1, 1, *shape), space[key].dtype)).to(policy.device)
+    return frames
 
 
 def accuracy(policy: RecurrentPolicy, blank: Batch, crops: MapCrops, chunk: int = 500) -> float:

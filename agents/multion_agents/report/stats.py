@@ -7,8 +7,6 @@ assumption, and they stay inside the range of the data (inside [0, 1] for rates 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
 # the one-sample estimate is the leaderboard's too; the report's modules import it from here
@@ -17,6 +15,7 @@ from multion.stats import (  # noqa: F401
     NAN,
     RESAMPLES,
     Estimate,
+    Samples,
     bootstrap,
     resampled_means,
 )
@@ -31,7 +30,7 @@ HEADLINE: tuple[tuple[str, str], ...] = (
 
 
 def paired_difference(
-    first: Sequence[float], second: Sequence[float], resamples: int = RESAMPLES, seed: int = 0
+    first: Samples, second: Samples, resamples: int = RESAMPLES, seed: int = 0
 ) -> Estimate:
     """Mean of ``first - second`` over the same episodes, resampling episodes (not runs).
 
@@ -45,7 +44,7 @@ def paired_difference(
 
 
 def independent_difference(
-    first: Sequence[float], second: Sequence[float], resamples: int = RESAMPLES, seed: int = 0
+    first: Samples, second: Samples, resamples: int = RESAMPLES, seed: int = 0
 ) -> Estimate:
     """Mean of ``first`` minus mean of ``second`` for two independent samples."""
     a, b = np.asarray(first, dtype=np.float64), np.asarray(second, dtype=np.float64)

@@ -296,12 +296,12 @@ def found_budget(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults
     for i in display_order(runs, labels, paper):
         run = runs[i]
         conditions = run.conditions()
-        key = (
+        group = (
             run.agent_label,
             str(run.num_goals),
             *(v for k, v in conditions.items() if k != "found budget"),
         )
-        groups[key].append(i)
+        groups[group].append(i)
     names = dict(HEADLINE)
     table = Table(
         "found-budget",
@@ -366,7 +366,8 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
     )
     groups: dict[tuple[Any, ...], list[int]] = defaultdict(list)
     for i in display_order(runs, labels, paper):
-        groups[(runs[i].num_goals, *runs[i].conditions().values())].append(i)
+        group = (runs[i].num_goals, *runs[i].conditions().values())
+        groups[group].append(i)
     for members in groups.values():
         for position, i in enumerate(members):
             for j in members[position + 1 :]:

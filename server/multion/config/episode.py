@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -52,7 +53,7 @@ class Episode:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Episode:
+    def from_dict(cls, data: Mapping[str, Any]) -> Episode:
         """Build from the JSON form; raises ``ValueError``/``KeyError``/``TypeError`` on bad data."""
         return cls(
             episode_id=str(data["episode_id"]),

@@ -495,9 +495,10 @@ def _section(
     return dict(data)
 
 
-def _typed(value: Any, kind: type, where: str) -> Any:
+def _typed(value: Any, kind: type | tuple[type, ...], where: str) -> Any:
     if isinstance(value, bool) and kind is not bool or not isinstance(value, kind):
-        raise ChallengeError(f"{where} must be {kind.__name__}, got {value!r:.60}")
+        names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple) else (kind,)))
+        raise ChallengeError(f"{where} must be {names}, got {value!r:.60}")
     return value
 
 

@@ -77,7 +77,7 @@ class LaneSessions:
         assert lane.session_id is not None
         try:
             if isinstance(argument, Episode):
-                options = [{"episode": argument.to_dict()}]
+                options: list[dict[str, Any] | None] = [{"episode": argument.to_dict()}]
                 reply = await self.registry.reset(lane.session_id, Reset([None], options))
             else:
                 reply = await self.registry.step(lane.session_id, Step([argument]))

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import Connection, func, select, update
+from sqlalchemy import Connection, CursorResult, func, select, update
 from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
@@ -169,10 +169,14 @@ def save_state(
     """Write ``state`` (and any newly ended episodes: ``session`` must then be an ORM session)
     if nobody else changed the run meanwhile; raises :class:`RunMoved` otherwise (the caller's
     transaction is then rolled back). Bumps ``state.version``."""
-    done = session.execute(
-        update(Run)
-        .where(Run.id == run_id, Run.version == state.version, Run.state == "running")
-        .values(version=state.version + 1, **state.columns())
+    # execute() is typed as returning a Result; an UPDATE's is a CursorResult (with rowcount)
+    done = cast(
+        CursorResult[Any],
+        session.execute(
+            update(Run)
+            .where(Run.id == run_id, Run.version == state.version, Run.state == "running")
+            .values(version=state.version + 1, **state.columns())
+        ),
     )
     if done.rowcount != 1:
         raise RunMoved(run_id)

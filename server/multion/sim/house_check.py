@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
+import numpy.typing as npt
 
 from multion.scenes.layout import Box, Door, SceneLayout
 from multion.sim.navgrid import NavGrid
@@ -146,7 +147,7 @@ def grid_problems(
     return problems
 
 
-def points_outside_rooms(layout: SceneLayout, points: np.ndarray) -> np.ndarray:
+def points_outside_rooms(layout: SceneLayout, points: npt.ArrayLike) -> np.ndarray:
     """For world points (n, 2), True where a point is neither in a room nor in a doorway."""
     places = [r.rect for r in layout.rooms] + [_door_rect(d, 0.15) for d in layout.doors]
     return ~_in_any(places, np.asarray(points, dtype=float).reshape(-1, 2))

@@ -128,7 +128,7 @@ def build_atlas(boxes: tuple[Box, ...]) -> tuple[np.ndarray, list[tuple[float, .
     for key, (x0, y0) in places.items():
         tile = tiles[key]
         atlas[y0 : y0 + tile.shape[0], x0 : x0 + tile.shape[1]] = tile
-    regions = []
+    regions: list[tuple[float, ...]] = []
     for box in boxes:
         key = _texture_key(box)
         x0, y0 = places[key]

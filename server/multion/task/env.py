@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -99,8 +99,12 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self.episodes = list(episodes) if episodes is not None else self._default_episodes()
         self._cursor = 0
         self._train_scenes = scene_ids("train") if self.episodes is None else []
-        self.observation_space = build_observation_space(self.config)
-        self.action_space = spaces.Discrete(NUM_ACTIONS)
+        # gymnasium types a Dict space's elements as dicts of spaces (they are dicts of arrays)
+        # and a Discrete space's as numpy integers (the actions this env takes are ints)
+        self.observation_space = cast(
+            spaces.Space[dict[str, np.ndarray]], build_observation_space(self.config)
+        )
+        self.action_space = cast(spaces.Space[int], spaces.Discrete(NUM_ACTIONS))
         self.episode: Episode | None = None
         self.state: EpisodeState | None = None
         self.measures = Measures()
@@ -442,7 +446,7 @@ def build_observation_space(config: EnvConfig) -> spaces.Dict:
     """The spaces of the configured sensors only (an image Box holds two arrays of its size)."""
     cam, size = config.camera, config.maps.ego_size
     image = (cam.height, cam.width)
-    builders = {
+    builders: dict[str, Callable[[], spaces.Space[Any]]] = {
         "rgb": lambda: spaces.Box(0, 255, (*image, 3), np.uint8),
         "depth": lambda: spaces.Box(
             0.0, 1.0 if cam.normalize_depth else cam.max_depth, (*image, 1), np.float32

@@ -25,10 +25,10 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
-from sqlalchemy import Select, delete, exists, or_, select, update
+from sqlalchemy import CursorResult, Insert, Select, delete, exists, or_, select, update
 from sqlalchemy.orm import Session
 
 from multion.config.codec import session_config_from_dict
@@ -237,12 +237,14 @@ class PictureDrawer:
         another replica holds it (or drew it meanwhile)."""
         now = utcnow()
         with self.db.sessions.begin() as session:
-            taken = session.execute(
+            # execute() is typed as returning a Result; an UPDATE's is a CursorResult (rowcount)
+            claimed = cast(CursorResult[Any], session.execute(
                 update(EpisodePicture)
                 .where(EpisodePicture.run_id == run_id, EpisodePicture.position == CLAIM,
                        EpisodePicture.created_at <= now)
                 .values(created_at=now + LEASE)
-            ).rowcount  # fmt: skip
+            ))  # fmt: skip
+            taken = claimed.rowcount
             if taken == 1:  # a lapsed claim: a retry after a failure, or a replica died
                 return int(session.scalar(_claim_column(run_id, EpisodePicture.width)) or 0)
             if session.scalar(select(exists().where(EpisodePicture.run_id == run_id))):
@@ -355,13 +357,18 @@ def _insert_new(session: Session, rows: list[dict[str, Any]]) -> int:
     if not rows:
         return 0
     dialect = session.get_bind().dialect.name
+    key = ["run_id", "position"]
+    statement: Insert  # each dialect has its own Insert class with ON CONFLICT
     if dialect == "postgresql":
-        from sqlalchemy.dialects.postgresql import insert
+        from sqlalchemy.dialects import postgresql
+
+        statement = postgresql.insert(EpisodePicture).on_conflict_do_nothing(index_elements=key)
     elif dialect == "sqlite":
-        from sqlalchemy.dialects.sqlite import insert
+        from sqlalchemy.dialects import sqlite
+
+        statement = sqlite.insert(EpisodePicture).on_conflict_do_nothing(index_elements=key)
     else:  # pragma: no cover - the two databases the leaderboard supports
         raise NotImplementedError(f"pictures need PostgreSQL or SQLite, not {dialect}")
-    statement = insert(EpisodePicture).on_conflict_do_nothing(index_elements=["run_id", "position"])
     # RETURNING, not rowcount: the PostgreSQL driver reports no rowcount for an INSERT (-1)
     returning = statement.returning(EpisodePicture.position)
     return sum(len(session.execute(returning.values(**row)).all()) for row in rows)

@@ -8,6 +8,7 @@ their date, and the pages of their runs show no results.
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import re
 from collections import defaultdict
 from collections.abc import Sequence
@@ -114,7 +115,7 @@ def leaderboards(session: Session, challenge: Challenge, now: dt.datetime) -> li
             best = keep_best(
                 by_board[(track.name, phase.name)],
                 key=lambda r: entrant(r.name, r.method, bool(r.baseline)),
-                order=lambda r, column=column: _order(r, column),
+                order=functools.partial(_order, column=column),
             )
             runs = [] if sealed else list(best.values())
             boards.append(Board(track, phase, sealed, _ranked(runs, track.metric)))
