@@ -7,6 +7,8 @@ rules and metrics live in the task; nothing here knows about episodes or network
 from __future__ import annotations
 
 import math
+import os
+import tempfile
 from collections.abc import Callable, Hashable, Sequence
 from functools import partial
 from pathlib import Path
@@ -366,19 +368,25 @@ class PyBulletWorld:
 
 
 def _convert_to_obj(path: Path) -> Path:
-    """Convert a GLB / GLTF / PLY scan to an OBJ cached beside it (atomic write)."""
-    import os
-    import tempfile
+    """Convert a GLB / GLTF / PLY scan to an OBJ cached beside it."""
+    return convert_mesh(path, path.with_suffix(path.suffix + ".converted.obj"))
 
-    import trimesh
 
-    target = path.with_suffix(path.suffix + ".converted.obj")
-    if target.is_file() and target.stat().st_mtime >= path.stat().st_mtime:
+def convert_mesh(source: Path, target: Path, transform: np.ndarray | None = None) -> Path:
+    """``source`` (any mesh trimesh reads), moved by the 4 x 4 ``transform`` if given, as an
+    OBJ at ``target``, written atomically; reused when it is newer than the source. A
+    ``ValueError`` names a file trimesh cannot read."""
+    import trimesh  # only scans need it: the procedural houses' workers never load it
+
+    if target.is_file() and target.stat().st_mtime >= source.stat().st_mtime:
         return target
     try:
-        mesh = trimesh.load(path, force="mesh")
+        mesh = trimesh.load(source, force="mesh")
     except Exception as error:  # trimesh raises many kinds of errors for bad files
-        raise ValueError(f"could not read mesh scene {path}: {error}") from error
+        raise ValueError(f"could not read mesh scene {source}: {error}") from error
+    if transform is not None:
+        mesh.apply_transform(transform)
+    target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".obj", dir=target.parent)
     os.close(fd)
     try:

@@ -29,21 +29,19 @@ import dataclasses
 import gzip
 import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
 
 from multion.config.episode import Episode, Goal
 from multion.config.sim import NavGridConfig
 from multion.sim.geodesic import FieldCache, geodesic_distance
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import load_world, navgrid_for
+from multion.sim.world import convert_mesh
 from multion.task.dataset import DatasetError, check_episode, save_dataset
 from multion_client.constants import REFERENCE_CATEGORY_NAMES, REFERENCE_TO_CATEGORY
 
@@ -130,24 +128,10 @@ def convert_scene(source: Path, target: Path, up: str) -> Path:
     reused when it is newer than the source."""
     if up not in UP_AXES:
         raise ValueError(f"up must be one of {UP_AXES}, got {up!r}")
-    if target.is_file() and target.stat().st_mtime >= source.stat().st_mtime:
-        return target
     try:
-        mesh = trimesh.load(source, force="mesh")
-    except Exception as error:  # trimesh raises many kinds of errors for bad files
+        return convert_mesh(source, target, Y_UP_TO_Z_UP if up == "y" else None)
+    except ValueError as error:
         raise DatasetError(f"could not read the scan {source}: {error}") from error
-    if up == "y":
-        mesh.apply_transform(Y_UP_TO_Z_UP)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".obj", dir=target.parent)
-    os.close(fd)
-    try:
-        mesh.export(tmp, file_type="obj")
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return target
 
 
 def scan_path(scene_id: str, scenes_dir: Path) -> Path:
