@@ -46,10 +46,15 @@ def run(args: argparse.Namespace) -> int:
         summary = train(settings)
     except (CheckpointError, ValueError) as error:
         return _fail(str(error))
-    if summary:
+    if "fps" in summary:
         print(
             f"trained {settings.agent} on {settings.task}: {summary['frames']} frames, "
             f"{summary['fps']:.0f} frames/s in the last update; run directory {settings.out}"
+        )
+    elif settings.resume:  # an interrupted script running it again (scripts/*.sh) goes on
+        print(
+            f"{settings.out} already holds {summary['frames']} frames (--frames "
+            f"{settings.frames}): nothing to train"
         )
     return 0
 

@@ -221,6 +221,11 @@ def test_resume_continues_the_run_and_refuses_another_agent(
     assert [int(r["update"]) for r in rows] == [1, 2]
     with pytest.raises(CheckpointError, match="no-map"):
         train(tiny_args(tmp_path, room_dataset, agent="no-map", frames=192, resume=True))
+    # resuming a run that already holds its frames trains nothing and says so (a resumable
+    # script runs `multion train --resume` again after an interruption during its evaluation)
+    again = train(tiny_args(tmp_path, room_dataset, frames=128, resume=True))
+    assert again["frames"] == 128 and "fps" not in again
+    assert len(list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))) == 2
 
 
 def test_a_corrupt_checkpoint_is_refused_with_its_path(tmp_path: Path) -> None:

@@ -327,7 +327,8 @@ def train(args: Args) -> dict[str, Any]:
         bar.close()
         if log is not None:
             plot_learning_curve(out, f"{args.agent} on {args.task}")
-        return {**summary, "weights_sha256": weights_digest(policy)}
+        # a resumed run that already holds its frames trains nothing: say where it stands
+        return {"frames": frames, **summary, "weights_sha256": weights_digest(policy)}
     except BaseException:
         # interrupted (Ctrl-C, SIGTERM) in the middle of a worker's reply: the half-read pipe
         # would make close() wait for pending calls forever, so the workers are ended instead
