@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import inspect
 import os
+from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -67,17 +68,19 @@ CATEGORY_TO_REFERENCE: tuple[int, ...] = tuple(
 """The reference's index of each category id here."""
 
 
-class Agent:
-    """habitat's ``Agent``: subclass it and implement ``reset()`` and ``act(observations)``."""
+class Agent(ABC):
+    """habitat's ``Agent``: subclass it and implement ``reset()`` and ``act(observations)``
+    (abstract here, where habitat's raise when called: a subclass missing one is refused when
+    it is made, not in the middle of a run)."""
 
+    @abstractmethod
     def reset(self) -> None:
         """Called before each episode."""
-        raise NotImplementedError
 
+    @abstractmethod
     def act(self, observations: Observations) -> ActionChoice:
         """The action for ``observations``: an int 0..3, a name such as ``"MOVE_FORWARD"``, or
         ``{"action": one of those}``."""
-        raise NotImplementedError
 
 
 def to_action(choice: Any) -> int:

@@ -15,7 +15,7 @@ from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, MapConfig, TaskConfig
 from multion.scenes.registry import layout_for
 from multion.sim.camera import resolve_renderer
-from multion.sim.goal_objects import MODELS, goal_yaw
+from multion.sim.goal_objects import MODELS, body_bounds, goal_yaw
 from multion.sim.world import PyBulletWorld
 from multion.task.env import MultiONEnv
 from multion_client.constants import OBJECT_CATEGORIES, goal_categories
@@ -44,7 +44,7 @@ def test_objects_stand_on_the_floor_at_their_size_and_block_nothing() -> None:
         goals = [((1.0 + 0.6 * c, 2.0, 0.0), c, 0.3 * c) for c in range(8)]
         bodies = world.place_object_goals(goals)
         for body, ((x, y, _), category, _) in zip(bodies, goals, strict=True):
-            low, high = world._body_bounds(body)
+            low, high = body_bounds(body, world.client)
             assert low[2] == pytest.approx(0.0, abs=0.01), OBJECT_CATEGORIES[category]
             # centred on its goal point whatever its yaw (PyBullet moves bodies by their centre
             # of mass, which some models have off centre)

@@ -92,6 +92,15 @@ def _scaled(text: str, scale: float) -> str:
     return " ".join(f"{float(v) * scale:.6g}" for v in text.split())
 
 
+def body_bounds(body: int, client: int) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds ``(low, high)`` of every link of ``body``."""
+    boxes = [
+        p.getAABB(body, link, physicsClientId=client)
+        for link in range(-1, p.getNumJoints(body, physicsClientId=client))
+    ]
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
 @functools.cache
 def native_size(urdf: str, upright: tuple[float, float, float]) -> float:
     """The largest extent of a ``pybullet_data`` model as its file makes it, turned upright,
@@ -103,10 +112,7 @@ def native_size(urdf: str, upright: tuple[float, float, float]) -> float:
             body = p.loadURDF(str(Path(pybullet_data.getDataPath()) / urdf),
                               baseOrientation=p.getQuaternionFromEuler(upright),
                               useFixedBase=True, physicsClientId=client)  # fmt: skip
-        boxes = [p.getAABB(body, link, physicsClientId=client)
-                 for link in range(-1, p.getNumJoints(body, physicsClientId=client))]  # fmt: skip
-        low = np.min([b[0] for b in boxes], axis=0)
-        high = np.max([b[1] for b in boxes], axis=0)
+        low, high = body_bounds(body, client)
         return float(max(high - low))
     finally:
         p.disconnect(physicsClientId=client)

@@ -20,7 +20,7 @@ from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion.sim.camera import attach_renderer, resolve_renderer
-from multion.sim.goal_objects import MODELS, scaled_urdf
+from multion.sim.goal_objects import MODELS, body_bounds, scaled_urdf
 from multion.sim.goal_shapes import goal_mesh_file
 from multion.sim.merged_visual import merged_visual
 from multion_client.constants import OBJECT_CATEGORIES
@@ -319,7 +319,7 @@ class PyBulletWorld:
                               useFixedBase=True, physicsClientId=self.client)  # fmt: skip
         for link in range(-1, p.getNumJoints(body, physicsClientId=self.client)):
             p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)
-        low, high = self._body_bounds(body)
+        low, high = body_bounds(body, self.client)
         base = np.asarray(p.getBasePositionAndOrientation(body, physicsClientId=self.client)[0])
         bottom = np.array([(low[0] + high[0]) / 2, (low[1] + high[1]) / 2, low[2]])
         self._object_offsets[name] = tuple(float(v) for v in bottom - base)
@@ -330,14 +330,6 @@ class PyBulletWorld:
         if name not in self._object_offsets:  # measured on a body kept for the first goal
             self._goal_bodies.setdefault(("object", name), []).append(self._load_object(name))
         return self._object_offsets[name]
-
-    def _body_bounds(self, body: int) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounds of every link of ``body``."""
-        boxes = [
-            p.getAABB(body, link, physicsClientId=self.client)
-            for link in range(-1, p.getNumJoints(body, physicsClientId=self.client))
-        ]
-        return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
     def _place(
         self,
