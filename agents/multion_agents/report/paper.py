@@ -1,4 +1,5 @@
-"""The paper's numbers (Table 3, the supplement's seen / not-seen and found-budget tables).
+"""The paper's numbers (Table 3, the supplement's seen / not-seen, found-budget and colour vs
+shape tables).
 
 They live in one data file, ``multion_agents/data/paper_results.json``, with their source; this
 module only reads it. The paper evaluated on the Matterport3D *test* set, in other buildings and
@@ -23,6 +24,7 @@ class PaperResults:
     table3: dict[str, Any]
     seen_not_seen: dict[str, Any]
     found_budget: dict[str, Any]
+    colour_vs_shape: dict[str, Any]
 
     def counterpart(self, agent: str) -> str | None:
         """The paper's row for our ``agent``, or None when the paper has no such agent."""
@@ -49,6 +51,17 @@ class PaperResults:
             return None
         return table["rows"].get(str(budget))
 
+    def goal_set_row(self, agent: str, num_goals: int, goal_set: str) -> dict[str, float] | None:
+        """The paper's Success, Progress, SPL, PPL (percent) of ``agent`` on m-ON with the goal
+        set ``goal_set`` (``colours`` or ``shapes``), if the supplement has it."""
+        table = self.colour_vs_shape
+        row = table["rows"].get(goal_set)
+        if self.counterpart(agent) != table["agent"] or row is None:
+            return None
+        if not 1 <= num_goals <= len(row["success"]):
+            return None
+        return {metric: float(values[num_goals - 1]) for metric, values in row.items()}
+
 
 @functools.cache
 def paper_results() -> PaperResults:
@@ -61,4 +74,5 @@ def paper_results() -> PaperResults:
         table3=data["table3"],
         seen_not_seen=data["seen_not_seen"],
         found_budget=data["found_budget"],
+        colour_vs_shape=data["colour_vs_shape"],
     )

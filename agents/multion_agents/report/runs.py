@@ -1,8 +1,8 @@
 """Reading ``multion eval`` output directories (``metrics.json`` + ``episodes.jsonl``) for reports.
 
 A :class:`Run` is one agent on one task under one set of *conditions*: the things that must be
-equal for two runs to be compared (split, dataset file, found budget, other ``--set`` changes,
-step limit, camera size). Runs written before ``multion eval`` recorded a field get its default.
+equal for two runs to be compared (split, dataset file, found budget, goal set, other ``--set``
+changes, step limit, camera size). Runs written before ``multion eval`` recorded a field get its default.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 from multion.config.task import TaskConfig
 from multion.task.dataset import parse_task
 from multion_agents.report.stats import HEADLINE
+from multion_client.constants import DEFAULT_GOAL_SET
 
 METRICS_FILE = "metrics.json"
 EPISODES_FILE = "episodes.jsonl"
@@ -46,6 +47,9 @@ class Run:
     dataset: str
     """The dataset file's SHA-256 (12 hex digits), or its path for runs that predate it."""
     found_budget: int
+    goal_set: str
+    """``task.goal_set`` of the environment the agent played in (``colours``, ``shapes``, ...):
+    the agent's own config (a checkpoint trained on shapes) or ``--set``."""
     other_settings: str
     """Everything else that changes the task, as ``field=value, ...`` ('' when nothing)."""
     seed: int
@@ -73,6 +77,7 @@ class Run:
             "split": self.split,
             "dataset": self.dataset,
             "found budget": str(self.found_budget),
+            "goal set": self.goal_set,
             "settings": self.other_settings or "default",
         }
 
@@ -151,6 +156,7 @@ def load_run(path: Path) -> Run:
         split=run["split"],
         dataset=_dataset_label(run),
         found_budget=int(task.get("found_budget", DEFAULT_FOUND_BUDGET)),
+        goal_set=str(task.get("goal_set", DEFAULT_GOAL_SET)),
         other_settings=_other_settings(run),
         seed=int(run.get("seed", 0)),
         multion_version=str((run.get("versions") or {}).get("multion", "unknown")),
@@ -214,12 +220,13 @@ def _checkpoint_label(run: dict[str, Any]) -> str:
 
 
 def _other_settings(run: dict[str, Any]) -> str:
-    """The run's task-changing options besides the split, dataset and found budget."""
+    """The run's task-changing options besides the split, dataset, found budget and goal set."""
     changed: dict[str, Any] = {}
     for section, values in (run.get("env_overrides") or {}).items():
         for name, value in values.items():
             changed[f"{section}.{name}"] = value
     changed.pop("task.found_budget", None)
+    changed.pop("task.goal_set", None)
     sent = run.get("env_config") or {}
     max_steps = (sent.get("task") or {}).get("max_steps")
     if max_steps is not None:  # --max-steps

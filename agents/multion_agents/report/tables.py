@@ -1,4 +1,5 @@
-"""The report's tables, computed from runs: Table 3, seen / not seen, found budget, paired.
+"""The report's tables, computed from runs: Table 3, seen / not seen, paired, the run list (the
+tables over one varied condition are in :mod:`multion_agents.report.variants`).
 
 Each builder returns a :class:`Table`: Markdown cells for reading, plain records (numbers in
 percent) for the CSV file beside it, and notes. Runs are never merged: two runs that differ in
@@ -26,6 +27,7 @@ from multion_agents.report.stats import (
     independent_difference,
     paired_difference,
 )
+from multion_client.constants import DEFAULT_GOAL_SET
 
 
 @dataclass
@@ -102,7 +104,7 @@ def signed(estimate: Estimate) -> str:
     return f"**{text}**" if estimate.excludes_zero() else text
 
 
-def _record(estimate: Estimate, prefix: str) -> dict[str, float]:
+def estimate_record(estimate: Estimate, prefix: str) -> dict[str, float]:
     return {
         f"{prefix}": round(100 * estimate.mean, 4),
         f"{prefix}_low": round(100 * estimate.low, 4),
@@ -110,7 +112,7 @@ def _record(estimate: Estimate, prefix: str) -> dict[str, float]:
     }
 
 
-def _task(run: Run) -> str:
+def task_label(run: Run) -> str:
     return task_name(run.num_goals).upper()
 
 
@@ -126,7 +128,9 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
     for i in display_order(runs, labels, paper):
         run = runs[i]
         estimates = {key: bootstrap(run.values(key)) for key, _ in HEADLINE}
-        theirs = paper.table3_row(run.agent, run.num_goals) if run.found_budget == 0 else None
+        # the paper's Table 3 is for 8 coloured cylinders and no wrong FOUND allowed
+        usual = run.found_budget == 0 and run.goal_set == DEFAULT_GOAL_SET
+        theirs = paper.table3_row(run.agent, run.num_goals) if usual else None
         paper_cell = (
             " / ".join(f"{theirs[key]:.0f}" for key, _ in HEADLINE)
             + f" ({paper.counterpart(run.agent)})"
@@ -136,7 +140,7 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
         table.rows.append(
             [
                 labels[i],
-                _task(run),
+                task_label(run),
                 str(run.count),
                 *(percent(estimates[key]) for key, _ in HEADLINE),
                 paper_cell,
@@ -150,7 +154,7 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
             **run.conditions(),
         }
         for key, _ in HEADLINE:
-            record.update(_record(estimates[key], key))
+            record.update(estimate_record(estimates[key], key))
             record[f"paper_{key}"] = theirs[key] if theirs else None
         table.records.append(record)
     table.notes.append(f"Intervals: {CI_METHOD}.")
@@ -175,7 +179,7 @@ def mismatch_notes(runs: Sequence[Run]) -> list[str]:
         for run in runs:
             value = run.conditions()[key]
             # the dataset file is per task: only several datasets for one m are a mismatch
-            groups[f"{value} ({_task(run)})" if key == "dataset" else value].append(run.name)
+            groups[f"{value} ({task_label(run)})" if key == "dataset" else value].append(run.name)
             values_per_m[run.num_goals].add(value)
         if key == "dataset":
             differs = any(len(values) > 1 for values in values_per_m.values())
@@ -226,7 +230,7 @@ def seen_not_seen(runs: Sequence[Run], labels: Sequence[str], paper: PaperResult
             else:
                 missing.append(str(k))
         if missing:
-            never_reached.append(f"{labels[i]} on {_task(run)} (k = {', '.join(missing)})")
+            never_reached.append(f"{labels[i]} on {task_label(run)} (k = {', '.join(missing)})")
     if never_reached:
         table.notes.append(f"Left out, goal k-1 never found: {'; '.join(never_reached)}.")
     if not table.rows:
@@ -268,90 +272,22 @@ def _seen_row(
             "goal": k,
             "seen_episodes": len(seen),
             "not_seen_episodes": len(unseen),
-            **_record(seen_estimate, "seen"),
-            **_record(unseen_estimate, "not_seen"),
-            **_record(improvement, "improvement"),
+            **estimate_record(seen_estimate, "seen"),
+            **estimate_record(unseen_estimate, "not_seen"),
+            **estimate_record(improvement, "improvement"),
             "paper_seen": theirs["seen"] if theirs else None,
             "paper_not_seen": theirs["not_seen"] if theirs else None,
         }
     )
     return [
         label,
-        _task(run),
+        task_label(run),
         str(k),
         f"{percent(seen_estimate)} (n={len(seen)})",
         f"{percent(unseen_estimate)} (n={len(unseen)})",
         signed(improvement),
         f"{theirs['seen']:.0f} / {theirs['not_seen']:.0f}" if theirs else "",
     ]
-
-
-# ---------------------------------------------------------------------- found budget
-BUDGET_METRICS = ("progress", "success", "ppl", "spl")  # the paper's column order
-
-
-def found_budget(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
-    """Runs of one agent and task that differ only in ``task.found_budget``, side by side."""
-    groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
-    for i in display_order(runs, labels, paper):
-        run = runs[i]
-        conditions = run.conditions()
-        group = (
-            run.agent_label,
-            str(run.num_goals),
-            *(v for k, v in conditions.items() if k != "found budget"),
-        )
-        groups[group].append(i)
-    names = dict(HEADLINE)
-    table = Table(
-        "found-budget",
-        "Found budget: wrong FOUNDs allowed before one ends the episode (%)",
-        [
-            "agent",
-            "task",
-            "found budget",
-            "episodes",
-            *(f"{names[key]} %" for key in BUDGET_METRICS),
-            "paper P / S / PPL / SPL",
-        ],
-    )
-    for members in groups.values():
-        if len({runs[i].found_budget for i in members}) < 2:
-            continue
-        for i in sorted(members, key=lambda i: runs[i].found_budget):
-            run = runs[i]
-            estimates = {key: bootstrap(run.values(key)) for key in BUDGET_METRICS}
-            theirs = paper.budget_row(run.agent, run.num_goals, run.found_budget)
-            table.rows.append(
-                [
-                    run.agent_label,
-                    _task(run),
-                    str(run.found_budget),
-                    str(run.count),
-                    *(percent(estimates[key]) for key in BUDGET_METRICS),
-                    " / ".join(f"{theirs[key]:.0f}" for key in BUDGET_METRICS) if theirs else "",
-                ]
-            )
-            record: dict[str, Any] = {
-                "agent": labels[i],
-                "task": task_name(run.num_goals),
-                "run": run.name,
-                "found_budget": run.found_budget,
-                "episodes": run.count,
-            }
-            for key in BUDGET_METRICS:
-                record.update(_record(estimates[key], key))
-                record[f"paper_{key}"] = theirs[key] if theirs else None
-            table.records.append(record)
-    if not table.rows:
-        return None
-    table.notes.append(
-        "Rows of one agent and task whose runs differ only in `task.found_budget` "
-        f"(`multion eval --set task.found_budget=N`). Intervals: {CI_METHOD}."
-    )
-    if any(row[-1] for row in table.rows):
-        table.notes.append(f"Paper columns: {paper.found_budget['source']}. {paper.setting}")
-    return table
 
 
 # ---------------------------------------------------------------------- paired comparisons
@@ -385,7 +321,7 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
                     [
                         labels[i],
                         labels[j],
-                        _task(a),
+                        task_label(a),
                         str(len(common)),
                         *(signed(differences[key]) for key, _ in HEADLINE),
                     ]
@@ -399,7 +335,7 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
                     "common_episodes": len(common),
                 }
                 for key, _ in HEADLINE:
-                    record.update(_record(differences[key], f"diff_{key}"))
+                    record.update(estimate_record(differences[key], f"diff_{key}"))
                 table.records.append(record)
     if not table.rows:
         return None
@@ -427,6 +363,7 @@ def run_list(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
             "split",
             "dataset",
             "found budget",
+            "goal set",
             "settings",
             "seed",
         ],
@@ -437,11 +374,12 @@ def run_list(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         row = [
             run.name,
             labels[i],
-            _task(run),
+            task_label(run),
             str(run.count),
             conditions["split"],
             conditions["dataset"],
             conditions["found budget"],
+            conditions["goal set"],
             conditions["settings"],
             str(run.seed),
         ]
@@ -449,16 +387,3 @@ def run_list(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         table.records.append(dict(zip(table.header, row, strict=True)))
     table.notes.append("dataset: the first 12 hex digits of the dataset file's SHA-256 (per task).")
     return table
-
-
-def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
-    """Every table the runs allow, in the report's order."""
-    labels = run_labels(runs)
-    built = [
-        table3(runs, labels, paper),
-        seen_not_seen(runs, labels, paper),
-        found_budget(runs, labels, paper),
-        paired(runs, labels, paper),
-        run_list(runs, labels, paper),
-    ]
-    return [table for table in built if table is not None]

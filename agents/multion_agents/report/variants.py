@@ -1,0 +1,203 @@
+"""Tables of runs that differ in one condition only: the found budget (the supplement's
+tab:found-budget) and the goal set (its tab:color_vs_shape: NoMap with coloured cylinders
+against NoMap with red shapes)."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+from typing import Any
+
+from multion.task.dataset import task_name
+from multion_agents.report.paper import PaperResults
+from multion_agents.report.runs import Run
+from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap, paired_difference
+from multion_agents.report.tables import (
+    Table,
+    display_order,
+    estimate_record,
+    percent,
+    signed,
+    task_label,
+)
+from multion_client.constants import GOAL_SETS
+
+BUDGET_METRICS = ("progress", "success", "ppl", "spl")  # the paper's column order
+
+
+def found_budget(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """Runs of one agent and task that differ only in ``task.found_budget``, side by side."""
+    groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        conditions = run.conditions()
+        group = (
+            run.agent_label,
+            str(run.num_goals),
+            *(v for k, v in conditions.items() if k != "found budget"),
+        )
+        groups[group].append(i)
+    names = dict(HEADLINE)
+    table = Table(
+        "found-budget",
+        "Found budget: wrong FOUNDs allowed before one ends the episode (%)",
+        [
+            "agent",
+            "task",
+            "found budget",
+            "episodes",
+            *(f"{names[key]} %" for key in BUDGET_METRICS),
+            "paper P / S / PPL / SPL",
+        ],
+    )
+    for members in groups.values():
+        if len({runs[i].found_budget for i in members}) < 2:
+            continue
+        for i in sorted(members, key=lambda i: runs[i].found_budget):
+            run = runs[i]
+            estimates = {key: bootstrap(run.values(key)) for key in BUDGET_METRICS}
+            theirs = paper.budget_row(run.agent, run.num_goals, run.found_budget)
+            table.rows.append(
+                [
+                    run.agent_label,
+                    task_label(run),
+                    str(run.found_budget),
+                    str(run.count),
+                    *(percent(estimates[key]) for key in BUDGET_METRICS),
+                    " / ".join(f"{theirs[key]:.0f}" for key in BUDGET_METRICS) if theirs else "",
+                ]
+            )
+            record: dict[str, Any] = {
+                "agent": labels[i],
+                "task": task_name(run.num_goals),
+                "run": run.name,
+                "found_budget": run.found_budget,
+                "episodes": run.count,
+            }
+            for key in BUDGET_METRICS:
+                record.update(estimate_record(estimates[key], key))
+                record[f"paper_{key}"] = theirs[key] if theirs else None
+            table.records.append(record)
+    if not table.rows:
+        return None
+    table.notes.append(
+        "Rows of one agent and task whose runs differ only in `task.found_budget` "
+        f"(`multion eval --set task.found_budget=N`). Intervals: {CI_METHOD}."
+    )
+    if any(row[-1] for row in table.rows):
+        table.notes.append(f"Paper columns: {paper.found_budget['source']}. {paper.setting}")
+    return table
+
+
+def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """Runs of one agent and task that differ only in ``task.goal_set`` (each its own checkpoint
+    when learned), side by side, then each pair's paired difference on the episodes both played
+    (the goal sets share their episodes: only what the goals look like changes)."""
+    groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        others = tuple(v for k, v in run.conditions().items() if k != "goal set")
+        group = (run.agent, str(run.num_goals), *others)
+        groups[group].append(i)
+    names = [name for _, name in HEADLINE]
+    table = Table(
+        "goal-sets",
+        "Goal sets: the paper's coloured cylinders against other goals (%)",
+        [
+            "agent",
+            "task",
+            "goal set",
+            "episodes",
+            *(f"{n} %" for n in names),
+            "paper S / P / SPL / PPL",
+        ],
+    )
+    order = list(GOAL_SETS)
+    for members in groups.values():
+        if len({runs[i].goal_set for i in members}) < 2:
+            continue
+        members = sorted(members, key=lambda i: order.index(runs[i].goal_set))
+        for i in members:
+            run = runs[i]
+            estimates = {key: bootstrap(run.values(key)) for key, _ in HEADLINE}
+            theirs = paper.goal_set_row(run.agent, run.num_goals, run.goal_set)
+            table.rows.append(
+                [
+                    labels[i],
+                    task_label(run),
+                    run.goal_set,
+                    str(run.count),
+                    *(percent(estimates[key]) for key, _ in HEADLINE),
+                    " / ".join(f"{theirs[key]:.0f}" for key, _ in HEADLINE) if theirs else "",
+                ]
+            )
+            record: dict[str, Any] = {
+                "agent": labels[i],
+                "task": task_name(run.num_goals),
+                "goal_set": run.goal_set,
+                "run": run.name,
+                "episodes": run.count,
+            }
+            for key, _ in HEADLINE:
+                record.update(estimate_record(estimates[key], key))
+                record[f"paper_{key}"] = theirs[key] if theirs else None
+            table.records.append(record)
+        for position, i in enumerate(members):
+            for j in members[position + 1 :]:
+                if runs[i].goal_set != runs[j].goal_set:
+                    _difference_row(table, runs[j], runs[i], paper)
+    if not table.rows:
+        return None
+    table.notes.append(
+        "Rows of one agent and task whose runs differ only in `task.goal_set` (a checkpoint "
+        "trained with `--set task.goal_set=shapes` plays in that set). A row `B − A (paired)` "
+        "is the mean difference over the episodes both played with a 95% paired bootstrap "
+        f"interval; **bold**: it excludes 0. Other intervals: {CI_METHOD}."
+    )
+    if any(row[-1] for row in table.rows):
+        table.notes.append(
+            f"Paper columns: {paper.colour_vs_shape['source']}. {paper.setting} Not comparable "
+            "in absolute terms: other buildings, other simulator, test set."
+        )
+    return table
+
+
+def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults) -> None:
+    """``later − earlier`` on their common episodes, with the paper's difference if it has both."""
+    in_earlier = set(earlier.episode_ids())
+    common = [e for e in later.episode_ids() if e in in_earlier]
+    name = f"{later.goal_set} − {earlier.goal_set} (paired)"
+    if not common:
+        table.notes.append(f"{later.name} and {earlier.name} share no episodes: not compared.")
+        return
+    differences = {
+        key: paired_difference(later.values(key, common), earlier.values(key, common))
+        for key, _ in HEADLINE
+    }
+    theirs_later = paper.goal_set_row(later.agent, later.num_goals, later.goal_set)
+    theirs_earlier = paper.goal_set_row(earlier.agent, earlier.num_goals, earlier.goal_set)
+    paper_cell = ""
+    if theirs_later and theirs_earlier:
+        paper_cell = " / ".join(
+            f"{theirs_later[key] - theirs_earlier[key]:+.0f}" for key, _ in HEADLINE
+        )
+    table.rows.append(
+        [
+            "",
+            task_label(later),
+            name,
+            str(len(common)),
+            *(signed(differences[key]) for key, _ in HEADLINE),
+            paper_cell,
+        ]
+    )
+    record: dict[str, Any] = {
+        "agent": later.agent,
+        "task": task_name(later.num_goals),
+        "goal_set": name,
+        "run": f"{later.name} − {earlier.name}",
+        "episodes": len(common),
+    }
+    for key, _ in HEADLINE:
+        record.update(estimate_record(differences[key], f"diff_{key}"))
+    table.records.append(record)
