@@ -119,6 +119,8 @@ def write_report(
             ("metrics-vs-m.png", "Metrics against m", plots.metrics_vs_m),
             ("episode-lengths.png", "Episode lengths", plots.episode_lengths),
         ]
+        if any(run.training_log is not None for run in runs):
+            drawers.append(("training-curves.png", "Training curves", plots.training_curves))
         for name, title, draw in drawers:
             path = layout.assets / name
             with replacing(path) as temporary:

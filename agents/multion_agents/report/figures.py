@@ -4,7 +4,9 @@
   bars, the paper's numbers dotted where the agent has a counterpart (the paper's main finding:
   performance falls as m grows);
 * ``episode-lengths.png``: the distribution of episode lengths (steps) per agent, one panel
-  per task.
+  per task;
+* ``training-curves.png``: train Success (last 100 episodes) against frames for the learned
+  agents whose training log (``progress.csv``) is in or beside their run directory.
 """
 
 from __future__ import annotations
@@ -16,10 +18,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from multion_agents.learned.training_log import read_csv
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.stats import HEADLINE, bootstrap
 from multion_agents.report.tables import display_order
+from multion_client.constants import DEFAULT_GOAL_SET
 
 DPI = 110
 
@@ -60,7 +64,7 @@ def metrics_vs_m(
             theirs = [
                 paper.table3_row(run.agent, run.num_goals)
                 for run in members
-                if run.found_budget == 0
+                if run.found_budget == 0 and run.goal_set == DEFAULT_GOAL_SET
             ]
             if theirs and all(theirs):
                 axis.plot(
@@ -125,6 +129,66 @@ def episode_lengths(
     figure.suptitle("Episode lengths: box 25–75%, line median, whiskers 5–95%, dots beyond")
     figure.savefig(path)
     return path
+
+
+def training_curves(
+    runs: Sequence[Run], labels: Sequence[str], paper: PaperResults, path: Path
+) -> Path:
+    """Train Success (the last 100 training episodes, as ``multion train`` logs it) against
+    frames, one line per learned run with a training log; each run's val Success is marked at
+    its last frame."""
+    order = [i for i in display_order(runs, labels, paper) if runs[i].training_log is not None]
+    figure = Figure(figsize=(8, 4.8), dpi=DPI, layout="constrained")
+    axis = figure.subplots()
+    for colour, i in zip(_colours(len(order)), order, strict=True):
+        log = runs[i].training_log
+        assert log is not None
+        rows = full_windows(read_csv(log))
+        if not rows:
+            continue
+        frames = np.array([r["frames"] for r in rows]) / 1e3
+        success = np.array([100 * r["train_success"] for r in rows])
+        # a gap (a window refilling after a resume) is left blank, not bridged
+        gaps = np.flatnonzero(np.diff([r["update"] for r in rows]) > 1) + 1
+        axis.plot(
+            np.insert(frames, gaps, np.nan),
+            np.insert(success, gaps, np.nan),
+            color=colour,
+            label=labels[i],
+        )
+        val = bootstrap(runs[i].values("success"))
+        axis.errorbar(
+            [frames[-1]],
+            [100 * val.mean],
+            yerr=[[100 * (val.mean - val.low)], [100 * (val.high - val.mean)]],
+            color=colour,
+            marker="D",
+            capsize=4,
+        )
+    axis.set_xlabel("training frames (thousands)")
+    axis.set_ylabel("Success (%)")
+    axis.set_ylim(-3, 103)
+    axis.grid(alpha=0.3)
+    axis.legend(loc="upper left", fontsize=9)
+    figure.suptitle(
+        "Train Success (last 100 training episodes); ◆ val Success at the end (95% interval)"
+    )
+    figure.savefig(path)
+    return path
+
+
+def full_windows(rows: list[dict[str, float]]) -> list[dict[str, float]]:
+    """The log's rows of the training that was kept, and only those whose success window is
+    full: a resumed run appends from its checkpoint's update again (superseding the rows after
+    it) and starts a new window of training episodes."""
+    kept: list[dict[str, float]] = []
+    for row in rows:
+        while kept and kept[-1]["update"] >= row["update"]:
+            kept.pop()
+        kept.append(row)
+    valid = [r for r in kept if np.isfinite(r.get("train_success", np.nan))]
+    window = max((r.get("episodes", 0.0) for r in valid), default=0.0)
+    return [r for r in valid if r.get("episodes", 0.0) >= window]
 
 
 def _colours(count: int) -> list[tuple[float, ...]]:

@@ -22,6 +22,7 @@ from multion_client.constants import DEFAULT_GOAL_SET
 
 METRICS_FILE = "metrics.json"
 EPISODES_FILE = "episodes.jsonl"
+TRAINING_LOG = "progress.csv"
 DEFAULT_FOUND_BUDGET = TaskConfig().found_budget
 
 
@@ -57,6 +58,9 @@ class Run:
     episodes: tuple[EpisodeResult, ...]
     checkpoint: str = ""
     """The learned agent's checkpoint (a run directory name), '' for the baselines."""
+    training_log: Path | None = None
+    """A learned agent's ``progress.csv`` (``multion train``), in the run directory or beside it
+    (``multion train --out X`` then ``multion eval --out X/eval-val``), if there is one."""
 
     @property
     def name(self) -> str:
@@ -162,6 +166,7 @@ def load_run(path: Path) -> Run:
         multion_version=str((run.get("versions") or {}).get("multion", "unknown")),
         episodes=episodes,
         checkpoint=_checkpoint_label(run),
+        training_log=_training_log(path) if run.get("checkpoint") else None,
     )
 
 
@@ -217,6 +222,13 @@ def _checkpoint_label(run: dict[str, Any]) -> str:
     checkpoint = Path(str(run["checkpoint"]))
     label = checkpoint.parent.name or checkpoint.name
     return f"{label}, deterministic" if run.get("deterministic") else label
+
+
+def _training_log(path: Path) -> Path | None:
+    for candidate in (path / TRAINING_LOG, path.parent / TRAINING_LOG):
+        if candidate.is_file():
+            return candidate
+    return None
 
 
 def _other_settings(run: dict[str, Any]) -> str:

@@ -340,8 +340,8 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
     if not table.rows:
         return None
     table.notes[:0] = [
-        "Pairs of runs under the same conditions (task, split, dataset, found budget, settings), "
-        "compared on the episodes both played. Each cell is the mean of A − B over those "
+        "Pairs of runs under the same conditions (task, split, dataset, found budget, goal set, "
+        "settings), compared on the episodes both played. Each cell is the mean of A − B over those "
         "episodes with a 95% paired bootstrap interval (episodes resampled jointly for A and B); "
         "**bold**: the interval excludes 0, i.e. the difference is significant at about the 5% "
         "level (one interval per cell, not corrected for the number of comparisons)."
