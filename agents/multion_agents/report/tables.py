@@ -112,6 +112,17 @@ def estimate_record(estimate: Estimate, prefix: str) -> dict[str, float]:
     }
 
 
+def headline_cells(run: Run, theirs: dict[str, float] | None) -> tuple[list[str], dict[str, Any]]:
+    """A run's Success, Progress, SPL and PPL cells (95% intervals) and their CSV fields, with
+    the paper's numbers ``theirs`` (percent) in the fields when given."""
+    estimates = {key: bootstrap(run.values(key)) for key, _ in HEADLINE}
+    fields: dict[str, Any] = {}
+    for key, _ in HEADLINE:
+        fields.update(estimate_record(estimates[key], key))
+        fields[f"paper_{key}"] = theirs[key] if theirs else None
+    return [percent(estimates[key]) for key, _ in HEADLINE], fields
+
+
 def task_label(run: Run) -> str:
     return task_name(run.num_goals).upper()
 
@@ -127,10 +138,10 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
     )
     for i in display_order(runs, labels, paper):
         run = runs[i]
-        estimates = {key: bootstrap(run.values(key)) for key, _ in HEADLINE}
         # the paper's Table 3 is for 8 coloured cylinders and no wrong FOUND allowed
         usual = run.found_budget == 0 and run.goal_set == DEFAULT_GOAL_SET
         theirs = paper.table3_row(run.agent, run.num_goals) if usual else None
+        cells, fields = headline_cells(run, theirs)
         paper_cell = (
             " / ".join(f"{theirs[key]:.0f}" for key, _ in HEADLINE)
             + f" ({paper.counterpart(run.agent)})"
@@ -142,7 +153,7 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
                 labels[i],
                 task_label(run),
                 str(run.count),
-                *(percent(estimates[key]) for key, _ in HEADLINE),
+                *cells,
                 paper_cell,
             ]
         )
@@ -152,10 +163,8 @@ def table3(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
             "run": run.name,
             "episodes": run.count,
             **run.conditions(),
+            **fields,
         }
-        for key, _ in HEADLINE:
-            record.update(estimate_record(estimates[key], key))
-            record[f"paper_{key}"] = theirs[key] if theirs else None
         table.records.append(record)
     table.notes.append(f"Intervals: {CI_METHOD}.")
     if any(row[-1] for row in table.rows):

@@ -16,6 +16,7 @@ from multion_agents.report.tables import (
     Table,
     display_order,
     estimate_record,
+    headline_cells,
     percent,
     signed,
     task_label,
@@ -119,15 +120,15 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
         members = sorted(members, key=lambda i: order.index(runs[i].goal_set))
         for i in members:
             run = runs[i]
-            estimates = {key: bootstrap(run.values(key)) for key, _ in HEADLINE}
             theirs = paper.goal_set_row(run.agent, run.num_goals, run.goal_set)
+            cells, fields = headline_cells(run, theirs)
             table.rows.append(
                 [
                     labels[i],
                     task_label(run),
                     run.goal_set,
                     str(run.count),
-                    *(percent(estimates[key]) for key, _ in HEADLINE),
+                    *cells,
                     " / ".join(f"{theirs[key]:.0f}" for key, _ in HEADLINE) if theirs else "",
                 ]
             )
@@ -137,10 +138,8 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
                 "goal_set": run.goal_set,
                 "run": run.name,
                 "episodes": run.count,
+                **fields,
             }
-            for key, _ in HEADLINE:
-                record.update(estimate_record(estimates[key], key))
-                record[f"paper_{key}"] = theirs[key] if theirs else None
             table.records.append(record)
         for position, i in enumerate(members):
             for j in members[position + 1 :]:
