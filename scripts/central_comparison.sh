@@ -10,15 +10,17 @@
 #   STAGES="core" bash scripts/central_comparison.sh   # only the first four agents
 #   OUT=runs/central FRAMES=720000 bash scripts/central_comparison.sh
 #   MULTION='python -m multion_agents.cli' ...             # another installation of the command
-# Stages: core (oracle-map, no-map, oracle-ego-map, random-oracle-found), pretrain (oracle-map
-# after map pretraining), learned (proj-neural-map, obj-recog-map), shapes (NoMap with the
-# supplement's shapes as goals). The report goes to $OUT/report (`multion report`).
+#   PUBLISH=1 bash scripts/central_comparison.sh       # then docs/learned.md's tables (below)
+# Stages, in this order by default: core (oracle-map, no-map, oracle-ego-map,
+# random-oracle-found), shapes (NoMap with the supplement's shapes as goals), pretrain
+# (oracle-map after map pretraining), learned (proj-neural-map, obj-recog-map). The report goes
+# to $OUT/report (`multion report`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${OUT:-runs/central}
 frames=${FRAMES:-720000}
 episodes=${EPISODES:-100}
-stages=${STAGES:-core pretrain learned shapes}
+stages=${STAGES:-core shapes pretrain learned}
 multion=${MULTION:-.venv/bin/multion}
 recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
   --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard)
@@ -59,3 +61,14 @@ for stage in $stages; do
 done
 mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)
 $multion report "${runs[@]}" --out "$out/report"
+# PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv)
+# in docs/learned/central/NAME and regenerate the tables at the head of docs/learned.md
+if [ "${PUBLISH:-0}" = 1 ]; then
+  for run in "${runs[@]}"; do
+    name=$(basename "$(dirname "$run")") kept=docs/learned/central/$name
+    mkdir -p "$kept"
+    cp "$run/metrics.json" "$run/episodes.jsonl" "$kept/"
+    [ -f "$run/../progress.csv" ] && cp "$run/../progress.csv" "$kept/"
+  done
+  $multion report docs/learned/central --out docs --doc learned
+fi

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from multion_agents.report.document import BEGIN, END
 
 ROOT = Path(__file__).resolve().parents[1]
 PYTHON_SCRIPTS = sorted((ROOT / "scripts").glob("*.py"))
@@ -34,3 +38,43 @@ def test_the_calibration_plays_and_reads_its_runs(tmp_path: Path) -> None:
     assert table.returncode in (0, 1), table.stderr
     row = next(line for line in table.stdout.splitlines() if line.lstrip().startswith("1"))
     assert "26" in row  # the paper's Rand+OracleFound 1-ON figure beside ours
+
+
+@pytest.mark.slow
+def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
+    """scripts/central_comparison.sh at a toy budget (one update per agent, 2 val episodes), in
+    a copy of the repository's layout: it trains and evaluates the core agents, a second run
+    skips what is done, and PUBLISH=1 keeps the runs and regenerates the doc's tables."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
+    doc = tmp_path / "docs" / "learned.md"
+    doc.parent.mkdir()
+    doc.write_text(f"# Learned\n\n{BEGIN}\n{END}\n")
+    env = {
+        **os.environ,
+        "OUT": "runs/central",
+        "FRAMES": "1024",
+        "EPISODES": "2",
+        "STAGES": "core",
+        "MULTION": f"{sys.executable} -m multion_agents.cli",
+    }
+    script = ["bash", "scripts/central_comparison.sh"]
+    first = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
+                           timeout=1200)  # fmt: skip
+    assert first.returncode == 0, first.stdout[-3000:] + first.stderr[-3000:]
+    out = tmp_path / "runs" / "central"
+    for name in ("oracle-map", "no-map", "oracle-ego-map", "random-oracle-found"):
+        assert (out / name / "eval-val" / "metrics.json").is_file(), name
+    assert (out / "report" / "report.md").is_file()
+    again = subprocess.run(script, cwd=tmp_path, env={**env, "PUBLISH": "1"},
+                           capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
+    assert "done: oracle-map" in again.stdout and "== train" not in again.stdout
+    kept = tmp_path / "docs" / "learned" / "central"
+    assert (kept / "oracle-map" / "progress.csv").is_file()
+    assert not (kept / "random-oracle-found" / "progress.csv").exists()
+    text = doc.read_text()
+    assert (
+        "| oracle-map (oracle-map) | 1-ON | 2 |" in text
+        and "| no-map (no-map) | 1-ON | 2 |" in text
+    )
