@@ -5,7 +5,8 @@
 # episodes each with sampled actions (as the reference's `_eval_checkpoint`,
 # habitat_baselines/rl/ppo/ppo_trainer.py l. 629 and 1430 of saimwani/multiON: deterministic=False)
 # and a paired report. Resumable: run it again and finished steps are skipped, an interrupted
-# training continues from its last checkpoint (every 10 updates).
+# training continues from its last checkpoint (every 10 updates). A run already published in
+# docs/learned/central/NAME (PUBLISH=1 below) counts as done, so a fresh clone goes on from there.
 #   bash scripts/central_comparison.sh                 # every stage, in the order below
 #   STAGES="core" bash scripts/central_comparison.sh   # only the first four agents
 #   OUT=runs/central FRAMES=720000 bash scripts/central_comparison.sh
@@ -26,10 +27,21 @@ recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
   --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard)
 evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0)
 
+# restore_published NAME: a run kept in docs/learned/central/NAME becomes $out/NAME/eval-val
+restore_published() {
+  local kept=docs/learned/central/$1 dir=$out/$1
+  [ -f "$kept/metrics.json" ] && [ ! -f "$dir/eval-val/metrics.json" ] || return 0
+  mkdir -p "$dir/eval-val"
+  cp "$kept/metrics.json" "$kept/episodes.jsonl" "$dir/eval-val/"
+  if [ -f "$kept/progress.csv" ]; then cp "$kept/progress.csv" "$dir/"; fi
+  echo "restored: $1 (published in $kept)"
+}
+
 # train_and_eval NAME AGENT [TRAIN ARGS...]: $out/NAME/checkpoint.pt, then $out/NAME/eval-val
 train_and_eval() {
   local name=$1 agent=$2 dir=$out/$1
   shift 2
+  restore_published "$name"
   [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
   local resume=()
   [ -f "$dir/checkpoint.pt" ] && resume=(--resume)
@@ -47,6 +59,7 @@ for stage in $stages; do
       train_and_eval oracle-map oracle-map
       train_and_eval no-map no-map
       train_and_eval oracle-ego-map oracle-ego-map
+      restore_published random-oracle-found
       if [ ! -f "$out/random-oracle-found/eval-val/metrics.json" ]; then
         $multion eval --agent random-oracle-found "${evaluation[@]}" \
           --out "$out/random-oracle-found/eval-val"

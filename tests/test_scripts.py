@@ -44,7 +44,8 @@ def test_the_calibration_plays_and_reads_its_runs(tmp_path: Path) -> None:
 def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
     """scripts/central_comparison.sh at a toy budget (one update per agent, 2 val episodes), in
     a copy of the repository's layout: it trains and evaluates the core agents, a second run
-    skips what is done, and PUBLISH=1 keeps the runs and regenerates the doc's tables."""
+    skips what is done, PUBLISH=1 keeps the runs and regenerates the doc's tables, and a run
+    into an empty OUT (a fresh clone) restores the published runs instead of training again."""
     (tmp_path / "scripts").mkdir()
     shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
     doc = tmp_path / "docs" / "learned.md"
@@ -78,3 +79,14 @@ def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
         "| oracle-map (oracle-map) | 1-ON | 2 |" in text
         and "| no-map (no-map) | 1-ON | 2 |" in text
     )
+    # a fresh clone (no runs yet) goes on from the published runs instead of training again
+    fresh = subprocess.run(script, cwd=tmp_path, env={**env, "OUT": "runs/fresh"},
+                           capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert fresh.returncode == 0, fresh.stdout[-3000:] + fresh.stderr[-3000:]
+    assert "== train" not in fresh.stdout and "== eval" not in fresh.stdout
+    for name in ("oracle-map", "no-map", "oracle-ego-map", "random-oracle-found"):
+        assert f"restored: {name}" in fresh.stdout, name
+        restored = tmp_path / "runs" / "fresh" / name / "eval-val" / "metrics.json"
+        assert restored.read_bytes() == (kept / name / "metrics.json").read_bytes()
+    assert (tmp_path / "runs" / "fresh" / "oracle-map" / "progress.csv").is_file()
+    assert (tmp_path / "runs" / "fresh" / "report" / "report.md").is_file()

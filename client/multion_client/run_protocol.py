@@ -73,8 +73,10 @@ class ChallengeInfo:
     )
     tracks: list[dict[str, Any]] = field(
         metadata=schema(
-            "per track: name, num_goals, kind, sensors (allowed), camera, metric (ranking), "
-            "max_steps, phases (name, episodes, feedback, daily_quota, total_quota, sealed_until)"
+            "per track: name, num_goals, kind, sensors (allowed), camera, maps (the oracle maps' "
+            "MapConfig a run gets unless it chooses its own), metric (ranking), max_steps, "
+            "num_distractors, success_distance, found_budget, goal_set, phases (name, episodes, "
+            "feedback, daily_quota, total_quota, sealed_until)"
         )
     )
 

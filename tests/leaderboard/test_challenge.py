@@ -3,13 +3,16 @@ the hidden houses and episodes come from the secret alone."""
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 from collections.abc import Callable
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
 
 from multion.config.scenes import SPLIT_SIZES
+from multion.config.task import MapConfig
 from multion.leaderboard.challenge import (
     Challenge,
     ChallengeError,
@@ -38,6 +41,18 @@ def test_the_tiny_challenge_reads(challenge_file: Path) -> None:
     assert oracle.phase("test-challenge").sealed_until.year == 2999
     assert "secret" not in str(challenge.describe())
     assert standard.metric == "ppl"  # the MultiON challenge's ranking metric by default
+
+
+def test_the_description_names_each_tracks_oracle_maps(challenge_file: Path) -> None:
+    """GET /v1/challenge says which oracle crop a run gets: the defaults (the reference's 50
+    cells of 0.8 m, goals as 3 x 3 cells) unless the track sets its own."""
+    challenge = load_challenge(challenge_file)
+    described = {t["name"]: t for t in challenge.describe()["tracks"]}
+    assert described["1-on-oracle"]["maps"] == asdict(MapConfig())
+    assert (MapConfig().ego_size, MapConfig().goal_cells) == (50, 3)
+    track = dataclasses.replace(challenge.tracks[1], maps={"ego_size": 21, "goal_cells": 1})
+    smaller = dataclasses.replace(challenge, tracks=(track,)).describe()["tracks"][0]["maps"]
+    assert smaller == {**asdict(MapConfig()), "ego_size": 21, "goal_cells": 1}
 
 
 def test_a_written_challenge_reads_back_equal(tmp_path: Path) -> None:

@@ -40,7 +40,7 @@ import os
 import re
 import sys
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -240,6 +240,12 @@ class Track:
         }
 
     @property
+    def map_config(self) -> dict[str, Any]:
+        """The oracle maps' settings of a run that chooses none (MapConfig fields: the track's
+        over the defaults), for participants whose agents are built for one crop."""
+        return asdict(env_config_from_dict(self.env_config(self.phases[0])).maps)
+
+    @property
     def allowed_sensors(self) -> tuple[str, ...]:
         return self.sensors or TRACK_KINDS[self.kind]
 
@@ -318,6 +324,7 @@ class Challenge:
                     "kind": t.kind,
                     "sensors": list(t.allowed_sensors),
                     "camera": dict(t.camera),
+                    "maps": t.map_config,
                     "metric": t.metric,
                     "max_steps": t.max_steps,
                     **t.rules,
