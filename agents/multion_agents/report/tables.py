@@ -112,6 +112,19 @@ def estimate_record(estimate: Estimate, prefix: str) -> dict[str, float]:
     }
 
 
+def paired_headline(a: Run, b: Run) -> tuple[int, dict[str, Estimate]] | None:
+    """A − B of each headline metric on the episodes both runs played, and how many those are;
+    None when they share none."""
+    in_b = set(b.episode_ids())
+    common = [e for e in a.episode_ids() if e in in_b]
+    if not common:
+        return None
+    differences = {
+        key: paired_difference(a.values(key, common), b.values(key, common)) for key, _ in HEADLINE
+    }
+    return len(common), differences
+
+
 def headline_cells(run: Run, theirs: dict[str, float] | None) -> tuple[list[str], dict[str, Any]]:
     """A run's Success, Progress, SPL and PPL cells (95% intervals) and their CSV fields, with
     the paper's numbers ``theirs`` (percent) in the fields when given."""
@@ -317,21 +330,17 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
         for position, i in enumerate(members):
             for j in members[position + 1 :]:
                 a, b = runs[i], runs[j]
-                in_b = set(b.episode_ids())
-                common = [e for e in a.episode_ids() if e in in_b]
-                if not common:
+                paired = paired_headline(a, b)
+                if paired is None:
                     table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
                     continue
-                differences = {
-                    key: paired_difference(a.values(key, common), b.values(key, common))
-                    for key, _ in HEADLINE
-                }
+                common, differences = paired
                 table.rows.append(
                     [
                         labels[i],
                         labels[j],
                         task_label(a),
-                        str(len(common)),
+                        str(common),
                         *(signed(differences[key]) for key, _ in HEADLINE),
                     ]
                 )
@@ -341,7 +350,7 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
                     "task": task_name(a.num_goals),
                     "run_a": a.name,
                     "run_b": b.name,
-                    "common_episodes": len(common),
+                    "common_episodes": common,
                 }
                 for key, _ in HEADLINE:
                     record.update(estimate_record(differences[key], f"diff_{key}"))

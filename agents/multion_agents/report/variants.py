@@ -11,12 +11,13 @@ from typing import Any
 from multion.task.dataset import task_name
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
-from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap, paired_difference
+from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap
 from multion_agents.report.tables import (
     Table,
     display_order,
     estimate_record,
     headline_cells,
+    paired_headline,
     percent,
     signed,
     task_label,
@@ -163,16 +164,12 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
 
 def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults) -> None:
     """``later − earlier`` on their common episodes, with the paper's difference if it has both."""
-    in_earlier = set(earlier.episode_ids())
-    common = [e for e in later.episode_ids() if e in in_earlier]
     name = f"{later.goal_set} − {earlier.goal_set} (paired)"
-    if not common:
+    paired = paired_headline(later, earlier)
+    if paired is None:
         table.notes.append(f"{later.name} and {earlier.name} share no episodes: not compared.")
         return
-    differences = {
-        key: paired_difference(later.values(key, common), earlier.values(key, common))
-        for key, _ in HEADLINE
-    }
+    common, differences = paired
     theirs_later = paper.goal_set_row(later.agent, later.num_goals, later.goal_set)
     theirs_earlier = paper.goal_set_row(earlier.agent, earlier.num_goals, earlier.goal_set)
     paper_cell = ""
@@ -185,7 +182,7 @@ def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults)
             "",
             task_label(later),
             name,
-            str(len(common)),
+            str(common),
             *(signed(differences[key]) for key, _ in HEADLINE),
             paper_cell,
         ]
@@ -195,7 +192,7 @@ def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults)
         "task": task_name(later.num_goals),
         "goal_set": name,
         "run": f"{later.name} − {earlier.name}",
-        "episodes": len(common),
+        "episodes": common,
     }
     for key, _ in HEADLINE:
         record.update(estimate_record(differences[key], f"diff_{key}"))
