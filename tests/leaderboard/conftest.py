@@ -23,8 +23,8 @@ from multion.leaderboard.challenge import (
     Limits,
     Phase,
     Track,
-    load_challenge,
 )
+from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.challenge_file import write_challenge as write_challenge_file
 from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.storage import Database, add_team

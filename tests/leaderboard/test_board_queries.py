@@ -11,8 +11,7 @@ from typing import Any
 import pytest
 from sqlalchemy import select
 
-from multion.leaderboard.challenge import load_challenge
-from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.models import Run, Team
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web import queries

@@ -20,9 +20,8 @@ from multion.leaderboard.challenge import (
     Limits,
     Phase,
     Track,
-    load_challenge,
 )
-from multion.leaderboard.challenge_file import challenge_toml, write_challenge
+from multion.leaderboard.challenge_file import challenge_toml, load_challenge, write_challenge
 from multion.leaderboard.hidden import (
     HIDDEN_HOUSE_BASE,
     generate_hidden_episodes,

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multion.leaderboard.challenge import Challenge, Phase, Track, load_challenge
-from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.challenge import Challenge, Phase, Track
+from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
 from multion.scenes.registry import layout_for
 from multion.task.dataset import save_dataset

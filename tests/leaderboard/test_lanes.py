@@ -18,9 +18,8 @@ from multion.leaderboard.challenge import (
     Limits,
     Phase,
     Track,
-    load_challenge,
 )
-from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.clock import ManualClock
 from multion.leaderboard.replay import rescore
 from multion.leaderboard.storage import Database, add_team

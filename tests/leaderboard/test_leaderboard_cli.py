@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.queries import leaderboards
 from multion_agents.cli import main
@@ -148,7 +148,7 @@ def test_a_changed_secret_is_refused_by_serve_and_replay(
     import subprocess
     import sys
 
-    from multion.leaderboard.challenge import load_challenge
+    from multion.leaderboard.challenge_file import load_challenge
 
     database = f"sqlite:///{tmp_path / 'results.db'}"
     first = make_challenge(tmp_path)

@@ -12,7 +12,8 @@ import pytest
 
 from multion.api.local_server import LocalServer
 from multion.config.codec import env_config_from_dict
-from multion.leaderboard.challenge import ChallengeError, challenge_from_dict, load_challenge
+from multion.leaderboard.challenge import ChallengeError
+from multion.leaderboard.challenge_file import challenge_from_dict, load_challenge
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.storage import Database, add_team
 from multion_client.client import Client

@@ -16,8 +16,8 @@ import pytest
 from fastapi import FastAPI
 
 from multion.leaderboard.app import check_leaderboard
-from multion.leaderboard.challenge import Challenge, load_challenge
-from multion.leaderboard.challenge_file import replace_phase, write_challenge
+from multion.leaderboard.challenge import Challenge
+from multion.leaderboard.challenge_file import load_challenge, replace_phase, write_challenge
 from multion.leaderboard.models import Run, Team
 from multion.leaderboard.results import summarize
 from multion.leaderboard.settings import LeaderboardSettings

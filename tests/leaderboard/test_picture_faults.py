@@ -14,7 +14,7 @@ import httpx
 import pytest
 from sqlalchemy import delete, select
 
-from multion.leaderboard.challenge import load_challenge
+from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import EpisodePicture

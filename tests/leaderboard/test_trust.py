@@ -23,9 +23,8 @@ from multion.leaderboard.challenge import (
     HiddenScenes,
     Phase,
     Track,
-    load_challenge,
 )
-from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.hidden import challenge_houses
 from multion.leaderboard.replay import rescore
 from multion.leaderboard.storage import Database

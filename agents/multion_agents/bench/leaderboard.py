@@ -24,9 +24,8 @@ from multion.leaderboard.challenge import (
     Limits,
     Phase,
     Track,
-    load_challenge,
 )
-from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.cli_serve import SERVE_MODULE
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.storage import Database, add_team

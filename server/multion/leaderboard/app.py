@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from fastapi import FastAPI
 
 from multion.api.sessions import SessionRegistry
-from multion.leaderboard.challenge import Challenge, load_challenge
+from multion.leaderboard.challenge import Challenge
+from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.clock import Clock
 from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import utcnow

@@ -29,25 +29,18 @@ An organiser writes one file (see ``docs/leaderboard.md``)::
     daily_quota = 20
     episodes_per_run = "fixed"   # or "fresh" (the default of aggregate and sealed phases)
 
-Every value is checked when the file is read; :class:`ChallengeError` names the field and the
-allowed range. The config classes are frozen dataclasses, one per section, with their ranges.
+Every value is checked when the file is read (:func:`multion.leaderboard.challenge_file.
+load_challenge`); :class:`ChallengeError` names the field and the allowed range. The config
+classes are frozen dataclasses, one per section, with their ranges.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import os
 import re
-import sys
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 from multion.config.codec import ConfigError, env_config_from_dict
 from multion.config.task import SENSORS
@@ -346,173 +339,6 @@ class Challenge:
                 for t in self.tracks
             ],
         }
-
-
-# ---------------------------------------------------------------------- reading
-def load_challenge(path: str | Path, environ: Mapping[str, str] | None = None) -> Challenge:
-    """Read and check a challenge file; raises :class:`ChallengeError` naming the problem."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ChallengeError(f"{path}: no such challenge file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
-        raise ChallengeError(f"{path}: not a readable TOML file ({error})") from None
-    try:
-        return challenge_from_dict(data, os.environ if environ is None else environ)
-    except ChallengeError as error:
-        raise ChallengeError(f"{path}: {error}") from None
-
-
-def challenge_from_dict(data: Mapping[str, Any], environ: Mapping[str, str]) -> Challenge:
-    top = _section(data, "", ("challenge", "limits", "hidden", "tracks"), ("challenge", "tracks"))
-    head = _section(top["challenge"], "challenge", ("name", "secret", "secret_env"), ("name",))
-    secret = _secret(head, environ)
-    limits = Limits(
-        **_section(
-            top.get("limits", {}),
-            "limits",
-            ("step_timeout_s", "max_consecutive_timeouts", "run_timeout_s", "max_envs_per_run"),
-        )
-    )
-    hidden_raw = _section(top.get("hidden", {}), "hidden", ("rooms",))
-    hidden = HiddenScenes(
-        **({"rooms": _pair(hidden_raw["rooms"], "hidden.rooms")} if "rooms" in hidden_raw else {})
-    )
-    tracks_raw = top["tracks"]
-    if not isinstance(tracks_raw, list):
-        raise ChallengeError("'tracks' must be an array of tables ([[tracks]])")
-    return Challenge(
-        name=_typed(head["name"], str, "challenge.name"),
-        secret=secret,
-        tracks=tuple(_track(raw, index) for index, raw in enumerate(tracks_raw)),
-        limits=limits,
-        hidden=hidden,
-    )
-
-
-def _secret(head: Mapping[str, Any], environ: Mapping[str, str]) -> str:
-    if ("secret" in head) == ("secret_env" in head):
-        raise ChallengeError("[challenge] needs exactly one of 'secret' or 'secret_env'")
-    if "secret" in head:
-        return _typed(head["secret"], str, "challenge.secret")
-    name = _typed(head["secret_env"], str, "challenge.secret_env")
-    if not environ.get(name):
-        raise ChallengeError(f"the environment variable {name} (challenge.secret_env) is not set")
-    return environ[name]
-
-
-def _track(raw: Any, index: int) -> Track:
-    fields = (
-        "name",
-        "num_goals",
-        "kind",
-        "sensors",
-        "camera",
-        "maps",
-        "max_steps",
-        "metric",
-        "num_distractors",
-        "success_distance",
-        "found_budget",
-        "goal_set",
-        "phases",
-    )
-    d = _section(raw, f"tracks[{index}]", fields, ("name", "num_goals", "phases"))
-    where = f"tracks[{index}]"
-    phases_raw = d.pop("phases")
-    if not isinstance(phases_raw, list):
-        raise ChallengeError(f"{where}.phases must be an array of tables ([[tracks.phases]])")
-    for key in ("camera", "maps"):
-        if key in d and not isinstance(d[key], Mapping):
-            raise ChallengeError(f"{where}.{key} must be a table")
-    if "sensors" in d:
-        d["sensors"] = tuple(
-            _typed(s, str, f"{where}.sensors")
-            for s in _typed(d["sensors"], list, f"{where}.sensors")
-        )
-    _typed(d["name"], str, f"{where}.name")
-    for key in ("num_goals", "max_steps", "num_distractors", "found_budget"):
-        if key in d:
-            _typed(d[key], int, f"{where}.{key}")
-    if "success_distance" in d:
-        d["success_distance"] = float(
-            _typed(d["success_distance"], (int, float), f"{where}.success_distance")
-        )
-    if "goal_set" in d:
-        _typed(d["goal_set"], str, f"{where}.goal_set")
-    return Track(
-        **d, phases=tuple(_phase(p, f"{where}.phases[{i}]") for i, p in enumerate(phases_raw))
-    )
-
-
-def _phase(raw: Any, where: str) -> Phase:
-    fields = (
-        "name",
-        "episodes",
-        "houses",
-        "feedback",
-        "daily_quota",
-        "total_quota",
-        "sealed_until",
-        "max_steps",
-        "episodes_per_run",
-    )
-    d = _section(raw, where, fields, ("name", "episodes"))
-    _typed(d["name"], str, f"{where}.name")
-    if "episodes_per_run" in d:
-        _typed(d["episodes_per_run"], str, f"{where}.episodes_per_run")
-    for key in ("episodes", "houses", "daily_quota", "total_quota", "max_steps"):
-        if key in d:
-            _typed(d[key], int, f"{where}.{key}")
-    if "sealed_until" in d:
-        d["sealed_until"] = _utc(d["sealed_until"], f"{where}.sealed_until")
-    return Phase(**d)
-
-
-def _utc(value: Any, where: str) -> dt.datetime:
-    if isinstance(value, str):
-        try:
-            value = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-        except ValueError:
-            raise ChallengeError(f"{where} must be a date-time like 2026-12-01T00:00:00Z") from None
-    if isinstance(value, dt.date) and not isinstance(value, dt.datetime):
-        value = dt.datetime(value.year, value.month, value.day)
-    if not isinstance(value, dt.datetime):
-        raise ChallengeError(f"{where} must be a date-time like 2026-12-01T00:00:00Z")
-    return (
-        value.replace(tzinfo=dt.timezone.utc)
-        if value.tzinfo is None
-        else value.astimezone(dt.timezone.utc)
-    )
-
-
-def _section(
-    data: Any, where: str, known: tuple[str, ...], required: tuple[str, ...] = ()
-) -> dict[str, Any]:
-    label = where or "the file"
-    if not isinstance(data, Mapping):
-        raise ChallengeError(f"{label} must be a table, got {type(data).__name__}")
-    unknown = sorted(set(data) - set(known))
-    if unknown:
-        raise ChallengeError(f"{label}: unknown field(s) {unknown}; fields are {list(known)}")
-    missing = [name for name in required if name not in data]
-    if missing:
-        raise ChallengeError(f"{label}: missing field(s) {missing}")
-    return dict(data)
-
-
-def _typed(value: Any, kind: type | tuple[type, ...], where: str) -> Any:
-    if isinstance(value, bool) and kind is not bool or not isinstance(value, kind):
-        names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple) else (kind,)))
-        raise ChallengeError(f"{where} must be {names}, got {value!r:.60}")
-    return value
-
-
-def _pair(value: Any, where: str) -> tuple[int, int]:
-    if not isinstance(value, list) or len(value) != 2:
-        raise ChallengeError(f"{where} must be [low, high], got {value!r:.60}")
-    return (_typed(value[0], int, where), _typed(value[1], int, where))
 
 
 def _check_range(where: str, value: float, low: float, high: float, low_open: bool = False) -> None:

@@ -31,7 +31,8 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from multion.leaderboard.challenge import ChallengeError, load_challenge
+from multion.leaderboard.challenge import ChallengeError
+from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
 from multion.leaderboard.house_stats import HEADER, house_stats, val_stats
 from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
