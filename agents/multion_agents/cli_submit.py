@@ -221,22 +221,26 @@ def _check_overrides(cls: type[Agent], track: dict[str, Any]) -> None:
         raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
 
 
+TRACK_RULES = ("max_steps", "num_distractors", "success_distance", "found_budget", "goal_set")
+"""The task fields a track fixes beside m (``GET /v1/challenge``; older servers send fewer)."""
+
+
 def run_config(cls: type[Agent], track: dict[str, Any]) -> dict[str, Any]:
     """The resolved environment config a run of track ``track`` gives agent ``cls``: the track's
-    task and camera, the agent's oracle-map settings, every other field the server's default.
-    Images are resized to the agent's own camera size when it asks for one (``_resized``), so
-    the agent sees its own width and height."""
+    task (m, step limit and rules: distractors, FOUND radius and budget, goal set), camera and
+    oracle maps, the agent's own oracle-map settings over the track's, every other field the
+    server's default. Images are resized to the agent's own camera size when it asks for one
+    (``_resized``), so the agent sees its own width and height."""
     camera = {**track.get("camera", {})}
     size = _target_size((cls.config_overrides or {}).get("camera", {}), track)
     if size is not None:
         camera["height"], camera["width"] = size
     task = {"num_goals": track["num_goals"]}
-    if track.get("max_steps") is not None:
-        task["max_steps"] = track["max_steps"]
+    task.update({key: track[key] for key in TRACK_RULES if track.get(key) is not None})
     config = {"task": task, "camera": camera, "sensors": list(cls.sensors)}
-    maps = oracle_maps(cls)
+    maps = {**track.get("maps", {}), **(oracle_maps(cls) or {})}
     if maps:
-        config["maps"] = dict(maps)
+        config["maps"] = maps
     return resolve_config(config)
 
 

@@ -20,6 +20,7 @@ from multion.leaderboard.storage import (
     find_team,
     revoke_tokens,
 )
+from multion_agents.agent import AgentError
 from multion_agents.cli_submit import oracle_maps, play_run, run_config
 from multion_agents.registry import agent_class
 from multion_client.client import Client
@@ -89,6 +90,12 @@ def play_baselines(
                     continue
                 for name in agents_for(track["sensors"], agents):
                     cls = agent_class(name)
+                    config = run_config(cls, track)
+                    try:  # before the run is created: a refused agent costs no quota
+                        cls(seed=0).configure(config)
+                    except AgentError as error:
+                        print(f"{track['name']}/{phase['name']}: {name} skipped: {error}")
+                        continue
                     # said before the run is created: the server may first build the phase's
                     # hidden episodes, which can take a minute
                     print(f"{track['name']}/{phase['name']}: {name}", end="", flush=True)
@@ -108,7 +115,7 @@ def play_baselines(
                     # Each run's start and end are said even with --quiet (which only drops
                     # the progress bar): a run can take minutes.
                     print(f" (run {env.run_id})", flush=True)
-                    play_run(env, cls, 0, None, progress, config=run_config(cls, track))
+                    play_run(env, cls, 0, None, progress, config=config)
                     status = env.status()
                     env.close()
                     run_ids.append(env.run_id)
