@@ -16,6 +16,11 @@
 # random-oracle-found), shapes (NoMap with the supplement's shapes as goals), pretrain
 # (oracle-map after map pretraining), learned (proj-neural-map, obj-recog-map). The report goes
 # to $OUT/report (`multion report`).
+# Each evaluation and stage starts new processes that import the tree's code as it is then: to
+# keep working in a tree while this runs, run it from a copy you leave alone, e.g.
+#   git worktree add --detach ../central-tree HEAD && cd ../central-tree &&
+#   PYTHONPATH=$PWD/server:$PWD/client:$PWD/agents MULTION=$OLDPWD/.venv/bin/multion \
+#     OUT=$OLDPWD/runs/central bash scripts/central_comparison.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${OUT:-runs/central}
