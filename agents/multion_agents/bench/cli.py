@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--only",
         choices=[
             *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
-            *("explorer", "reset", "participants"),
+            *("explorer", "reset", "participants", "learner"),
         ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
@@ -91,6 +91,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     train.add_argument(
         "--train-updates", type=int, help="PPO updates, the first one not timed (default 4)"
     )
+    learner = parser.add_argument_group("learner bench (--only learner, needs torch, no simulator)")
+    learner.add_argument(
+        "--learner-agents",
+        help="comma-separated learned agents (default: the central comparison's five)",
+    )
+    learner.add_argument(
+        "--learner-updates", type=int, default=2, help="timed PPO updates per agent (default 2)"
+    )
     parser.add_argument(
         "--participants",
         type=int,
@@ -100,7 +108,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--device",
         default="cpu",
-        help="torch device of the training bench: cpu (default) or cuda (needs a CUDA GPU)",
+        help="torch device of the training and learner benches: cpu (default) or cuda (needs a "
+        "CUDA GPU)",
     )
     parser.add_argument(
         "--renderer",
@@ -152,6 +161,16 @@ def run(args: argparse.Namespace) -> int:
             args.train_updates, args.device,
         )  # fmt: skip
         if run_train_bench(settings) is None:
+            return 2
+    if "learner" in parts:
+        from multion_agents.bench.learner import learner_settings, run_learner_bench
+
+        try:
+            bench = learner_settings(args.learner_agents, args.learner_updates, args.device)
+        except ValueError as error:
+            print(f"multion bench: {error}", file=sys.stderr)
+            return 2
+        if run_learner_bench(bench) is None:
             return 2
     return 0
 

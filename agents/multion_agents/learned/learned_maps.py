@@ -31,7 +31,7 @@ from multion_agents.learned import map_ops
 from multion_agents.learned.encoders import EMBED_DIM, NUM_CATEGORY_VALUES, MapCNN
 from multion_agents.learned.episodic import policy_query_dim
 from multion_agents.learned.map_ops import MapGeometry
-from multion_agents.learned.policy import HIDDEN_SIZE, Batch, Memory, State
+from multion_agents.learned.policy import HIDDEN_SIZE, Batch, MapMemory, State
 
 RECOGNITION_DISTANCE = 2.5
 """A goal counts as "in view" for the recognition label within this distance, metres."""
@@ -53,7 +53,7 @@ def recognition_label(goal_mask: Tensor, depth: Tensor, geometry: MapGeometry) -
     return torch.where(near.any(dim=1), label, torch.zeros_like(label))
 
 
-class ObjRecogMap(Memory):
+class ObjRecogMap(MapMemory):
     """ObjRecogMap: a global map of recognised goal categories (supplement "ObjRecogMap").
 
     Paper: a (k+1)-way classifier on the current frame, supervised with cross-entropy against
@@ -109,18 +109,21 @@ class ObjRecogMap(Memory):
         write = cell & (inside & (prediction > 0)).view(-1, 1, 1)
         return torch.where(write, prediction.view(-1, 1, 1).to(grid.dtype), grid)
 
-    def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
+    def advance(self, frame: Batch, state: State) -> tuple[Tensor, State]:
+        """Write this step's prediction; the view is the crop's stored values (B, S, S)."""
         gps, compass = frame["gps"].float(), frame["compass"].float()
         grid = self.write(state["map"], frame["recog_prediction"], gps)
         crop = map_ops.egocentric_crop(
             grid.unsqueeze(1), gps, compass, self.crop_size, self.geometry.cell_size
         )
-        cells = crop[:, 0].round().long().clamp(0, NUM_CATEGORY_VALUES - 1)
+        return crop[:, 0], {"map": grid}
+
+    def read(self, views: Tensor, frames: Batch) -> Tensor:
+        cells = views.round().long().clamp(0, NUM_CATEGORY_VALUES - 1)
         if self.dynamic:
-            current = frame["goal"].long().view(-1, 1, 1) + 1
+            current = frames["goal"].long().view(-1, 1, 1) + 1
             cells = cells * (cells == current)
-        embedded = self.embedding(cells).permute(0, 3, 1, 2)
-        return self.cnn(embedded), {"map": grid}
+        return self.cnn(self.embedding(cells).permute(0, 3, 1, 2))
 
     def auxiliary_loss(self, frames: Batch, precomputed: Batch) -> Tensor | None:
         if "goal_mask" not in frames or "depth" not in frames:
@@ -129,7 +132,7 @@ class ObjRecogMap(Memory):
         return F.cross_entropy(precomputed["recog_logits"], label)
 
 
-class ProjNeuralMap(Memory):
+class ProjNeuralMap(MapMemory):
     """ProjNeuralMap: image features projected to the ground and max-merged into a global map.
 
     Paper (MapNet projection, supplement): the image features ``i_t`` are projected with the
@@ -184,10 +187,14 @@ class ProjNeuralMap(Memory):
         )
         return grid, gps, compass
 
-    def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
+    def advance(self, frame: Batch, state: State) -> tuple[Tensor, State]:
+        """Register this step's egocentric map; the view is the global map's crop."""
         grid, gps, compass = self.update(frame, state)
         crop = map_ops.egocentric_crop(grid, gps, compass, self.crop_size, self.geometry.cell_size)
-        return self.cnn(crop), {"map": grid}
+        return crop, {"map": grid}
+
+    def read(self, views: Tensor, frames: Batch) -> Tensor:
+        return self.cnn(views)
 
 
 class EgoMap(ProjNeuralMap):
