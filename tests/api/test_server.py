@@ -20,7 +20,7 @@ from multion.api.settings import ServerSettings
 from multion.config.codec import ConfigError, env_config_from_dict, env_config_to_dict
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
-from multion.task.env import build_observation_space
+from multion.task.spaces import build_observation_space
 from multion_client.protocol import (
     CONTENT_TYPE,
     SessionInfo,

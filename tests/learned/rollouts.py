@@ -8,7 +8,7 @@ import torch
 
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
-from multion.task.env import build_observation_space
+from multion.task.spaces import build_observation_space
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.rollout import Rollout, compute_gae
 

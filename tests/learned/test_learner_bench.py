@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from multion.config.codec import env_config_from_dict
-from multion.task.env import build_observation_space
+from multion.task.spaces import build_observation_space
 from multion_agents.bench.learner import learner_settings, run_learner_bench, synthetic_frames
 from multion_agents.cli import main
 from multion_agents.learned.models import model_spec

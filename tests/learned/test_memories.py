@@ -9,7 +9,7 @@ import torch
 
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
-from multion.task.env import build_observation_space
+from multion.task.spaces import build_observation_space
 from multion_agents.learned import map_ops
 from multion_agents.learned.episodic import FRMQN, SMT, masked_attention
 from multion_agents.learned.learned_maps import EgoMap, ObjRecogMap, recognition_label

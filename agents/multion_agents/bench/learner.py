@@ -27,7 +27,7 @@ from gymnasium import spaces
 from torch import Tensor
 
 from multion.config.codec import env_config_from_dict, env_config_to_dict
-from multion.task.env import build_observation_space
+from multion.task.spaces import build_observation_space
 from multion_agents.learned.checkpoint import build_policy
 from multion_agents.learned.distributed import cores_per_rank, select_device
 from multion_agents.learned.models import MODELS, model_spec

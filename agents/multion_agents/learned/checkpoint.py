@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from multion.config.codec import env_config_from_dict
-from multion.task.env import build_observation_space
+from multion.task.spaces import build_observation_space
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.map_ops import MapGeometry
 from multion_agents.learned.models import model_spec

@@ -31,8 +31,9 @@ from multion.config.codec import env_config_from_dict
 from multion.config.ranges import bounded, check_fields, one_of
 from multion.sim.geodesic import distance_field
 from multion.task.dataset import packaged_dataset_path
-from multion.task.env import MultiONEnv, build_observation_space
+from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
+from multion.task.spaces import build_observation_space
 from multion_agents.learned.policy import Batch, RecurrentPolicy
 from multion_agents.learned.training_log import TrainingLog
 from multion_client.constants import Action

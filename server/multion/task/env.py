@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, cast
 
 import gymnasium as gym
@@ -33,6 +33,7 @@ from multion.task.errors import (
 )
 from multion.task.maps import EgoMapReveal, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
+from multion.task.spaces import build_observation_space
 from multion_client.constants import (
     ACTIONS_TEXT,
     GOAL_RGBA,
@@ -440,27 +441,6 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         for body, goal in zip(self.sim.world.goal_bodies_in_use, cylinders, strict=True):
             mask[segmentation == body] = goal.category + 1
         return mask
-
-
-def build_observation_space(config: EnvConfig) -> spaces.Dict:
-    """The spaces of the configured sensors only (an image Box holds two arrays of its size)."""
-    cam, size = config.camera, config.maps.ego_size
-    image = (cam.height, cam.width)
-    builders: dict[str, Callable[[], spaces.Space[Any]]] = {
-        "rgb": lambda: spaces.Box(0, 255, (*image, 3), np.uint8),
-        "depth": lambda: spaces.Box(
-            0.0, 1.0 if cam.normalize_depth else cam.max_depth, (*image, 1), np.float32
-        ),
-        "goal": lambda: spaces.Discrete(NUM_CATEGORIES),
-        "goal_onehot": lambda: spaces.Box(0.0, 1.0, (NUM_CATEGORIES,), np.float32),
-        "gps": lambda: spaces.Box(-np.inf, np.inf, (2,), np.float32),
-        "compass": lambda: spaces.Box(-np.pi, np.pi, (1,), np.float32),
-        "oracle_map": lambda: spaces.Box(0, 255, (size, size, 2), np.uint8),
-        "oracle_ego_map": lambda: spaces.Box(0, 255, (size, size, 2), np.uint8),
-        "goal_mask": lambda: spaces.Box(0, NUM_CATEGORIES, image, np.uint8),
-        "goal_distance": lambda: spaces.Box(0.0, np.inf, (1,), np.float32),
-    }
-    return spaces.Dict({name: builders[name]() for name in config.sensors})
 
 
 def _check_action(action: Any) -> int:

@@ -13,8 +13,9 @@ from multion.config.sim import RENDERERS
 from multion.config.task import SENSORS, EnvConfig
 from multion.reference import DEFAULT_SOURCES
 from multion.sim.camera import resolve_renderer
-from multion.task.env import MultiONEnv, build_observation_space
+from multion.task.env import MultiONEnv
 from multion.task.memory import mib
+from multion.task.spaces import build_observation_space
 from multion_client.constants import GOAL_CATEGORIES, GOAL_SETS, NUM_ACTIONS, Action
 from multion_client.protocol import (
     API_VERSION,
