@@ -53,3 +53,43 @@ def random_rollout(space, seed: int, steps: int = 6, envs: int = 2) -> Rollout:
     rollout.starts[0] = 1.0
     compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
     return rollout
+
+
+def actor_rollout(
+    frames: dict[str, torch.Tensor],
+    starts: torch.Tensor,
+    initial_state: dict[str, torch.Tensor],
+    generator: torch.Generator,
+) -> Rollout:
+    """A rollout of ``frames`` (T, E, ...) with episode ``starts`` (T, E): random previous and
+    taken actions, values and rewards drawn from ``generator`` (in that order), with
+    advantages."""
+    steps, envs = starts.shape
+    rollout = Rollout(
+        frames=frames,
+        prev_actions=torch.randint(0, 4, (steps, envs), generator=generator),
+        starts=starts,
+        actions=torch.randint(0, 4, (steps, envs), generator=generator),
+        logprobs=torch.full((steps, envs), -1.3),
+        values=torch.randn(steps, envs, generator=generator),
+        rewards=torch.randn(steps, envs, generator=generator),
+        dones=torch.roll(starts, -1, 0),
+        initial_state=initial_state,
+    )
+    compute_gae(rollout, torch.zeros(envs), 0.99, 0.95)
+    return rollout
+
+
+def assert_same_loss_and_gradients(
+    loss: float,
+    gradients: dict[str, torch.Tensor],
+    loss_before: float,
+    gradients_before: dict[str, torch.Tensor],
+) -> None:
+    """The loss within 1e-5 and every gradient within 1e-4 of its largest entry."""
+    assert abs(loss - loss_before) <= 1e-5 * max(1.0, abs(loss_before))
+    assert gradients.keys() == gradients_before.keys()
+    for name, expected in gradients_before.items():
+        scale = float(expected.abs().max()) or 1.0
+        error = float((gradients[name] - expected).abs().max()) / scale
+        assert error < 1e-4, f"{name}: relative difference {error:.2e}"

@@ -26,8 +26,9 @@ import torch
 from gymnasium import spaces
 from torch import Tensor
 
-from multion.config.codec import env_config_from_dict, env_config_to_dict
+from multion.config.codec import env_config_from_dict
 from multion.task.spaces import build_observation_space
+from multion_agents.bench.train import cuda_missing
 from multion_agents.learned.checkpoint import build_policy
 from multion_agents.learned.distributed import cores_per_rank, select_device
 from multion_agents.learned.models import MODELS, model_spec
@@ -104,7 +105,6 @@ def time_agent(agent: str, bench: LearnerBench) -> dict[str, float]:
     config = training_env_config(1, spec.train_sensors, bench.image_size, "train",
                                  spec.config_overrides)  # fmt: skip
     env_config = env_config_from_dict(config)
-    config = env_config_to_dict(env_config)
     args = Args(agent=agent, envs=bench.envs, image_size=bench.image_size,
                 rollout_steps=bench.rollout_steps, progress=False, tensorboard=False)  # fmt: skip
     torch.manual_seed(0)
@@ -171,12 +171,7 @@ def time_agent(agent: str, bench: LearnerBench) -> dict[str, float]:
 def run_learner_bench(bench: LearnerBench) -> dict[str, dict[str, float]] | None:
     """Print and return each agent's learner figures; None (with the reason printed) when the
     device asked for is not there."""
-    if bench.device.startswith("cuda") and not torch.cuda.is_available():
-        print(
-            "learner bench on --device cuda needs a CUDA GPU and a CUDA build of torch: "
-            f"torch {torch.__version__} sees none here. Run it on a GPU machine, or use "
-            "--device cpu."
-        )
+    if cuda_missing(bench.device, "learner"):
         return None
     name = torch.cuda.get_device_name() if bench.device.startswith("cuda") else "cpu"
     print(

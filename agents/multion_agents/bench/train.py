@@ -106,15 +106,22 @@ def bare_rate(config: dict, envs: int, steps: int, found_prior: float | None) ->
         vector.close()
 
 
-def run_train_bench(bench: TrainBench) -> dict[str, float] | None:
-    """Print and return the bench's figures; None (with the reason printed) when the device
-    asked for is not there."""
-    if bench.device.startswith("cuda") and not torch.cuda.is_available():
+def cuda_missing(device: str, bench: str) -> bool:
+    """True (with the reason printed) when ``device`` is CUDA and torch sees no GPU here."""
+    if device.startswith("cuda") and not torch.cuda.is_available():
         print(
-            "training bench on --device cuda needs a CUDA GPU and a CUDA build of torch: "
+            f"{bench} bench on --device cuda needs a CUDA GPU and a CUDA build of torch: "
             f"torch {torch.__version__} sees none here. Run it on a GPU machine, or use "
             "--device cpu."
         )
+        return True
+    return False
+
+
+def run_train_bench(bench: TrainBench) -> dict[str, float] | None:
+    """Print and return the bench's figures; None (with the reason printed) when the device
+    asked for is not there."""
+    if cuda_missing(bench.device, "training"):
         return None
     dataset = None if bench.online else str(packaged_dataset_path(1, "val"))
     spec = model_spec(bench.agent)
