@@ -2,6 +2,7 @@
 machines are shared and noisy; here only that every part runs and reports a rate)."""
 
 from multion_agents.bench.cli import bench_sim
+from multion_agents.bench.reset import run_reset_bench
 
 
 def test_the_simulator_bench_runs_every_part(capsys):
@@ -37,3 +38,13 @@ def test_the_participants_bench_plays_every_run_to_its_end() -> None:
     assert figures["steps"] == 3 * 2 * 5  # every participant's episodes, nothing lost
     assert figures["steps_per_s"] > 0
     assert 0 < figures["latency_p50_ms"] <= figures["latency_p90_ms"] <= figures["latency_p99_ms"]
+
+
+def test_the_reset_bench_draws_the_same_episodes_and_splits_out_the_fast_marching(capsys):
+    results = run_reset_bench(resets=3, tasks=(1,))
+    assert results["1on_same_episodes"] == 1.0
+    # a 1-ON episode needs at least the start's field and its goal's
+    assert results["1on_fields_median"] >= 2
+    assert 0 < results["1on_marching_median_ms"] < results["1on_after_median_ms"] * 1.0001
+    assert results["1on_rest_median_ms"] > 0
+    assert "fast marching" in capsys.readouterr().out

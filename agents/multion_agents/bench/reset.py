@@ -5,19 +5,22 @@ the v3 recipe) reset in turn from the same seed, so they draw the same episodes 
 load. The *before* one checks the agent's steps with :func:`breadth_first_reach` (the
 breadth-first search that datasets version 3 came with, kept here as the reference) and computes
 every goal's distance field twice, in sampling and again in its reset (no :class:`FieldCache`);
-the *after* one is the env as it is.
+the *after* one is the env as it is. For the after env it also times the fast marchings
+(:class:`MarchingClock`), the part of a reset that drawing the same episodes cannot avoid.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from unittest import mock
 
 import numpy as np
 
 from multion.config.codec import env_config_from_dict
 from multion.config.sim import AgentConfig
+from multion.sim import geodesic
 from multion.sim.geodesic import FieldCache
 from multion.sim.navgrid import NavGrid
 from multion.task.env import MultiONEnv
@@ -75,6 +78,34 @@ def breadth_first_reach(
     return False
 
 
+class MarchingClock:
+    """Counts and times the fast marchings (:func:`multion.sim.geodesic.distance_field`) made
+    while :meth:`watch` is open, wherever they are called from."""
+
+    CALLERS = ("multion.sim.geodesic", "multion.task.dataset", "multion.task.env")
+
+    def __init__(self) -> None:
+        self.fields = 0
+        self.seconds = 0.0
+
+    @contextmanager
+    def watch(self) -> Iterator[None]:
+        march = geodesic.distance_field
+
+        def timed(grid: NavGrid, target: np.ndarray, target_radius: float = 0.0) -> np.ndarray:
+            tick = time.perf_counter()
+            try:
+                return march(grid, target, target_radius)
+            finally:
+                self.seconds += time.perf_counter() - tick
+                self.fields += 1
+
+        with ExitStack() as stack:
+            for module in self.CALLERS:
+                stack.enter_context(mock.patch(f"{module}.distance_field", timed))
+            yield
+
+
 def _env(num_goals: int) -> MultiONEnv:
     config = env_config_from_dict(
         {
@@ -101,6 +132,8 @@ def run_reset_bench(resets: int = 60, tasks: Sequence[int] = (1, 3)) -> dict[str
         before, after = _env(num_goals), _env(num_goals)
         before._field_cache = FieldCache(size=0)  # every field computed where it is used
         times: dict[str, list[float]] = {"before": [], "after": []}
+        marching: list[float] = []  # the after env's seconds of fast marching, per reset
+        fields: list[int] = []
         same = True
         try:
             for index in range(resets + 1):
@@ -109,9 +142,13 @@ def run_reset_bench(resets: int = 60, tasks: Sequence[int] = (1, 3)) -> dict[str
                     tick = time.perf_counter()
                     before.reset(seed=seed)
                     times["before"].append(time.perf_counter() - tick)
-                tick = time.perf_counter()
-                after.reset(seed=seed)
-                times["after"].append(time.perf_counter() - tick)
+                clock = MarchingClock()
+                with clock.watch():
+                    tick = time.perf_counter()
+                    after.reset(seed=seed)
+                    times["after"].append(time.perf_counter() - tick)
+                marching.append(clock.seconds)
+                fields.append(clock.fields)
                 same &= before.episode == after.episode
         finally:
             before.close()
@@ -128,8 +165,31 @@ def run_reset_bench(resets: int = 60, tasks: Sequence[int] = (1, 3)) -> dict[str
             results[f"{num_goals}on_before_median_ms"] / results[f"{num_goals}on_after_median_ms"]
         )
         results[f"{num_goals}on_speedup"] = speedup
+        results[f"{num_goals}on_same_episodes"] = float(same)
         print(
             f"{'':>6} median speed-up {speedup:.1f}× (target ≥ 20×, median ≤ "
             f"{TARGET_MS[num_goals]:g} ms); same episodes: {'yes' if same else 'NO'}"
         )
+        results.update(_marching_share(num_goals, times["after"][1:], marching[1:], fields[1:]))
     return results
+
+
+def _marching_share(
+    num_goals: int, totals: Sequence[float], marching: Sequence[float], fields: Sequence[int]
+) -> dict[str, float]:
+    """Print and return how much of the after env's resets is fast marching: the part that
+    the same episodes cannot do without (one field from the start, one per goal)."""
+    total_ms, march_ms = 1000 * np.asarray(totals), 1000 * np.asarray(marching)
+    count = np.asarray(fields, dtype=np.float64)
+    per_field = float(march_ms.sum() / max(count.sum(), 1.0))
+    rest = float(np.median(total_ms - march_ms))
+    print(
+        f"{'':>6} after: fast marching {np.median(march_ms):.1f} ms of the median reset "
+        f"({np.median(count):g} fields, {per_field:.1f} ms each), everything else {rest:.1f} ms"
+    )
+    return {
+        f"{num_goals}on_marching_median_ms": float(np.median(march_ms)),
+        f"{num_goals}on_fields_median": float(np.median(count)),
+        f"{num_goals}on_ms_per_field": per_field,
+        f"{num_goals}on_rest_median_ms": rest,
+    }
