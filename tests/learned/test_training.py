@@ -228,6 +228,29 @@ def test_resume_continues_the_run_and_refuses_another_agent(
     assert len(list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))) == 2
 
 
+def test_resume_drops_the_updates_logged_after_the_checkpoint(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    """A run stopped past its last checkpoint has logged updates its resumption makes again:
+    the log keeps each update once, the resumed one."""
+    train(tiny_args(tmp_path, room_dataset, frames=64))  # update 1, checkpointed
+    run = tmp_path / "run"
+    for name in ("progress", "eval"):
+        path = run / f"{name}.csv"
+        if not path.exists():
+            path.write_text("frames,update,success,progress,spl,ppl\n64,1,1,1,0.5,0.5\n")
+        rows = list(csv.DictReader(path.open()))
+        orphan = {**rows[-1], "update": "2", "frames": "-1"}  # logged, then interrupted
+        with path.open("a", newline="") as handle:
+            csv.DictWriter(handle, list(rows[0])).writerow(orphan)
+    train(tiny_args(tmp_path, room_dataset, frames=128, resume=True))
+    rows = list(csv.DictReader((run / "progress.csv").open()))
+    assert [(int(r["update"]), int(r["frames"])) for r in rows] == [(1, 64), (2, 128)]
+    evals = list(csv.DictReader((run / "eval.csv").open()))
+    assert all(int(r["update"]) <= 1 for r in evals)
+    assert not list(run.glob("*.partial"))
+
+
 def test_a_corrupt_checkpoint_is_refused_with_its_path(tmp_path: Path) -> None:
     path = tmp_path / "checkpoint.pt"
     path.write_bytes(b"not a checkpoint")

@@ -255,6 +255,8 @@ def train(args: Args) -> dict[str, Any]:
     imitate = args.imitation_coef > 0
     envs = make_env_groups(stage, args.envs, servers, expert=imitate)
     log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
+    if log is not None and args.resume:
+        log.rewind(update)
     window: deque[dict[str, float]] = deque(maxlen=100)
     try:
         live = start_episodes(envs, policy, _reset_seed(args, update, rank))

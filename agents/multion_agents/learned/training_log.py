@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -11,8 +12,8 @@ CURVE_METRICS = ("success", "progress", "spl", "ppl")
 
 
 class TrainingLog:
-    """Appends to ``progress.csv`` and ``eval.csv`` in ``out`` (resumed runs keep appending)
-    and mirrors every value to TensorBoard under ``out/tensorboard``."""
+    """Appends to ``progress.csv`` and ``eval.csv`` in ``out`` (resumed runs keep appending,
+    after :meth:`rewind`) and mirrors every value to TensorBoard under ``out/tensorboard``."""
 
     def __init__(self, out: Path, tensorboard: bool = True) -> None:
         self.out = out
@@ -46,6 +47,32 @@ class TrainingLog:
                 if key != "frames" and isinstance(value, int | float) and math.isfinite(value):
                     self.writer.add_scalar(f"{name}/{key}", value, step)
             self.writer.flush()
+
+    def rewind(self, update: int) -> None:
+        """Drop the rows of ``progress.csv`` and ``eval.csv`` logged after ``update``: a run
+        interrupted past its last checkpoint logged updates that its resumption makes again.
+        Each file is replaced whole (written beside it, then renamed), so none is left half
+        written."""
+        for name in ("progress", "eval"):
+            path = self.out / f"{name}.csv"
+            if not path.exists():
+                continue
+            with path.open(newline="") as handle:
+                reader = csv.reader(handle)
+                header = next(reader, None)
+                rows = list(reader)
+            if header is None or "update" not in header:
+                continue
+            column = header.index("update")
+            kept = [row for row in rows if not _float(row[column]) > update]
+            if len(kept) == len(rows):
+                continue
+            partial = path.with_name(f"{path.name}.partial")
+            with partial.open("w", newline="") as handle:
+                writer = csv.writer(handle)
+                writer.writerow(header)
+                writer.writerows(kept)
+            os.replace(partial, path)
 
     def close(self) -> None:
         if self.writer is not None:
