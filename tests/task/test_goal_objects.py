@@ -4,6 +4,7 @@ upright on the floor, 0.3-0.9 m, at a yaw fixed by the episode, visible, never b
 from __future__ import annotations
 
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -14,8 +15,9 @@ from multion.config.episode import Episode, Goal
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, MapConfig, TaskConfig
 from multion.scenes.registry import layout_for
+from multion.sim import goal_objects
 from multion.sim.camera import resolve_renderer
-from multion.sim.goal_objects import MODELS, body_bounds, goal_yaw
+from multion.sim.goal_objects import MODELS, body_bounds, goal_yaw, scaled_urdf
 from multion.sim.world import PyBulletWorld
 from multion.task.env import MultiONEnv
 from multion_client.constants import OBJECT_CATEGORIES, goal_categories
@@ -114,3 +116,20 @@ def test_egl_draws_the_objects_at_the_same_size() -> None:
     for c in range(8):
         a, b = int((egl["goal_mask"] == c + 1).sum()), int((tiny["goal_mask"] == c + 1).sum())
         assert a > 10 and abs(a - b) <= max(6, 0.3 * b), (OBJECT_CATEGORIES[c], a, b)
+
+
+def test_two_pybullet_data_installs_never_share_a_scaled_urdf(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A scaled URDF names its meshes by absolute path: one written by another install (another
+    virtualenv, since removed) must not be read by this one."""
+    model = next(m for m in MODELS.values() if m.urdf.startswith("random_urdfs/"))
+    cache = tmp_path / "cache"
+    mine = scaled_urdf(model, cache)
+    other = tmp_path / "other-install"
+    folder = Path(model.urdf).parent
+    shutil.copytree(Path(pybullet_data.getDataPath()) / folder, other / folder)
+    monkeypatch.setattr(goal_objects.pybullet_data, "getDataPath", lambda: str(other))
+    theirs = scaled_urdf(model, cache)
+    assert theirs != mine
+    assert str(other) in theirs.read_text() and str(other) not in mine.read_text()

@@ -126,7 +126,10 @@ def scaled_urdf(model: ObjectModel, folder: Path | None = None) -> Path:
     source = Path(pybullet_data.getDataPath()) / model.urdf
     folder = folder or Path(tempfile.gettempdir()) / "multion-goal-objects"
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{source.stem}-{scale:.6f}.urdf"
+    # file names inside are absolute: each pybullet_data install gets its own copy, so a cache
+    # written by another install (another virtualenv) is never read
+    install = zlib.crc32(str(source.parent).encode())
+    path = folder / f"{source.stem}-{scale:.6f}-{install:08x}.urdf"
     if path.is_file():
         return path
     tree = ElementTree.parse(source)
