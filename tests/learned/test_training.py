@@ -248,7 +248,8 @@ def test_resume_drops_the_updates_logged_after_the_checkpoint(
     assert [(int(r["update"]), int(r["frames"])) for r in rows] == [(1, 64), (2, 128)]
     evals = list(csv.DictReader((run / "eval.csv").open()))
     assert all(int(r["update"]) <= 1 for r in evals)
-    assert not list(run.glob("*.partial"))
+    assert sorted(p.name for p in run.glob("*.csv")) == ["eval.csv", "progress.csv"]
+    assert not [p for p in run.iterdir() if p.name.startswith(".")]  # no temporary left
 
 
 def test_a_corrupt_checkpoint_is_refused_with_its_path(tmp_path: Path) -> None:

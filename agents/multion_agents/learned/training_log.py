@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from pathlib import Path
 from typing import Any
+
+from multion_agents.files import replacing
 
 CURVE_METRICS = ("success", "progress", "spl", "ppl")
 
@@ -51,8 +52,8 @@ class TrainingLog:
     def rewind(self, update: int) -> None:
         """Drop the rows of ``progress.csv`` and ``eval.csv`` logged after ``update``: a run
         interrupted past its last checkpoint logged updates that its resumption makes again.
-        Each file is replaced whole (written beside it, then renamed), so none is left half
-        written."""
+        Each file is replaced whole (:func:`multion_agents.files.replacing`), so none is left
+        half written."""
         for name in ("progress", "eval"):
             path = self.out / f"{name}.csv"
             if not path.exists():
@@ -67,12 +68,10 @@ class TrainingLog:
             kept = [row for row in rows if not _float(row[column]) > update]
             if len(kept) == len(rows):
                 continue
-            partial = path.with_name(f"{path.name}.partial")
-            with partial.open("w", newline="") as handle:
+            with replacing(path) as temporary, temporary.open("w", newline="") as handle:
                 writer = csv.writer(handle)
                 writer.writerow(header)
                 writer.writerows(kept)
-            os.replace(partial, path)
 
     def close(self) -> None:
         if self.writer is not None:

@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from multion_agents.report.files import replacing, write_atomically
+from multion_agents.files import replacing, write_atomically
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.tables import (

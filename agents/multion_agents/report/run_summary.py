@@ -27,7 +27,7 @@ import numpy as np
 
 from multion.task.dataset import task_name
 from multion_agents.evaluate import EpisodeRecord, EvalResult
-from multion_agents.report.files import write_atomically
+from multion_agents.files import write_atomically
 from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap
 
 
