@@ -123,12 +123,13 @@ def scaled_urdf(model: ObjectModel, folder: Path | None = None) -> Path:
     ``model.size`` (origins, mesh scales, boxes, cylinders, spheres) and file names made
     absolute; written once, atomically, to a cache folder."""
     scale = model.size / native_size(model.urdf, model.upright)
-    source = Path(pybullet_data.getDataPath()) / model.urdf
+    data = Path(pybullet_data.getDataPath())
+    source = data / model.urdf
     folder = folder or Path(tempfile.gettempdir()) / "multion-goal-objects"
     folder.mkdir(parents=True, exist_ok=True)
     # file names inside are absolute: each pybullet_data install gets its own copy, so a cache
     # written by another install (another virtualenv) is never read
-    install = zlib.crc32(str(source.parent).encode())
+    install = zlib.crc32(str(data).encode())
     path = folder / f"{source.stem}-{scale:.6f}-{install:08x}.urdf"
     if path.is_file():
         return path
