@@ -34,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from multion_agents.agent import AgentError
     from multion_agents.cli_fields import from_options
     from multion_agents.eval_settings import EvalSettings
+    from multion_agents.files import output_directory_problem
     from multion_agents.registry import agent_class
     from multion_client.errors import MultiONError, ServerUnavailable
 
@@ -45,6 +46,9 @@ def run(args: argparse.Namespace) -> int:
         if args.checkpoint is None and _is_learned(args.agent):
             return _fail(f"{args.agent!r} is a learned agent: give its --checkpoint")
         return _fail(str(error))
+
+    if args.out is not None and (problem := output_directory_problem(args.out)) is not None:
+        return _fail(f"--out {args.out}: {problem}")
 
     from multion_agents.evaluate import evaluate
     from multion_agents.report.run_summary import format_table, summarize, title_of, write_report

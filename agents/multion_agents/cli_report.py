@@ -20,6 +20,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from multion_agents.files import output_directory_problem
 from multion_agents.report.document import DocumentError, Layout, write_report
 from multion_agents.report.paper import paper_results
 from multion_agents.report.runs import RunError, load_runs
@@ -52,8 +53,8 @@ def run(args: argparse.Namespace) -> int:
             "the figures need matplotlib: pip install 'multion-pybullet[report]' (scripts/setup.sh does), "
             "or pass --no-figures for the tables alone"
         )
-    if args.out.exists() and not args.out.is_dir():
-        return _fail(f"--out {args.out}: exists and is not a directory")
+    if (problem := output_directory_problem(args.out)) is not None:
+        return _fail(f"--out {args.out}: {problem}")
     try:
         runs = load_runs(args.runs)
     except RunError as error:

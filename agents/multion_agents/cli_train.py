@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,6 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from multion_agents.cli_fields import from_options
+    from multion_agents.files import output_directory_problem
     from multion_agents.learned.checkpoint import CheckpointError
     from multion_agents.learned.models import MODELS
     from multion_agents.learned.ppo import train
@@ -42,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(error))
     if settings.agent not in MODELS:
         return _fail(f"unknown learned agent {settings.agent!r}; known: {', '.join(MODELS)}")
+    if (problem := output_directory_problem(Path(settings.out))) is not None:
+        return _fail(f"--out {settings.out}: {problem}")
     try:
         summary = train(settings)
     except (CheckpointError, ValueError) as error:
