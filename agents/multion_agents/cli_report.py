@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     except RunError as error:
         return _fail(str(error))
     command = "multion report " + shlex.join(
-        [*map(str, args.runs), "--out", str(args.out)]
+        [*map(_as_typed, args.runs), "--out", _as_typed(args.out)]
         + (["--doc", args.doc] if args.doc else [])
         + (["--no-figures"] if args.no_figures else [])
     )
@@ -71,6 +71,14 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(error))
     print(f"{len(runs)} runs → {layout.markdown} (+ {len(written) - 1} files in {layout.assets})")
     return 0
+
+
+def _as_typed(path: Path) -> str:
+    """``path`` relative to the working directory where it lies under it: the command recorded in
+    a report is one to run again from there, and names no directory of this machine."""
+    absolute = path.resolve()
+    cwd = Path.cwd().resolve()
+    return str(absolute.relative_to(cwd)) if absolute.is_relative_to(cwd) else str(path)
 
 
 def has_matplotlib() -> bool:

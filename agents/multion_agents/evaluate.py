@@ -366,7 +366,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     played = dataset_file(settings)
     header = read_header(played)
     server["dataset"] = {
-        "path": str(played),
+        "path": str(played) if settings.dataset else f"packaged:{played.parent.name}/{played.name}",
         "version": header.get("version"),
         "scene_generator_version": header.get("scene_generator_version"),
         "num_distractors": header.get("num_distractors", 0),

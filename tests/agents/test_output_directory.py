@@ -56,3 +56,15 @@ def test_report_refuses_the_out_directory(
     args = parser.parse_args([str(tmp_path), "--out", str(link / "report"), "--no-figures"])
     assert cli_report.run(args) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_metrics_json_names_a_packaged_dataset_without_this_machines_path(tmp_path: Path) -> None:
+    import json
+
+    parser = argparse.ArgumentParser()
+    cli_eval.add_arguments(parser)
+    argv = ["--agent", "random", "--task", "1-on", "--episodes", "1", "--in-process"]
+    args = parser.parse_args([*argv, "--max-steps", "3", "--quiet", "--out", str(tmp_path / "o")])
+    assert cli_eval.run(args) == 0
+    run = json.loads((tmp_path / "o" / "metrics.json").read_text())["run"]
+    assert run["server"]["dataset"]["path"] == "packaged:1-on/val.json.gz"
