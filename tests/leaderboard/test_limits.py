@@ -11,7 +11,10 @@ from pathlib import Path
 import pytest
 from in_process import InProcessServer
 
+from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.clock import ManualClock
+from multion.leaderboard.replay import rescore
+from multion.leaderboard.storage import Database
 from multion_client import errors
 from multion_client.client import Client
 from multion_client.run import RunEnv
@@ -55,8 +58,17 @@ def test_a_late_action_finds_its_episode_scored_as_it_stood(
     env.abandon()
 
 
+def _replayed_differences(database: str, challenge: Challenge, run_id: str) -> list[int]:
+    db = Database.open(database)
+    try:
+        with db.sessions() as session:
+            return list(rescore(session, challenge, run_id, write=False)["differences"])
+    finally:
+        db.close()
+
+
 def test_a_silent_client_loses_its_run(
-    hasty: InProcessServer, new_team: Callable[[str], str]
+    hasty: InProcessServer, new_team: Callable[[str], str], database: str, challenge: Challenge
 ) -> None:
     client = Client(hasty.url, token=new_team("silent"))
     info = client.create_run(CreateRun("1-on", "minival", "silent", ["goal"]))
@@ -74,6 +86,9 @@ def test_a_silent_client_loses_its_run(
     assert status.results["success"]["mean"] == 0.0
     with pytest.raises(errors.RunOver):
         client.start_episode(info.run_id, 1)
+    # a sound run replays clean: the episode that expired before it was started is stored
+    # as a placeholder, and a replay regenerates the same placeholder (issue 42)
+    assert _replayed_differences(database, challenge, info.run_id) == []
 
 
 def test_a_run_the_server_broke_is_refunded(

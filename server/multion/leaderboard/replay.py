@@ -14,7 +14,7 @@ from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.models import EpisodeRecord, Run
-from multion.leaderboard.results import summarize
+from multion.leaderboard.results import missed_metrics, summarize
 from multion.leaderboard.storage import StorageError
 from multion.task.env import MultiONEnv
 
@@ -37,7 +37,10 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
     """Each played episode of ``run`` replayed from its stored actions, in run order.
 
     An episode that ended by a timeout or an abandon keeps that end reason (the replay ends
-    where the actions end); missed episodes (no actions) are compared as stored.
+    where the actions end); missed episodes (no actions) are compared as stored. An episode
+    that expired before its client started it was stored as the server's placeholder
+    (:func:`~multion.leaderboard.results.missed_metrics`): its replay is that placeholder again,
+    since resetting the episode would give metrics the run never had.
     """
     track = challenge.track(run.track)
     phase = track.phase(run.phase) if track is not None else None
@@ -54,6 +57,10 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
         for record in run.episodes:
             if record.end_reason == "not_played":
                 yield ReplayedEpisode(record.position, record.metrics, record.metrics)
+                continue
+            placeholder = missed_metrics(track.num_goals, record.end_reason)
+            if not record.actions and record.metrics == placeholder:  # never started
+                yield ReplayedEpisode(record.position, record.metrics, placeholder)
                 continue
             episode = hidden.episode(track, phase, draw, record.position)
             if ids[record.position] != record.episode_id:
