@@ -54,3 +54,30 @@ def test_unsound_houses_are_refused(
     out = capsys.readouterr().out
     assert "error: 1 problem in the hidden houses or episodes" in out
     assert "exceeds the footprint" in out
+
+
+def test_long_track_names_keep_the_columns_in_line(
+    small_houses: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from multion.leaderboard.challenge_file import load_challenge
+
+    challenge = load_challenge(small_houses)
+    long_name = "5-on-cylinders-with-distractors-2026"
+    track = dataclasses.replace(challenge.tracks[0], name=long_name)
+    renamed = write_challenge(dataclasses.replace(challenge, tracks=(track,)), small_houses)
+    assert main(["leaderboard", "check", "--challenge", str(renamed), "--generate"]) == 0
+    out = capsys.readouterr().out
+    assert "in 1 hidden house\n" in out  # not "1 hidden houses"
+    start = next(k for k, line in enumerate(out.splitlines()) if line.startswith("houses of"))
+    table = out.splitlines()[start : start + 3]  # the header, val's row, the track's row
+    assert table[2].startswith(f"{long_name}/minival ")
+    # every column ends where its title ends: the lines are equally long, numbers right-aligned
+    assert len({len(line) for line in table}) == 1, table
+    for title in ("count", "rooms", "mean", "nav %"):
+        end = table[0].index(title) + len(title)
+        assert all(
+            line[end - 1] != " " and line[end : end + 1] in ("", " ") for line in table[1:]
+        ), (
+            title,
+            table,
+        )

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 from multion.leaderboard.challenge import ChallengeError
 from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
-from multion.leaderboard.house_stats import HEADER, house_stats, val_stats
+from multion.leaderboard.house_stats import house_stats, stats_table, val_stats
 from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.replay import rescore
 from multion.leaderboard.storage import (
@@ -181,7 +181,7 @@ def _generate(challenge: Challenge) -> int:
     """Build every phase's hidden houses and episodes; their statistics beside val's. Refuses
     (exit status 1) a challenge whose houses or episodes are unsound (issue 33)."""
     hidden = HiddenEpisodes(challenge, in_subprocess=False)
-    rows = [val_stats().row("packaged val (calibrated)")]
+    rows = [("packaged val (calibrated)", val_stats())]
     problems: list[str] = []
     for track in challenge.tracks:
         for phase in track.phases:
@@ -194,12 +194,11 @@ def _generate(challenge: Challenge) -> int:
                 count = min(phase.episodes, 10)
                 episodes = [hidden.episode(track, phase, probe, k) for k in range(count)]
                 what = f"{count} of a probe run's {phase.episodes} fresh episodes drawn"
-            print(f"  {track.name}/{phase.name}: {what} in {len(houses)} hidden houses")
+            print(f"  {track.name}/{phase.name}: {what} in {counted(len(houses), 'hidden house')}")
             stats = house_stats(houses)
-            rows.append(stats.row(f"{track.name}/{phase.name}"))
+            rows.append((f"{track.name}/{phase.name}", stats))
             problems += list(stats.problems) + _episode_problems(episodes)
-    print(HEADER)
-    print("\n".join(rows))
+    print("\n".join(stats_table(rows)))
     if problems:
         print(f"error: {counted(len(problems), 'problem')} in the hidden houses or episodes:")
         print("\n".join(f"  {p}" for p in problems[:20]))
@@ -239,7 +238,7 @@ def _tracks(args: argparse.Namespace) -> int:
             if p.sealed_until is not None and p.sealed_until <= now:
                 sealed += " (passed: results shown to everyone)"
             print(
-                f"  {p.name}: {p.episodes} episodes in {p.houses} houses, feedback {p.feedback}, {quota}{sealed}"
+                f"  {p.name}: {counted(p.episodes, 'episode')} in {counted(p.houses, 'house')}, feedback {p.feedback}, {quota}{sealed}"
             )
     return 0
 
@@ -329,10 +328,17 @@ def shown_rows(
 ) -> list[dict[str, Any]]:
     """The rows of the runs the leaderboard page shows now, in its order: the page's own query
     (:func:`~multion.leaderboard.web.queries.leaderboards`), so sealed phases before their
-    date and runs that played nothing are left out here too."""
+    date and runs that played nothing are left out here too. Each row starts with the page's
+    ``rank`` and ``overlaps_leader`` (its 95% interval of the ranking metric overlaps the
+    leader's; marked, as on the page, on the rows ranked below 1)."""
     by_id = {row["run_id"]: row for row in rows}
     boards = leaderboards(session, challenge, utcnow())
-    return [by_id[r.run_id] for board in boards for r in board.rows if r.run_id in by_id]
+    return [
+        {"rank": r.rank, "overlaps_leader": r.tied_with_leader and r.rank > 1, **by_id[r.run_id]}
+        for board in boards
+        for r in board.rows
+        if r.run_id in by_id
+    ]
 
 
 def _runs(args: argparse.Namespace) -> int:
@@ -351,6 +357,8 @@ def _runs(args: argparse.Namespace) -> int:
         )
         mark = " [baseline]" if r["baseline"] else ""
         reason = f" ({r['end_reason']})" if r["end_reason"] else ""
+        if r["refunded"]:  # the server's fault: the run does not count against the quota
+            reason += ", refunded"
         print(
             f"{r['run_id']}  {r['team']}{mark}  {r['track']}/{r['phase']}  {r['method']}  {r['state']}{reason}  {score}"
         )

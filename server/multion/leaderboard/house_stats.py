@@ -31,15 +31,29 @@ class HouseStats:
     problems: tuple[str, ...] = ()
     """Unsound houses (:mod:`multion.sim.house_check`): "house: what is wrong"."""
 
-    def row(self, name: str) -> str:
+    def row(self, name: str, name_width: int = 28) -> str:
         r, f = self.rooms, self.footprint_m2
+        rooms = f"{r[0]}–{r[1]}"
+        footprint = f"{f[2]:.0f} ({f[0]:.0f}–{f[1]:.0f})"
         return (
-            f"{name:<28}{self.houses:>7}{r[0]:>6}–{r[1]:<3}{r[2]:>6.1f}"
-            f"{f[2]:>8.0f} ({f[0]:.0f}–{f[1]:.0f}){100 * self.navigable:>9.1f}"
+            f"{name:<{name_width}}{self.houses:>7}{rooms:>10}{r[2]:>6.1f}{footprint:>20}"
+            f"{100 * self.navigable:>9.1f}"
         )
 
 
-HEADER = f"{'houses of':<28}{'count':>7}{'rooms':>10}{'mean':>6}{'m² mean (range)':>20}{'nav %':>9}"
+def header(name_width: int = 28) -> str:
+    """The column titles over :meth:`HouseStats.row`'s columns."""
+    return (
+        f"{'houses of':<{name_width}}{'count':>7}{'rooms':>10}{'mean':>6}"
+        f"{'m² mean (range)':>20}{'nav %':>9}"
+    )
+
+
+def stats_table(rows: Sequence[tuple[str, HouseStats]]) -> list[str]:
+    """The header and one line per (name, stats), the name column as wide as the longest name
+    (a long track or phase name must not push its numbers out of their columns)."""
+    width = max([28, *(len(name) + 2 for name, _ in rows)])
+    return [header(width), *(stats.row(name, width) for name, stats in rows)]
 
 
 def house_stats(houses: Sequence[str]) -> HouseStats:
