@@ -156,15 +156,26 @@ def test_daily_quota_counts_the_last_24_hours_and_skips_refunds(
     for run_id in ("today-1", "today-2"):
         with db.sessions.begin() as session:
             run = _run(team.id, run_id, [0])
-            run.phase = "minival"
+            run.phase, run.created_at = "minival", now
             create_run(session, run, track, phase, now)
     with (
         db.sessions.begin() as session,
-        pytest.raises(errors.QuotaExceeded, match="daily quota is 2"),
+        pytest.raises(errors.QuotaExceeded, match="daily quota is 2") as refused,
     ):
         run = _run(team.id, "today-3", [0])
         run.phase = "minival"
         create_run(session, run, track, phase, now)
+    # the answer says when the next run is allowed: when today-1 is a day old
+    later = now + dt.timedelta(hours=3)
+    reopens = f"{now + dt.timedelta(days=1):%Y-%m-%d %H:%M:%S} UTC (in 24 h 0 min)"
+    assert f"the next run is allowed from {reopens}" in str(refused.value)
+    with (
+        db.sessions.begin() as session,
+        pytest.raises(errors.QuotaExceeded, match="in 21 h 0 min"),
+    ):
+        run = _run(team.id, "later", [0])
+        run.phase = "minival"
+        create_run(session, run, track, phase, later)
 
 
 def test_sealed_results_open_at_their_date(challenge: Challenge) -> None:

@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.results import missed_metrics, summarize
-from multion.leaderboard.storage import runs_counted
+from multion.leaderboard.storage import daily_quota_reopens, runs_counted
 from multion_client import errors
 from multion_client.run_protocol import RunStatus
 
@@ -149,18 +149,31 @@ def create_run(
             session, run.team_id, track.name, phase.name, now - dt.timedelta(days=1)
         )
         if used >= phase.daily_quota:
+            reopens = daily_quota_reopens(
+                session, run.team_id, track.name, phase.name, now, phase.daily_quota
+            )
             raise errors.QuotaExceeded(
                 f"{track.name}/{phase.name}: {used} runs in the last 24 hours, the daily quota is "
-                f"{phase.daily_quota}; abandoned runs count, runs the server broke are refunded"
+                f"{phase.daily_quota}; the next run is allowed from {reopens:%Y-%m-%d %H:%M:%S} "
+                f"UTC (in {_duration(reopens - now)}); abandoned runs count, runs the server "
+                "broke are refunded"
             )
     if check_quota and phase.total_quota is not None:
         used = runs_counted(session, run.team_id, track.name, phase.name, None)
         if used >= phase.total_quota:
             raise errors.QuotaExceeded(
                 f"{track.name}/{phase.name}: {used} runs, the phase's total quota is "
-                f"{phase.total_quota}"
+                f"{phase.total_quota}: no further run of this phase is allowed (runs the server "
+                "broke are refunded)"
             )
     session.add(run)
+
+
+def _duration(span: dt.timedelta) -> str:
+    """A wait as "5 h 3 min" (minutes rounded up: never earlier than the time stated)."""
+    minutes = max(1, -(-int(span.total_seconds()) // 60))
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes} min" if hours else f"{minutes} min"
 
 
 def save_state(

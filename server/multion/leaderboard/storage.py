@@ -259,3 +259,20 @@ def runs_counted(
     if since is not None:
         query = query.where(Run.created_at >= since)
     return int(session.scalar(query) or 0)
+
+
+def daily_quota_reopens(
+    session: Session, team_id: int, track: str, phase: str, now: dt.datetime, quota: int
+) -> dt.datetime:
+    """When a team that has used its daily ``quota`` may start a run again: once enough of
+    its counted runs of the last 24 hours are more than 24 hours old."""
+    day = dt.timedelta(days=1)
+    created = session.scalars(
+        select(Run.created_at)
+        .where(Run.team_id == team_id, Run.track == track, Run.phase == phase)
+        .where(Run.refunded.is_(False), Run.created_at >= now - day)
+        .order_by(Run.created_at)
+    ).all()
+    # with n >= quota runs in the window, the (n - quota + 1)-th oldest must leave it
+    return created[len(created) - quota] + day
+
