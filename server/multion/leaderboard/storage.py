@@ -275,4 +275,3 @@ def daily_quota_reopens(
     ).all()
     # with n >= quota runs in the window, the (n - quota + 1)-th oldest must leave it
     return created[len(created) - quota] + day
-
