@@ -3,9 +3,12 @@ commands show of given runs (ranks, refunds, runs that played nothing)."""
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import secrets
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from multion.leaderboard.models import Run, Team
@@ -66,3 +69,21 @@ def store_runs(url: str, runs: list[StoredRun], primary: str = "ppl") -> list[st
     finally:
         db.close()
     return ids
+
+
+@contextlib.contextmanager
+def pages_client(challenge: Path, url: str) -> Iterator[Any]:
+    """The leaderboard app in-process (FastAPI's TestClient), pictures and warm-up off."""
+    from fastapi.testclient import TestClient
+
+    from multion.api.app import create_app
+    from multion.api.settings import ServerSettings
+    from multion.leaderboard.app import LeaderboardExtension
+    from multion.leaderboard.settings import LeaderboardSettings
+
+    settings = LeaderboardSettings(
+        challenge=challenge, database=url, warm_up=False, draw_pictures=False
+    )
+    app = create_app(ServerSettings(workers=1), [LeaderboardExtension(settings)])
+    with TestClient(app) as client:
+        yield client

@@ -46,9 +46,9 @@ def test_time_ticks_are_few_enough_to_stay_apart_and_dots_stay_off_the_axes():
     assert "2026-11-25" in svg  # the date on its own line, under the first time
     axis_x = 52
     bottom = 12 + 200
-    for cx, cy in re.findall(
-        r'<circle cx="([\d.]+)" cy="([\d.]+)" r="3.5"[^>]*class="run-dot"', svg
-    ):
+    dots = re.findall(r'<circle cx="([\d.]+)" cy="([\d.]+)" r="4.5"[^>]*class="run-dot"', svg)
+    assert len(dots) == len(runs)
+    for cx, cy in dots:
         assert float(cx) > axis_x + 3.5 and float(cy) < bottom - 3.5
 
 

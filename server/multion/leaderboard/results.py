@@ -57,6 +57,14 @@ def competition_ranks(scores: Sequence[float]) -> list[int]:
     return ranks
 
 
+def played_to_end(summary: dict[str, Any]) -> int:
+    """Episodes of a run (its ``summary``) played to their end: not those missed or cut short
+    because the run ended. A run with none is no leaderboard entry and has no score to draw."""
+    reasons = summary.get("end_reasons") or {}
+    cut = int(reasons.get("not_played") or 0) + int(reasons.get("abandoned") or 0)
+    return int(summary.get("episodes") or 0) - cut
+
+
 def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
     """The record of an episode that was not played (a run that ended early): a failure."""
     return {

@@ -1,8 +1,9 @@
 """A team's best score over time, drawn on the server as an inline SVG (no script, no request).
 
 One chart per track: a dot per run that has a score (filled: finished, hollow: ended early, its
-missing episodes counted as failures) and a step line per phase, the best score so far (per
-phase and method for the organisers' baselines, which are ranked per method). Round ticks on
+missing episodes counted as failures; a run that played no episode to its end has none) and a step line per phase, the best score so far (per
+phase and method for the organisers' baselines, which are ranked per method); each series has
+its own colour, and its own marker and dash pattern (:func:`series_style`). Round ticks on
 the score axis, UTC times on the time axis (the date under the time), the legend below the plot.
 The chart is drawn 560 units wide and shown 360–640 px wide: text and the number of time ticks
 are sized so that labels stay apart and readable on a phone (see ``PHONE_TEXT``).
@@ -28,7 +29,17 @@ PHONE_TEXT = 17
 shrunk to a phone's width. Tick labels are spaced for it."""
 CHAR_WIDTH = 0.6
 """Width of a character of the system sans-serif fonts, in ems (digits; generous)."""
-PHASE_COLOURS = ("#1f6fb2", "#d9731a", "#2a9d55", "#8e44ad", "#c0392b")
+SERIES_COLOURS = (
+    "#0072b2", "#d55e00", "#009e73", "#cc79a7", "#e69f00", "#56b4e9", "#1d2329", "#8c564b",
+)  # fmt: skip
+"""Eight colours told apart also with the common colour-vision deficiencies (Okabe and Ito's
+palette, its yellow swapped for brown and black softened; all readable on white)."""
+MARKERS = ("circle", "square", "triangle", "diamond")
+DASHES = ("", "7 4", "2 3")
+"""Line patterns: with the marker, a series' shape (the first twelve are all different), for
+readers who cannot tell the colours apart."""
+DOT = 4.5
+"""Marker radius (units): about 3 px on a phone."""
 SCORE_STEPS = (1, 2, 5, 10, 20, 25)
 """Percent between score ticks: the smallest giving at most 5 intervals."""
 TIME_STEPS = tuple(
@@ -97,6 +108,36 @@ def _series(run: TeamRun) -> tuple[str, str]:
     """Which best-so-far line a run belongs to: its phase, and its method for a baseline (the
     baselines team plays several methods, each ranked on its own)."""
     return (run.phase, run.method if run.baseline else "")
+
+
+def series_style(index: int) -> tuple[str, str, str]:
+    """(colour, marker, dash pattern) of the ``index``-th series: eight colours, and the
+    marker and dash together distinct for the first twelve series."""
+    return (
+        SERIES_COLOURS[index % len(SERIES_COLOURS)],
+        MARKERS[index % len(MARKERS)],
+        DASHES[(index // len(MARKERS)) % len(DASHES)],
+    )
+
+
+def marker(shape: str, x: float, y: float, fill: str, stroke: str, attributes: str = "") -> str:
+    """A run's dot of ``shape`` centred on (x, y); ``attributes`` are added to the element (a
+    class) and the element is left open for a ``<title>``: close it with ``</circle>`` or
+    ``</path>`` as :func:`marker_end` says."""
+    paint = f'fill="{fill}" stroke="{stroke}" stroke-width="1.5"{attributes}'
+    if shape == "circle":
+        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{DOT}" {paint}>'
+    r = DOT
+    outline = {
+        "square": f"M{-0.9 * r:.2f},{-0.9 * r:.2f}h{1.8 * r:.2f}v{1.8 * r:.2f}h{-1.8 * r:.2f}z",
+        "triangle": f"M0,{-1.2 * r:.2f}L{1.1 * r:.2f},{0.8 * r:.2f}H{-1.1 * r:.2f}z",
+        "diamond": f"M0,{-1.25 * r:.2f}L{1.25 * r:.2f},0L0,{1.25 * r:.2f}L{-1.25 * r:.2f},0z",
+    }[shape]
+    return f'<path transform="translate({x:.1f} {y:.1f})" d="{outline}" {paint}>'
+
+
+def marker_end(shape: str) -> str:
+    return "</circle>" if shape == "circle" else "</path>"
 
 
 def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
@@ -168,7 +209,8 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
     legend_y = bottom + AXIS + LEGEND_ROW - 4
     for index, key in enumerate(series):
         phase, method = key
-        colour = PHASE_COLOURS[index % len(PHASE_COLOURS)]
+        colour, shape, dash = series_style(index)
+        pattern = f' stroke-dasharray="{dash}"' if dash else ""
         points: list[tuple[float, float]] = []
         best = -1.0
         for run in (r for r in scored if _series(r) == key):
@@ -176,9 +218,9 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
             px, value = x(_when(run)), run.primary.mean
             fill = colour if run.state == "finished" else "#fff"
             parts.append(
-                f'<circle cx="{px:.1f}" cy="{y(value):.1f}" r="3.5" fill="{fill}" stroke="{colour}" '
-                f'stroke-width="1.5" class="run-dot"><title>{escape(run.method)} ({run.state}, '
-                f"{_when(run):%Y-%m-%d %H:%M} UTC): {100 * value:.1f}%</title></circle>"
+                marker(shape, px, y(value), fill, colour, f' class="run-dot" data-series="{index}"')
+                + f"<title>{escape(run.method)} ({run.state}, {_when(run):%Y-%m-%d %H:%M} UTC): "
+                f"{100 * value:.1f}%</title>{marker_end(shape)}"
             )
             if value > best:
                 if points:
@@ -188,25 +230,28 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
         points.append((WIDTH - RIGHT - PAD, points[-1][1]))
         path = " ".join(f"{px:.1f},{py:.1f}" for px, py in points)
         parts.append(
-            f'<polyline points="{path}" fill="none" stroke="{colour}" stroke-width="2" '
-            'class="best-line"/>'
+            f'<polyline points="{path}" fill="none" stroke="{colour}" stroke-width="2"{pattern} '
+            f'class="best-line" data-series="{index}"/>'
         )
         ly = legend_y + LEGEND_ROW * index
         name = f"{phase} · {method}" if method else phase
         parts.append(
-            f'<line x1="{KEY_X}" y1="{ly - 5}" x2="{KEY_X + 22}" y2="{ly - 5}" stroke="{colour}" stroke-width="2"/>'
-            f'<circle cx="{KEY_X + 11}" cy="{ly - 5}" r="3.5" fill="{colour}"/>'
-            f'<text x="{KEY_X + 30}" y="{ly}" class="legend">{escape(name)}</text>'
+            f'<g class="key" data-series="{index}"><line x1="{KEY_X}" y1="{ly - 5}" '
+            f'x2="{KEY_X + 26}" y2="{ly - 5}" stroke="{colour}" stroke-width="2"{pattern}/>'
+            + marker(shape, KEY_X + 13, ly - 5, colour, colour)
+            + marker_end(shape)
+            + f'<text x="{KEY_X + 34}" y="{ly}" class="legend">{escape(name)}</text></g>'
         )
     ly = legend_y + LEGEND_ROW * len(series)
     parts.append(
-        f'<text x="{KEY_X + 30}" y="{ly}" class="legend">best {escape(metric_label)} so far '
+        f'<text x="{KEY_X + 34}" y="{ly}" class="legend">best {escape(metric_label)} so far '
         "(line), each run (dot)</text>"
     )
     ly += LEGEND_ROW
     parts.append(
-        f'<circle cx="{KEY_X + 11}" cy="{ly - 5}" r="3.5" fill="#fff" stroke="#5d6873" stroke-width="1.5"/>'
-        f'<text x="{KEY_X + 30}" y="{ly}" class="legend">hollow: ended early (missed episodes '
+        marker("circle", KEY_X + 13, ly - 5, "#fff", "#5d6873")
+        + marker_end("circle")
+        + f'<text x="{KEY_X + 34}" y="{ly}" class="legend">hollow: ended early (missed episodes '
         "failed)</text>"
     )
     parts.append("</svg>")

@@ -27,6 +27,7 @@ from multion.leaderboard.results import (
     competition_ranks,
     entrant,
     keep_best,
+    played_to_end,
 )
 from multion.leaderboard.results import estimate as bootstrap
 from multion.stats import Estimate
@@ -284,7 +285,8 @@ class TeamRun:
     created_at: dt.datetime
     finished_at: dt.datetime | None
     primary: Estimate | None
-    """The track's ranking metric, if its phase shows results now."""
+    """The track's ranking metric, if its phase shows results now and the run played an
+    episode to its end."""
 
 
 def team_runs(
@@ -314,9 +316,10 @@ def team_runs(
     for row in session.execute(query):
         track = challenge.track(row.track)
         phase = track.phase(row.phase) if track is not None else None
+        # the leaderboard's rule: a run that played no episode to its end has no score
         shown = (
             phase is not None and phase.results_visible(now) and row.summary is not None
-            and not row.refunded
+            and not row.refunded and played_to_end(row.summary) > 0
         )  # fmt: skip
         runs.append(
             TeamRun(
