@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import secrets
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,7 @@ class StoredRun:
 
     team: str
     method: str
-    values: list[float | None]
+    values: Sequence[float | None]
     track: str = "1-on"
     phase: str = "minival"
     state: str = "finished"
