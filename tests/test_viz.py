@@ -4,9 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from PIL import ImageDraw
 
 from multion.scenes.room import make_room
-from multion.viz import BLOCKED, NAVIGABLE, picture_frame, scene_picture, world_to_pixel
+from multion.viz import (
+    BLOCKED,
+    FOOTER_MARGIN,
+    NAVIGABLE,
+    TEXT,
+    label_font,
+    picture_frame,
+    scene_picture,
+    world_to_pixel,
+)
 
 
 def colour_count(image, rgb) -> int:
@@ -17,10 +27,31 @@ def test_picture_size_and_both_light_and_dark_cells():
     nav = np.zeros((80, 120), bool)  # 4 m high, 6 m wide at 0.05 m cells
     nav[20:60, 20:100] = True
     image = scene_picture(None, nav, origin=(0.0, 0.0), cell_size=0.05, pixels_per_metre=40)
-    assert image.size == (240, 160)
+    assert image.width == 240 and 160 < image.height < 220  # the plan, then the scale bar
+    plan = image.crop((0, 0, 240, 160))
     assert image.mode == "RGB"
-    assert colour_count(image, NAVIGABLE) > 0.25 * 240 * 160
-    assert colour_count(image, BLOCKED) > 0.25 * 240 * 160
+    assert colour_count(plan, NAVIGABLE) + colour_count(plan, BLOCKED) == 240 * 160
+    assert colour_count(plan, NAVIGABLE) == 40 * 80 * 4
+
+
+def test_the_scale_bar_and_id_are_drawn_outside_the_plan_and_whole():
+    """Issue 42: they were drawn over the house, and a narrow house cut its id short."""
+    layout = make_room(1.5, 4, scene_id="hidden-0123456789abcdef-house-17")
+    nav = np.ones((85, 35), bool)  # x from -0.1 to 1.65, y from -0.1 to 4.15
+    image = scene_picture(layout, nav, (-0.1, -0.1), 0.05, 40)
+    frame = picture_frame(nav, (-0.1, -0.1), 0.05, 40)
+    plan_width, plan_height = frame.image_size
+    plan = np.asarray(image)[:plan_height, :plan_width]
+    white, text = (plan == (255, 255, 255)).all(-1), (plan == TEXT).all(-1)
+    assert not white.any() and not text.any()  # no label patch, no text on the plan
+    footer = np.asarray(image)[plan_height:]
+    inked = np.nonzero((footer == TEXT).all(-1).any(0))[0]
+    assert inked.size and inked.min() >= FOOTER_MARGIN - 1
+    assert inked.max() <= image.width - FOOTER_MARGIN  # nothing cut at the right edge
+    font = label_font(frame)
+    probe = ImageDraw.Draw(image)
+    left, _, right, _ = probe.textbbox((0, 0), layout.scene_id, font=font)
+    assert image.width >= right - left + 2 * FOOTER_MARGIN > plan_width  # widened for the id
 
 
 def test_high_y_is_at_the_top_of_the_picture():

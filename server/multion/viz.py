@@ -188,27 +188,39 @@ def place_label(
     return best[1]
 
 
-def _scale_bar(draw: ImageDraw.ImageDraw, frame: PictureFrame, font) -> None:
-    """A 1 m bar in the lower-left corner."""
-    ppm = frame.pixels_per_metre
-    _, height = frame.image_size
-    left, top, right, bottom = draw.textbbox((0, 0), "1 m", font=font)
-    x0, y = 8, height - 10
-    draw.rectangle(
-        [x0 - 3, y - (bottom - top) - 6, x0 + ppm + (right - left) + 10, y + 5],
-        fill=(255, 255, 255),
-    )
-    draw.line([(x0, y), (x0 + ppm, y)], fill=TEXT, width=3)
-    draw.text((x0 + ppm + 5 - left, y - (bottom - top) - top + 2), "1 m", fill=TEXT, font=font)
+FOOTER_MARGIN = 8
+"""Pixels around the footer's scale bar and id."""
 
 
-def _caption(draw: ImageDraw.ImageDraw, frame: PictureFrame, text: str, font) -> None:
-    """``text`` on a white patch in the lower-right corner."""
-    width, height = frame.image_size
-    left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
-    x, y = width - (right - left) - 8, height - (bottom - top) - 8
-    draw.rectangle([x - 3, y - 3, x + right - left + 3, y + bottom - top + 3], fill=(255, 255, 255))
-    draw.text((x - left, y - top), text, fill=TEXT, font=font)
+def _with_footer(
+    plan: Image.Image, frame: PictureFrame, caption: str | None, font: Any
+) -> Image.Image:
+    """``plan`` over a white footer holding a 1 m scale bar and, if given, ``caption`` (the
+    scene id): beside the bar if there is room, else under it, and the picture widened rather
+    than the id cut. The plan keeps its pixels and its place (top left), so
+    :func:`world_to_pixel` still applies to the result."""
+    probe = ImageDraw.Draw(plan)
+    ppm, m = frame.pixels_per_metre, FOOTER_MARGIN
+    left, top, right, bottom = (int(v) for v in probe.textbbox((0, 0), "1 m", font=font))
+    line = bottom - top
+    bar_width = round(ppm) + 5 + (right - left)
+    text_width = 0
+    if caption:
+        c_left, _, c_right, _ = (int(v) for v in probe.textbbox((0, 0), caption, font=font))
+        text_width = c_right - c_left
+    beside = caption is None or m + bar_width + 2 * m + text_width + m <= plan.width
+    width = max(plan.width, m + bar_width + m, m + text_width + m)
+    height = plan.height + m + line + m + (0 if beside else line + m)
+    canvas = Image.new("RGB", (width, height), (255, 255, 255))
+    canvas.paste(plan, (0, 0))
+    draw = ImageDraw.Draw(canvas)
+    y = plan.height + m  # the text line's top
+    draw.line([(m, y + line - 2), (m + ppm, y + line - 2)], fill=TEXT, width=3)
+    draw.text((m + ppm + 5 - left, y - top), "1 m", fill=TEXT, font=font)
+    if caption:
+        x, cy = (width - m - text_width, y) if beside else (m, y + line + m)
+        draw.text((x - c_left, cy - top), caption, fill=TEXT, font=font)
+    return canvas
 
 
 def scene_picture(
@@ -220,11 +232,13 @@ def scene_picture(
     caption: bool = True,
     keep_clear: Sequence[Sequence[float]] = (),
 ) -> Image.Image:
-    """A top-down RGB picture: navigable cells light, the rest darker, the layout drawn on top
-    (with the scene id in a corner if ``caption``).
+    """A top-down RGB picture: navigable cells light, the rest darker, the layout drawn on top;
+    under it, outside the plan, a white footer with a 1 m scale bar and the scene id (if
+    ``caption``).
 
-    The picture is ``round(cols * cell_size * pixels_per_metre)`` pixels wide and
-    ``round(rows * cell_size * pixels_per_metre)`` high.
+    The plan is the picture's top-left ``round(cols * cell_size * pixels_per_metre)`` ×
+    ``round(rows * cell_size * pixels_per_metre)`` pixels (:func:`world_to_pixel`); the
+    footer adds height, and width where the id is wider than the plan.
     """
     grid = np.asarray(navigable, dtype=bool)
     if grid.ndim != 2:
@@ -240,7 +254,5 @@ def scene_picture(
     font = label_font(frame)
     if layout is not None:
         draw_layout(draw, layout, frame, keep_clear)
-        if caption:
-            _caption(draw, frame, layout.scene_id, font)
-    _scale_bar(draw, frame, font)
-    return image
+    scene_id = layout.scene_id if layout is not None and caption else None
+    return _with_footer(image, frame, scene_id, font)
