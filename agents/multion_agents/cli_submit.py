@@ -192,7 +192,8 @@ def play_run(
                 observation, _, terminated, truncated, info = env.step(agent.act(seen))
                 done = terminated or truncated
             bar.update(1)
-            bar.set_postfix(last=info.get("end_reason"))
+            # a sealed or aggregate phase does not say how an episode ended: no "None"
+            bar.set_postfix(last=info.get("end_reason") or "not shown")
     except RunOver:
         pass  # the server ended the run (time budget, timeouts): its status says why
     finally:
