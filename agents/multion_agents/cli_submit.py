@@ -28,7 +28,7 @@ from multion_agents.agent import Agent, AgentError
 from multion_agents.evaluate import EvalSettings, episode_seed, resolve_agent, resolve_config
 from multion_client.client import Client
 from multion_client.errors import MultiONError, RunOver, ServerUnavailable
-from multion_client.run import RunEnv, token_from_env
+from multion_client.run import RunEnv, describe_run, token_from_env
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -75,21 +75,7 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"the server refused: {error}")
     except ValueError as error:
         return _fail(str(error))
-    print(
-        f"run {status.run_id}: {status.state}"
-        + (f" ({status.end_reason})" if status.end_reason else "")
-    )
-    if status.results:
-        primary = status.results.get("primary", "ppl")
-        for name in ("ppl", "progress", "success", "spl"):
-            value = status.results[name]
-            mark = " (ranking)" if name == primary else ""
-            print(
-                f"  {name:<9} {100 * value['mean']:6.1f}%  "
-                f"[{100 * value['low']:.1f}, {100 * value['high']:.1f}]{mark}"
-            )
-    else:
-        print("  results: not shown for this phase (yet)")
+    print(describe_run(status))
     return 0
 
 
@@ -145,8 +131,8 @@ def play_lanes(
 
     from tqdm import tqdm
 
-    total, started = envs[0].num_episodes, sum(env.episodes_started for env in envs)
-    with tqdm(total=total, initial=started, unit="ep", disable=not progress) as bar:
+    total, finished = envs[0].num_episodes, sum(env.episodes_finished for env in envs)
+    with tqdm(total=total, initial=finished, unit="ep", disable=not progress) as bar:
         if len(envs) == 1:
             play_run(envs[0], cls, seed, image_size, bar=bar, config=config)
             return
@@ -179,7 +165,7 @@ def play_run(
     own_bar = bar is None
     if own_bar:
         bar = tqdm(
-            total=env.num_episodes, initial=env.episodes_started, unit="ep", disable=not progress
+            total=env.num_episodes, initial=env.episodes_finished, unit="ep", disable=not progress
         )
     try:
         while not env.run_done:

@@ -36,7 +36,8 @@ import gymnasium as gym
 import numpy as np
 
 from multion_client.client import DEFAULT_TIMEOUT_S, Client
-from multion_client.errors import EpisodeOver, SequenceMismatch
+from multion_client.constants import ACTIONS_TEXT, NUM_ACTIONS, action_id
+from multion_client.errors import EpisodeOver, InvalidAction, SequenceMismatch
 from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunStatus
 
 TOKEN_ENV = "MULTION_TOKEN"
@@ -56,7 +57,8 @@ def token_from_env(token: str | None) -> str:
 class RunEnv(gym.Env[dict[str, np.ndarray], int | np.integer[Any]]):
     """One run of a challenge's (track, phase), created on construction (or resumed).
 
-    Actions are ints or numpy integers (what ``action_space.sample()`` gives).
+    Actions are ints or numpy integers in 0..3 (what ``action_space.sample()`` gives); a float,
+    even ``1.0``, a bool or a string is refused with ``InvalidAction``, as the server refuses it.
     """
 
     metadata = {"render_modes": []}
@@ -161,11 +163,17 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int | np.integer[Any]]):
     def step(
         self, action: int | np.integer[Any]
     ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        number = action_id(action)
+        if number is None:  # refused here as the server and the in-process env refuse it
+            raise InvalidAction(
+                f"RunEnv.step: illegal action {action!r:.60}; an action is an integer in "
+                f"[0, {NUM_ACTIONS - 1}]: {ACTIONS_TEXT}"
+            )
         current = self._current
         if current is None or current.done:
             raise RuntimeError("the episode is over (or has not started); call reset()")
         try:
-            answer = self.client.run_step(self.run_id, current.episode, current.seq + 1, action)
+            answer = self.client.run_step(self.run_id, current.episode, current.seq + 1, number)
         except EpisodeOver as error:  # too late: the server ended the episode as it stood
             answer = dataclasses.replace(current, done=True, end_reason="timeout")
             self._current = answer
@@ -198,6 +206,14 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int | np.integer[Any]]):
             return 0
         return self._current.episode // self.num_envs + 1
 
+    @property
+    def episodes_finished(self) -> int:
+        """Episodes this lane has played to their end (a resumed episode in progress is not
+        one of them: a progress count starts here)."""
+        current = self._current
+        in_progress = current is not None and current.episode >= 0 and not current.done
+        return self.episodes_started - int(in_progress)
+
     def _next_episode(self) -> int:
         """The run-order number of this lane's next episode (lane k: k, k + K …)."""
         current = self._current
@@ -220,3 +236,24 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int | np.integer[Any]]):
             if answer.metrics is not None:
                 info["metrics"] = answer.metrics
         return info
+
+
+def describe_run(status: RunStatus) -> str:
+    """What ``multion submit`` prints at the end of a run: its state, then the results the
+    phase shows (mean and 95% interval of each metric, the ranking one marked)."""
+    lines = [
+        f"run {status.run_id}: {status.state}"
+        + (f" ({status.end_reason})" if status.end_reason else "")
+    ]
+    if status.results:
+        primary = status.results.get("primary", "ppl")
+        for name in ("ppl", "progress", "success", "spl"):
+            value = status.results[name]
+            mark = " (ranking)" if name == primary else ""
+            lines.append(
+                f"  {name:<9} {100 * value['mean']:6.1f}%  "
+                f"[{100 * value['low']:.1f}, {100 * value['high']:.1f}]{mark}"
+            )
+    else:
+        lines.append("  results: not shown for this phase (yet)")
+    return "\n".join(lines)

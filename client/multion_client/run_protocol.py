@@ -10,6 +10,7 @@ from typing import Any
 
 from gymnasium import spaces
 
+from multion_client.constants import ACTIONS_TEXT, NUM_ACTIONS, action_id
 from multion_client.errors import MalformedMessage
 from multion_client.protocol import PREFIX, _fields, _list, space_from_wire, space_to_wire
 from multion_client.schema import OBSERVATION, message_schema, schema
@@ -223,13 +224,14 @@ class RunStep:
     def from_wire(cls, data: Any) -> RunStep:
         _refuse_run_fields(data, "RunStep")
         d = _fields(data, "RunStep", ("episode", "seq", "action"))
-        action = d["action"]
-        if isinstance(action, float) and action.is_integer():
-            action = int(action)
-        if isinstance(action, bool) or not isinstance(action, int):
+        action = action_id(d["action"])  # the in-process env's rule: no floats, even 1.0
+        if action is None:
             from multion_client.errors import InvalidAction
 
-            raise InvalidAction(f"RunStep: illegal action {action!r}; actions are 0..3")
+            raise InvalidAction(
+                f"RunStep: illegal 'action' {d['action']!r:.60}; an action is an integer in "
+                f"[0, {NUM_ACTIONS - 1}]: {ACTIONS_TEXT}"
+            )
         return cls(
             _count(d["episode"], "RunStep", "episode"),
             _count(d["seq"], "RunStep", "seq", 1),

@@ -60,6 +60,8 @@ def test_choosing_episodes_or_seeds_is_not_allowed(cls: type, body: dict) -> Non
         (RunStep, {"episode": 0, "seq": 0, "action": 1}, errors.MalformedMessage),
         (RunStep, {"episode": 0, "seq": 1, "action": True}, errors.InvalidAction),
         (RunStep, {"episode": 0, "seq": 1, "action": "left"}, errors.InvalidAction),
+        (RunStep, {"episode": 0, "seq": 1, "action": 1.0}, errors.InvalidAction),  # as action_id
+        (RunStep, {"episode": 0, "seq": 1, "action": 4}, errors.InvalidAction),
         (RunStep, {"episode": -1, "seq": 1, "action": 1}, errors.MalformedMessage),
         (StartEpisode, {}, errors.MalformedMessage),
         (CreateRun, {"track": "3-on", "phase": "minival"}, errors.MalformedMessage),
