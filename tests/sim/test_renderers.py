@@ -151,6 +151,8 @@ def test_auto_falls_back_to_tiny_and_egl_names_the_packages(
     monkeypatch.setattr(camera_module, "_egl_failed", False)
     monkeypatch.setattr(camera_module, "_egl_loaded", False)  # as in a fresh process
     monkeypatch.setattr(camera_module, "egl_plugin_path", lambda: None)  # a pybullet without it
+    # and no OpenGL context either (the gl renderer's fallback: tests/sim/test_gl_renderer.py)
+    monkeypatch.setattr(camera_module, "gl_unavailable_reason", lambda: "no EGL here")
     _, used = _observations("auto", [1])
     assert used == "tiny"
     assert camera_module.resolve_renderer("auto") == "tiny"

@@ -16,7 +16,7 @@ from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, MapConfig, TaskConfig
 from multion.scenes.registry import layout_for
 from multion.sim import goal_objects
-from multion.sim.camera import resolve_renderer
+from multion.sim.camera import egl_plugin_loads
 from multion.sim.goal_objects import MODELS, body_bounds, goal_yaw, scaled_urdf
 from multion.sim.world import PyBulletWorld
 from multion.task.env import MultiONEnv
@@ -108,7 +108,7 @@ def test_unseen_objects_are_drawn_and_differ_between_train_and_test() -> None:
     assert not np.array_equal(train["rgb"], test["rgb"])
 
 
-@pytest.mark.skipif(resolve_renderer("auto") != "egl", reason="the EGL plugin does not load here")
+@pytest.mark.skipif(not egl_plugin_loads(), reason="the EGL plugin does not load here")
 def test_egl_draws_the_objects_at_the_same_size() -> None:
     # the EGL plugin keeps the first size it draws of a mesh file: the models are scaled in
     # their URDF copies, never by loadURDF's globalScaling (which it ignores)

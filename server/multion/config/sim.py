@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from multion.config.ranges import Range, bounded, check_fields, one_of, require
 
-RENDERERS = ("tiny", "egl", "auto")
+RENDERERS = ("tiny", "gl", "egl", "auto")
 
 
 @dataclass(frozen=True)
@@ -35,9 +35,10 @@ class CameraConfig:
     far: float = bounded(60.0, 1.0, 1000.0)
     """Far clipping plane, metres."""
     renderer: str = one_of("tiny", RENDERERS)
-    """PyBullet renderer, one of ``tiny`` (CPU TinyRenderer, identical pixels everywhere),
-    ``egl`` (the EGL plugin: GPU, or Mesa's llvmpipe on a CPU; an error where it cannot load)
-    or ``auto`` (EGL when it loads, else tiny)."""
+    """Renderer, one of ``tiny`` (PyBullet's CPU TinyRenderer, identical pixels everywhere:
+    the reference), ``gl`` (the project's OpenGL renderer of the same world: a GPU, or Mesa's
+    llvmpipe on a CPU; an error naming what to install where no context opens), ``egl``
+    (PyBullet's EGL plugin) or ``auto`` (gl when its context opens, else tiny)."""
 
     def __post_init__(self) -> None:
         check_fields(self, "camera")

@@ -1,15 +1,18 @@
-"""The agent's RGB-D camera, rendered by PyBullet's CPU TinyRenderer or its EGL plugin.
+"""The agent's RGB-D camera: PyBullet's TinyRenderer, the project's OpenGL renderer, or PyBullet's
+EGL plugin.
 
 ``tiny`` is PyBullet's software rasteriser: available everywhere, the same pixels on every
-machine. ``egl`` is the ``eglRenderer`` plugin (``ER_BULLET_HARDWARE_OPENGL``): OpenGL through
-NVIDIA's EGL driver on a GPU, or Mesa's (llvmpipe, one thread per process) on a CPU. ``auto``
-picks EGL when the plugin loads and TinyRenderer otherwise.
+machine, the reference. ``gl`` is the project's own OpenGL 3.3 renderer of the same world
+(:mod:`multion.sim.gl`: moderngl, a headless EGL context; NVIDIA's driver on a GPU, Mesa's
+llvmpipe on a CPU), matched to TinyRenderer's pictures. ``egl`` is PyBullet's ``eglRenderer``
+plugin (``ER_BULLET_HARDWARE_OPENGL``). ``auto`` picks ``gl`` when its context opens and
+TinyRenderer otherwise.
 
-The plugin must be loaded into a physics client before any body is created (bodies created
-earlier are invisible to it), so :func:`attach_renderer` is called by the world right after it
-connects; each world (one per loaded scene) holds one plugin. Reusing one client across scenes
-with ``resetSimulation`` would save the plugin's start-up, but PyBullet's EGL plugin loses the
-connection when bodies are created after a reset (PyBullet 3.2.7).
+The EGL plugin must be loaded into a physics client before any body is created (bodies
+created earlier are invisible to it), so :func:`attach_renderer` is called by the world right
+after it connects; each world (one per loaded scene) holds one plugin. Reusing one client
+across scenes with ``resetSimulation`` would save the plugin's start-up, but PyBullet's EGL
+plugin loses the connection when bodies are created after a reset (PyBullet 3.2.7).
 """
 
 from __future__ import annotations
@@ -25,13 +28,15 @@ import numpy as np
 from multion.config.sim import RENDERERS, CameraConfig
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
+from multion.sim.gl.context import EGL_PACKAGES, gl_unavailable_reason
+from multion.sim.gl.renderer import GLRenderer, shifted_projection
 
-EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
-"""Debian packages of Mesa's EGL, which the ``egl`` renderer needs on a machine without a GPU."""
+CAMERA_RENDERERS = ("tiny", "gl", "egl")
+"""What a camera renders with once ``auto`` is resolved."""
 
 
 class RendererUnavailableError(ValueError):
-    """``camera.renderer = "egl"`` on a machine where the EGL plugin does not load."""
+    """``camera.renderer`` names ``gl`` or ``egl`` on a machine where it cannot run."""
 
 
 @dataclass(frozen=True)
@@ -42,8 +47,9 @@ class CameraImage:
 
 
 class Camera:
-    """Renders from a pose with the world's renderer (``tiny`` or ``egl``, see
-    :func:`attach_renderer`); the projection is computed once."""
+    """Renders from a pose with the world's renderer (``tiny``, ``gl`` or ``egl``, see
+    :func:`attach_renderer`); the projection is computed once. ``gl`` needs the world's
+    :class:`GLRenderer` (``PyBulletWorld.gl``)."""
 
     def __init__(
         self,
@@ -51,10 +57,14 @@ class Camera:
         client: int,
         renderer: str = "tiny",
         lighting: tuple[float, float] = (0.6, 0.4),
+        gl: GLRenderer | None = None,
     ) -> None:
-        if renderer not in ("tiny", "egl"):
-            raise ValueError(f"a camera renders with tiny or egl, not {renderer!r}")
+        if renderer not in CAMERA_RENDERERS:
+            raise ValueError(f"a camera renders with tiny, gl or egl, not {renderer!r}")
+        if renderer == "gl" and gl is None:
+            raise ValueError("a gl camera needs the world's GL scene (PyBulletWorld.gl)")
         self.config = config
+        self.gl = gl
         self.client = client
         self.renderer = renderer
         self._flag = p.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else p.ER_TINY_RENDERER
@@ -68,6 +78,7 @@ class Camera:
             nearVal=config.near,
             farVal=config.far,
         )
+        self.gl_projection = shifted_projection(self.projection, config.width, config.height)
         if renderer == "egl":
             self.projection = _shift_image(
                 self.projection,
@@ -82,6 +93,15 @@ class Camera:
         eye = (x, y, floor_z + c.sensor_height)
         target = (x + math.cos(yaw), y + math.sin(yaw), eye[2])
         view = p.computeViewMatrix(eye, target, (0.0, 0.0, 1.0))
+        if self.gl is not None and self.renderer == "gl":
+            image = self.gl.render(
+                c.width, c.height, view, self.gl_projection, (self.ambient, self.diffuse), c.far
+            )
+            return CameraImage(
+                rgb=image.rgb,
+                depth=self.finish_depth(image.depth),
+                segmentation=image.segmentation if segmentation else None,
+            )
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
         egl = self.renderer == "egl"
         # the EGL plugin prints its OpenGL vendor ("ven = …") when it uploads new bodies
@@ -111,6 +131,11 @@ class Camera:
         """OpenGL depth buffer → planar depth in metres → clipped (and normalised) float32."""
         c = self.config
         metres = c.far * c.near / (c.far - (c.far - c.near) * zbuffer.astype(np.float64))
+        return self.finish_depth(metres)
+
+    def finish_depth(self, metres: np.ndarray) -> np.ndarray:
+        """Planar depth in metres → clipped (and normalised) (H, W, 1) float32."""
+        c = self.config
         metres = np.clip(metres, c.min_depth, c.max_depth)
         if c.normalize_depth:
             metres = (metres - c.min_depth) / (c.max_depth - c.min_depth)
@@ -151,33 +176,49 @@ _egl_loaded = False
 
 
 def attach_renderer(client: int, requested: str) -> str:
-    """Prepare a fresh physics client (no bodies yet) for ``requested`` ("tiny", "egl" or
-    "auto"); returns the renderer its camera must use, "tiny" or "egl"."""
+    """Prepare a fresh physics client (no bodies yet) for ``requested`` ("tiny", "gl", "egl"
+    or "auto"); returns the renderer its camera must use, "tiny", "gl" or "egl"."""
     if requested not in RENDERERS:
         raise ValueError(f"renderer must be one of {', '.join(RENDERERS)}, got {requested!r}")
     if requested == "tiny":
         return "tiny"
+    if requested in ("gl", "auto"):
+        reason = gl_unavailable_reason()
+        if reason is None:
+            return "gl"
+        if requested == "gl":
+            raise RendererUnavailableError(reason + " (or camera.renderer 'auto')")
+        return "tiny"
     if _load_egl(client):
         return "egl"
-    if requested == "egl":
-        raise RendererUnavailableError(
-            "camera.renderer 'egl': PyBullet's EGL plugin did not load. On a GPU machine install "
-            f"NVIDIA's driver; without a GPU install Mesa's EGL (Debian/Ubuntu: apt-get install "
-            f"{EGL_PACKAGES}). Or use camera.renderer 'auto' or 'tiny'."
-        )
-    return "tiny"
+    raise RendererUnavailableError(
+        "camera.renderer 'egl': PyBullet's EGL plugin did not load. On a GPU machine install "
+        f"NVIDIA's driver; without a GPU install Mesa's EGL (Debian/Ubuntu: apt-get install "
+        f"{EGL_PACKAGES}). Or use camera.renderer 'auto', 'gl' or 'tiny'."
+    )
 
 
 def resolve_renderer(requested: str) -> str:
-    """The renderer ``requested`` gives in this process ("auto" is probed with a throwaway
-    client, once: the answer is cached with the plugin's load result)."""
+    """The renderer ``requested`` gives in this process: "auto" is "gl" when an OpenGL
+    context opens (tried once per process), else "tiny"."""
     if requested != "auto":
         return requested
+    return "gl" if gl_unavailable_reason() is None else "tiny"
+
+
+def why_not_gl() -> str | None:
+    """One line saying why ``auto`` falls back to TinyRenderer here, or None."""
+    return gl_unavailable_reason()
+
+
+def egl_plugin_loads() -> bool:
+    """Whether PyBullet's EGL plugin loads in this process (probed once, with a throwaway
+    client)."""
     if _egl_failed or _egl_loaded:
-        return "egl" if _egl_loaded else "tiny"
+        return _egl_loaded
     client = p.connect(p.DIRECT)
     try:
-        return attach_renderer(client, "auto")
+        return _load_egl(client)
     finally:
         with c_output_silenced():  # the EGL plugin says goodbye
             p.disconnect(physicsClientId=client)

@@ -91,7 +91,11 @@ class Simulator:
             self.world = load_world(scene_id, self.camera_config.renderer)
             self.grid = navgrid_for(scene_id, self.world, self.navgrid_config)
             self.camera = Camera(
-                self.camera_config, self.world.client, self.world.renderer, self.world.lighting
+                self.camera_config,
+                self.world.client,
+                self.world.renderer,
+                self.world.lighting,
+                gl=self.world.gl,
             )
             self.scene_id = scene_id
         assert self.grid is not None
@@ -99,7 +103,7 @@ class Simulator:
 
     @property
     def renderer(self) -> str | None:
-        """The renderer in use ("tiny" or "egl"), None before a scene is loaded."""
+        """The renderer in use ("tiny", "gl" or "egl"), None before a scene is loaded."""
         return self.world.renderer if self.world is not None else None
 
     def close(self) -> None:

@@ -20,6 +20,7 @@ from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion.sim.camera import attach_renderer, resolve_renderer
+from multion.sim.gl.renderer import GLRenderer
 from multion.sim.goal_objects import MODELS, body_bounds, scaled_urdf
 from multion.sim.goal_shapes import goal_mesh_file
 from multion.sim.merged_visual import merged_visual
@@ -52,12 +53,17 @@ class PyBulletWorld:
         except BaseException:
             p.disconnect(physicsClientId=self.client)
             raise
-        """The renderer cameras of this world use: "tiny" or "egl" (see ``sim.camera``)."""
+        """The renderer cameras of this world use: "tiny", "gl" or "egl" (see ``sim.camera``)."""
+        self.gl: GLRenderer | None = None
+        """The GL mirror of this world's bodies (renderer "gl"), made by :meth:`mirror_in_gl`."""
+        self.body_textures: dict[int, Path] = {}
+        """The image file each textured body was given (PyBullet does not report it back)."""
         self.visual_bodies: list[int] = []
         """Visual-only bodies of the scene (the merged mesh under EGL), drawn, never hit."""
         self._goal_bodies: dict[Hashable, list[int]] = {}
         self._object_offsets: dict[str, tuple[float, ...]] = {}
         self._goal_in_use: list[int] = []
+        self._texture_paths: dict[int, Path] = {}
         self.lighting: tuple[float, float] = DEFAULT_LIGHTING
         """(ambient, diffuse) light coefficients of the camera in this scene."""
 
@@ -89,7 +95,21 @@ class PyBulletWorld:
             if box.texture:
                 world._apply_texture(body, box, textures)
             world.scene_bodies.append(body)
+        world.mirror_in_gl()
         return world
+
+    def mirror_in_gl(self) -> None:
+        """With renderer "gl", build the GL scene from the bodies loaded so far (the static
+        scene); bodies created later are drawn at their pose, image by image."""
+        if self.renderer != "gl" or self.gl is not None:
+            return
+        try:
+            self.gl = GLRenderer(
+                self.client, (*self.scene_bodies, *self.visual_bodies), self.body_textures
+            )
+        except BaseException:
+            self.close()
+            raise
 
     def _box_body(self, box: Box, visual: bool) -> int:
         """A static box body with its collision shape, and its visual shape if ``visual``."""
@@ -135,6 +155,8 @@ class PyBulletWorld:
         if key not in loaded:
             path = texture_file(box.texture, *size)
             loaded[key] = p.loadTexture(str(path), physicsClientId=self.client)
+            self._texture_paths[loaded[key]] = path
+        self.body_textures[body] = self._texture_paths[loaded[key]]
         p.changeVisualShape(body, -1, textureUniqueId=loaded[key], physicsClientId=self.client)
 
     @classmethod
@@ -163,6 +185,7 @@ class PyBulletWorld:
             raise ValueError(f"PyBullet could not load the mesh {path}")
         body = p.createMultiBody(0, col, vis, physicsClientId=world.client)
         world.scene_bodies.append(body)
+        world.mirror_in_gl()
         return world
 
     def scene_draws(self) -> int:
@@ -178,6 +201,9 @@ class PyBulletWorld:
         return list(self._goal_in_use)
 
     def close(self) -> None:
+        if self.gl is not None:
+            self.gl.close()
+            self.gl = None
         if self.client >= 0:
             with c_output_silenced():  # the EGL plugin, if loaded, says goodbye
                 p.disconnect(physicsClientId=self.client)

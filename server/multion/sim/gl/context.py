@@ -1,0 +1,84 @@
+"""One headless OpenGL context per process, opened on first use through EGL.
+
+EGL gives a context without a display: NVIDIA's driver on a GPU machine, Mesa's llvmpipe on a
+CPU. Mesa rasterises with ``LP_NUM_THREADS`` threads; here it defaults to 0 (draw in the
+calling thread), so a simulator process keeps to one core, as TinyRenderer does, and the
+probe of ``/work``'s 2-core machines found it the fastest at 36² and 128² (set
+``LP_NUM_THREADS`` before the first context to change it). A machine without EGL gets one line
+saying what to install, never a crash (:func:`gl_unavailable_reason`).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import moderngl
+
+EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
+"""Debian packages of Mesa's EGL, which OpenGL needs on a machine without a GPU."""
+GL_VERSION = 330
+"""The OpenGL version the renderer's shaders need (3.3 core)."""
+
+_lock = threading.RLock()
+_context: moderngl.Context | None = None
+_failure: str | None = None
+
+
+class GLUnavailableError(ValueError):
+    """``camera.renderer = "gl"`` where no OpenGL 3.3 context opens."""
+
+
+def gl_unavailable_reason() -> str | None:
+    """None where an OpenGL context opens in this process, else one line saying why not and
+    what to install (the answer is kept: the context is opened once per process)."""
+    try:
+        _open()
+    except GLUnavailableError as error:
+        return str(error)
+    return None
+
+
+def _open() -> moderngl.Context:
+    global _context, _failure
+    with _lock:
+        if _context is not None:
+            return _context
+        if _failure is not None:
+            raise GLUnavailableError(_failure)
+        os.environ.setdefault("LP_NUM_THREADS", "0")
+        try:
+            import moderngl
+
+            context = moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]
+            if context.version_code < GL_VERSION:
+                version = context.version_code
+                context.release()
+                raise RuntimeError(f"OpenGL {version // 100}.{version % 100 // 10} < 3.3")
+        except Exception as error:  # moderngl / glcontext raise plain Exceptions
+            detail = (
+                str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+            )
+            _failure = (
+                f"camera.renderer 'gl': no OpenGL 3.3 context through EGL ({detail:.120}). "
+                f"Without a GPU install Mesa's EGL (Debian/Ubuntu: apt-get install {EGL_PACKAGES}); "
+                "on a GPU machine NVIDIA's driver; or use camera.renderer 'tiny'."
+            )
+            raise GLUnavailableError(_failure) from None
+        # release it from this thread, so that any thread may make it current (current())
+        with context:
+            pass
+        _context = context
+        return context
+
+
+@contextmanager
+def current() -> Iterator[moderngl.Context]:
+    """The process's context, current in this thread for the block (one thread at a time)."""
+    context = _open()
+    with _lock, context:
+        yield context
