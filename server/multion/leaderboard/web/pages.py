@@ -69,6 +69,11 @@ def _date(value: dt.datetime | None) -> str:
     return f"{value:%Y-%m-%d %H:%M} UTC"
 
 
+def _unbroken_date(value: dt.datetime | None) -> Markup:
+    """A date in running text that never breaks across lines ("2999-01-01 / 00:00 UTC")."""
+    return Markup('<span class="when">{}</span>').format(_date(value))
+
+
 LONGEST_UNBROKEN = 24
 """A name's words up to this long never break inside (longer ones must, on a phone)."""
 
@@ -109,6 +114,7 @@ GOAL_SET_NAMES = {
 templates.env.filters["percent"] = _percent
 templates.env.filters["duration"] = _duration
 templates.env.filters["date"] = _date
+templates.env.filters["unbroken_date"] = _unbroken_date
 templates.env.filters["words"] = _words
 templates.env.globals["metric_names"] = queries.METRIC_NAMES
 templates.env.globals["goal_set_names"] = GOAL_SET_NAMES
