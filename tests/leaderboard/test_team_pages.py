@@ -10,9 +10,10 @@ from pathlib import Path
 from stored_runs import StoredRun, pages_client, store_runs
 from test_charts_guide import _run
 
-from multion.leaderboard.challenge_file import write_challenge
+from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.charts import best_over_time
+from multion.leaderboard.web.guide import served_examples
 from multion_agents.bench.pages import bench_challenge
 
 METHODS = ["random", "random-oracle-found", "explorer", "oracle-planner",
@@ -78,3 +79,23 @@ def test_a_run_that_played_no_episode_to_its_end_is_not_drawn(tmp_path: Path) ->
     # the best-so-far line starts at the scored run: one point there, one at the right edge
     line = re.search(r'<polyline points="([^"]+)"', page)
     assert line is not None and len(line.group(1).split()) == 2
+
+
+def test_the_served_guide_names_this_servers_host_and_tracks(tmp_path: Path) -> None:
+    """Issue 42: its examples named a made-up host and a 3-on track this server lacks."""
+    challenge = write_challenge(bench_challenge(3, (("1-on", 1),)), tmp_path / "challenge.toml")
+    url = f"sqlite:///{tmp_path / 'results.db'}"
+    Database.open(url).close()
+    with pages_client(challenge, url) as client:
+        page = client.get("/leaderboard/guide").text
+    assert "--server $MULTION_SERVER --track 1-on --phase minival --agent explorer" in page
+    assert "--track 1-on --phase test-standard --agent explorer" in page
+    assert (
+        "RunEnv(&quot;http://testserver&quot;, track=&quot;1-on&quot;, phase=&quot;minival&quot;"
+        in page
+    )
+    assert "MULTION_TRACK=1-on" in page
+    assert "--track 3-on" not in page and "challenge.example.org" not in page
+    # a Host header that is not a plain host is not shown (the made-up one is)
+    spoofed = served_examples(load_challenge(challenge), "http://evil.org/<b>x</b>")
+    assert spoofed.url == "https://challenge.example.org" and spoofed.track == "1-on"

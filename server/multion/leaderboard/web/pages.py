@@ -24,7 +24,7 @@ from multion.leaderboard.models import EpisodePicture, EpisodeRecord, utcnow
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.web import queries
 from multion.leaderboard.web.charts import best_over_time
-from multion.leaderboard.web.guide import render_guide
+from multion.leaderboard.web.guide import render_guide, served_examples
 from multion.leaderboard.web.pictures import (
     DISPLAY_SCALE,
     picture_png,
@@ -166,11 +166,14 @@ async def rules(request: Request) -> HTMLResponse:
 
 @router.api_route("/leaderboard/guide", methods=PAGE_METHODS, response_class=HTMLResponse)
 async def guide(request: Request) -> HTMLResponse:
-    """The participant parts of docs/leaderboard.md, rendered, where the server runs from a
-    source tree; elsewhere the organisers set MULTION_LEADERBOARD_DOCS_URL."""
+    """The participant parts of docs/leaderboard.md, rendered (its examples on this server and
+    its first track), where the server runs from a source tree; elsewhere the organisers set
+    MULTION_LEADERBOARD_DOCS_URL."""
     if not GUIDE.is_file():
         return _not_found(request, "copy of the guide on this server")
-    return _page(request, "guide.html", html=render_guide(GUIDE.read_text(encoding="utf-8")))
+    served = served_examples(_service(request).challenge, str(request.base_url))
+    html = render_guide(GUIDE.read_text(encoding="utf-8"), served)
+    return _page(request, "guide.html", html=html)
 
 
 @router.api_route("/leaderboard/runs/{run_id}", methods=PAGE_METHODS, response_class=HTMLResponse)
