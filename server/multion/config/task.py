@@ -9,6 +9,7 @@ from multion.config.ranges import bounded, check_fields, one_of, require
 from multion.config.scenes import SPLITS
 from multion.config.sim import AgentConfig, CameraConfig, NavGridConfig
 from multion_client.constants import DEFAULT_GOAL_SET, GOAL_SETS, NUM_CATEGORIES
+from multion_client.semantic_map import MAP_CONVENTIONS, PROJECT_CONVENTION
 
 SENSORS = (
     "rgb",
@@ -83,6 +84,12 @@ class MapConfig:
     """How far the agent sees, metres (supplement: 5 m)."""
     view_rays: int = bounded(80, 1, 1000)
     """Rays traced across the field of view to reveal the ego map."""
+    convention: str = one_of(PROJECT_CONVENTION, MAP_CONVENTIONS)
+    """How the crops are laid out: ``project`` (ahead up, the agent in the centre cell; what
+    this project's agents and checkpoints read) or ``reference``, the reference code's
+    ``semMap`` cell for cell (ahead down, and the ego map's seen cells + 1: see
+    :mod:`multion.task.maps` and :mod:`multion_client.semantic_map`); habitat-style agents
+    (``multion_client.habitat_compat``) ask for it."""
 
     def __post_init__(self) -> None:
         check_fields(self, "maps")

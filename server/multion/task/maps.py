@@ -9,16 +9,34 @@ heading: row 0 is ahead, column 0 is to the left, and the agent is in cell
 just behind and right of the centre point, with ``ego_size / 2`` cells ahead and to the left and
 one fewer behind and to the right (cell (25, 25) of the default 50 × 50 crop).
 
-The reference code (saimwani/multiON, ``habitat/core/env.py``) does the same: its global map has
-300 × 300 cells over [-120.32, 120.04] m, 0.801 m each (``conv_grid``, lines 214-233); each goal
-is written as ``grid_loc ± 1`` (line 279, a 3 × 3 patch); reset and step cut an 80 × 80 patch
-around the agent's cell, rotate it by the heading and keep its centre 50 × 50
-(``patch[40-25:40+25, 40-25:40+25]``, lines 291-293 and 347-349), which puts the agent at index
-25 of the crop; ``policy.py`` reads it as ``MapCNN(50, ...)`` and ``.view(bs, 50, 50, -1)``
-(lines 412, 419, 465-466). Our ``oracle_ego_map`` keeps both channels with 0 for unseen cells
-(occupancy ``MAP_UNKNOWN``); the reference's OracleEgoMap reads the object channel alone, offset
-by one more (1 = seen, no goal; goal category + 2, line 278 and ``mapCache += 1``, lines 137-139),
-which carries the same information.
+The reference code (saimwani/multiON at 2ba4d25, ``habitat/core/env.py``) cuts the same kind
+of crop from the same kind of map, but not the same crop. Its global map has 300 × 300 cells
+over [-120.32, 120.04] m, 0.801 m each, whose rows run along -x and columns along +z (habitat's
+y-up frame: our -y), ``conv_grid``, l. 214-233; each goal is written as ``grid_loc ± 1``
+(l. 279, a 3 × 3 patch). Reset and step cut an 80 × 80 patch around the agent's cell, rotate it
+with ``ndimage.rotate(patch, -(heading°) + 90, order=0, reshape=False)`` and keep its centre
+50 × 50 (``patch[40-25:40+25, 40-25:40+25]``, l. 291-293 and 347-349); ``policy.py`` reads it as
+``MapCNN(50, ...)`` and ``.view(bs, 50, 50, -1)`` (l. 412, 419, 465-466). Habitat's heading is
+our yaw - 90° (0 looks along habitat's -z, our +y). How our crop (``maps.convention =
+"project"``, the default, which this project's agents and checkpoints read) differs:
+
+* orientation: in the reference's crop ahead is *down* and the agent's left is to the *right*:
+  ours turned by 180°;
+* agent cell: the reference rotates about the patch's centre point, the corner between four
+  cells up and left of the agent's cell, so the agent's cell moves between (24|25, 24|25) with the
+  heading; ours is always (25, 25), and our crop turns about the agent's position, not a corner;
+* sampling: the reference takes each crop cell's nearest patch cell, so at angles other than
+  multiples of 90° goal cells can vanish from its crop or double; ours places goal cells by their
+  centres and never drops one (:meth:`OracleMap.egocentric`);
+* values: both write occupancy and goal category + 1 (l. 278); the reference's OracleEgoMap adds
+  one more to every seen cell (``mapCache += 1``, l. 137-139: occupancy + 1, 1 for no goal, goal
+  category + 2) and 0 for unseen ones, where ours keeps the oracle map's values on seen cells and 0
+  (occupancy ``MAP_UNKNOWN``) on unseen ones;
+* category ids: ours are this project's, the reference's its colour order (l. 252-253).
+
+``maps.convention = "reference"`` makes both oracle sensors the reference's crop and values
+(:func:`reference_crop`, :meth:`EgoMapReveal.layers`), in this project's category ids:
+``multion_client.semantic_map`` renumbers them into habitat agents' ``semMap``.
 
 The oracle *ego* map holds only the cells the agent has seen: within the field of view, within
 ``view_distance``, and not hidden behind geometry at the camera's height (the line of sight is
@@ -36,6 +54,7 @@ from multion.config.episode import Goal
 from multion.config.task import MapConfig
 from multion.sim.navgrid import NavGrid
 from multion_client.constants import MAP_FREE, MAP_OCCUPIED, MAP_UNKNOWN
+from multion_client.semantic_map import REFERENCE_CONVENTION
 
 
 class OracleMap:
@@ -56,9 +75,14 @@ class OracleMap:
         any_inside = inside.reshape(rows, factor, cols, factor).any(axis=(1, 3))
         occupancy = np.where(any_inside, MAP_OCCUPIED, MAP_UNKNOWN).astype(np.uint8)
         occupancy[fraction >= config.free_fraction] = MAP_FREE
-        self.layers = np.zeros((rows, cols, 2), dtype=np.uint8)
-        self.layers[..., 0] = occupancy
         self.coarse_size = factor * grid.cell_size
+        # The reference writes whole goal squares, past the scene's edge too (its map spans
+        # ±120 m): under its convention the map gets a margin of unknown cells to hold them.
+        margin = config.goal_cells // 2 if config.convention == REFERENCE_CONVENTION else 0
+        # the world corner (metres) of cell (0, 0)
+        self.origin = np.asarray(grid.origin, dtype=np.float64) - margin * self.coarse_size
+        self.layers = np.zeros((rows + 2 * margin, cols + 2 * margin, 2), dtype=np.uint8)
+        self.layers[margin : margin + rows, margin : margin + cols, 0] = occupancy
         half = config.ego_size // 2
         r, c = np.meshgrid(np.arange(config.ego_size), np.arange(config.ego_size), indexing="ij")
         self._forward = (half - r).astype(np.float64) * self.coarse_size
@@ -66,8 +90,9 @@ class OracleMap:
 
     def set_goals(self, goals: Sequence[Goal]) -> None:
         """Mark each goal as a ``goal_cells`` square of category + 1, in order (a later goal's
-        square covers an earlier one's, as in the reference); then every goal's own cell once
-        more, so that no goal loses its centre to a neighbour's square."""
+        square covers an earlier one's, as in the reference); then, in the project convention,
+        every goal's own cell once more, so that no goal loses its centre to a neighbour's square
+        (the reference, ``habitat/core/env.py`` l. 274-279, does not)."""
         self.layers[..., 1] = 0
         rows, cols = self.layers.shape[:2]
         half = self.config.goal_cells // 2
@@ -77,18 +102,21 @@ class OracleMap:
             c0, c1 = max(0, int(col) - half), min(cols, int(col) + half + 1)
             if r0 < r1 and c0 < c1:
                 self.layers[r0:r1, c0:c1, 1] = value
+        if self.config.convention == REFERENCE_CONVENTION:
+            return
         for (row, col), value in centres:
             if 0 <= row < rows and 0 <= col < cols:
                 self.layers[row, col, 1] = value
 
     def coarse_cell(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         xy = np.asarray(xy, dtype=np.float64)
-        col = np.floor((xy[..., 0] - self.grid.origin[0]) / self.coarse_size).astype(np.int64)
-        row = np.floor((xy[..., 1] - self.grid.origin[1]) / self.coarse_size).astype(np.int64)
+        col = np.floor((xy[..., 0] - self.origin[0]) / self.coarse_size).astype(np.int64)
+        row = np.floor((xy[..., 1] - self.origin[1]) / self.coarse_size).astype(np.int64)
         return row, col
 
     def egocentric(self, layers: np.ndarray, position: np.ndarray, yaw: float) -> np.ndarray:
-        """Crop ``layers`` (rows, cols, C) around the agent, rotated so that ahead is up.
+        """Crop ``layers`` (rows, cols, C) around the agent, rotated so that ahead is up (the
+        reference's crop, ahead down, under ``maps.convention = "reference"``).
 
         Each crop cell takes the map cell under its centre. At angles other than multiples of
         90° that sampling skips some map cells, so an object cell (channel 1) would vanish from
@@ -96,6 +124,9 @@ class OracleMap:
         one cell per goal): object cells are therefore placed by their centres instead, and never
         skipped.
         """
+        if self.config.convention == REFERENCE_CONVENTION:
+            row, col = self.coarse_cell(position)
+            return reference_crop(layers, (int(row), int(col)), yaw, self.config.ego_size)
         cos, sin = math.cos(yaw), math.sin(yaw)
         x = position[0] + self._forward * cos - self._left * sin
         y = position[1] + self._forward * sin + self._left * cos
@@ -116,14 +147,46 @@ class OracleMap:
         if rows.size == 0:
             return
         size = self.coarse_size
-        dx = self.grid.origin[0] + (cols + 0.5) * size - position[0]
-        dy = self.grid.origin[1] + (rows + 0.5) * size - position[1]
+        dx = self.origin[0] + (cols + 0.5) * size - position[0]
+        dy = self.origin[1] + (rows + 0.5) * size - position[1]
         half = self.config.ego_size // 2
         ego_rows = half - np.rint((dx * cos + dy * sin) / size).astype(np.int64)
         ego_cols = half - np.rint((-dx * sin + dy * cos) / size).astype(np.int64)
         inside = (ego_rows >= 0) & (ego_rows < out.shape[0]) & (ego_cols >= 0)
         inside &= ego_cols < out.shape[1]
         out[ego_rows[inside], ego_cols[inside], 1] = layers[rows[inside], cols[inside], 1]
+
+
+def reference_crop(
+    layers: np.ndarray, agent_cell: tuple[int, int], yaw: float, size: int
+) -> np.ndarray:
+    """The reference's crop (``habitat/core/env.py`` l. 291-293) of ``layers`` (rows along +y,
+    columns along +x) for an agent in cell ``agent_cell`` (row, col) facing ``yaw``.
+
+    As the reference: the map seen with rows along -x and columns along +z (our -y), the pivot at
+    the agent's cell, each crop cell the nearest cell of the map turned by ``-heading° + 90``
+    about the crop's centre point, cells beyond the map 0. ``ndimage.rotate(..., order=0,
+    reshape=False)`` maps output cell ``o`` to ``M (o - c) + c`` with ``M = [[cos, sin], [-sin,
+    cos]]``, ``c`` the patch's centre, and rounds half up (``floor(x + 0.5)``): the same
+    arithmetic here, without the 80-cell patch (which covers every cell of the 50-cell crop:
+    its corners are 34.6 cells from the centre, the patch's edge 39.5), so any ``size`` works;
+    for an odd ``size`` the turn is about the agent's cell.
+    """
+    in_reference_axes = layers.transpose(1, 0, 2)[::-1, ::-1]  # rows along -x, columns along -y
+    pivot_row = layers.shape[1] - 1 - agent_cell[1]
+    pivot_col = layers.shape[0] - 1 - agent_cell[0]
+    heading = math.remainder(yaw - math.pi / 2, 2 * math.pi)  # habitat's HeadingSensor
+    angle = math.radians(-math.degrees(heading) + 90)
+    cos, sin = math.cos(angle), math.sin(angle)
+    centre = (size - 1) / 2
+    r, c = np.meshgrid(np.arange(size) - centre, np.arange(size) - centre, indexing="ij")
+    rows = np.floor(cos * r + sin * c + centre + 0.5).astype(np.int64) + pivot_row - size // 2
+    cols = np.floor(-sin * r + cos * c + centre + 0.5).astype(np.int64) + pivot_col - size // 2
+    height, width = in_reference_axes.shape[:2]
+    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
+    out = np.zeros((size, size, layers.shape[2]), dtype=layers.dtype)
+    out[inside] = in_reference_axes[rows[inside], cols[inside]]
+    return out
 
 
 def visible_points(
@@ -192,4 +255,9 @@ class EgoMapReveal:
             self.seen[row, col] = True
 
     def layers(self) -> np.ndarray:
-        return np.where(self.seen[..., None], self.oracle.layers, 0).astype(np.uint8)
+        """The oracle map where seen, 0 elsewhere; under the reference convention the map + 1
+        where seen (the reference's ``mapCache += 1``, ``habitat/core/env.py`` l. 137-139)."""
+        seen_value = self.oracle.layers
+        if self.oracle.config.convention == REFERENCE_CONVENTION:
+            seen_value = seen_value + 1
+        return np.where(self.seen[..., None], seen_value, 0).astype(np.uint8)
