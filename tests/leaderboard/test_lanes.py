@@ -198,3 +198,27 @@ def test_a_silent_lane_expires_on_its_own_budget(tmp_path: Path) -> None:
         assert status.state == "ended" and status.end_reason == "timeouts"
         assert status.lanes is not None
         assert not any(lane["episode_active"] for lane in status.lanes)
+
+
+def test_the_guides_lanes_example_plays_a_run(
+    lanes_server: LocalServer, lanes_challenge: Path, new_team: Callable[[str], str],
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """docs/leaderboard.md's ``RunEnv.lanes`` example, as the served guide shows it on this
+    server (its host, track and phase), played to the end with an agent that always turns."""
+    import re
+
+    from multion.leaderboard.web.guide import localise, served_examples
+
+    guide = Path(__file__).resolve().parents[2] / "docs" / "leaderboard.md"
+    example = next(
+        block
+        for block in re.findall(r"```python\n(.*?)```", guide.read_text(encoding="utf-8"), re.S)
+        if "RunEnv.lanes(" in block
+    )
+    served = served_examples(load_challenge(lanes_challenge), lanes_server.url)
+    code = localise(example, served).replace("num_envs=4", "num_envs=3")  # this server's most
+    monkeypatch.setenv("MULTION_TOKEN", new_team("guide lanes"))
+    exec(compile(code, "guide-lanes-example", "exec"), {"my_agent": lambda obs: 2})  # noqa: S102
+    printed = capsys.readouterr().out
+    assert "'ppl'" in printed and "'mean'" in printed  # the run's results, with intervals
