@@ -1,4 +1,5 @@
-"""The ``multion`` command line: serve, datasets, scenes, bench, eval, train, submit, leaderboard.
+"""The ``multion`` command line: serve, datasets, scenes, bench, eval, video, train, submit,
+leaderboard.
 
 This is the composition root: it sits in the top package and reaches down into the server's
 layers (``multion.leaderboard``, ``multion.api``, ``multion.task`` …), never the reverse.
@@ -34,6 +35,9 @@ COMMANDS: dict[str, Command] = {
     ),
     "eval": Command(
         "multion_agents.cli_eval", "evaluate an agent on a split, locally or against a server"
+    ),
+    "video": Command(
+        "multion_agents.cli_video", "film an episode of an eval run from its recorded actions"
     ),
     "train": Command("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
     "report": Command(

@@ -6,6 +6,7 @@ Examples::
     multion eval --agent explorer --server http://127.0.0.1:8000 --episodes 20
     multion eval --agent my_package.agents:MyAgent --episodes 10
     multion eval --agent random --task 3-on --set task.found_budget=3 --out runs/rand-budget3
+    multion eval --agent oracle-planner --episodes 10 --out runs/op --video 3
 
 Without ``--server`` a server is started on a free loopback port for the run and stopped after.
 """
@@ -26,6 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--pictures", type=int, default=3, help="top-down pictures of the first N episodes"
     )
+    parser.add_argument(
+        "--video", type=int, default=0, metavar="N",
+        help="MP4 videos of the first N episodes, replayed from their recorded actions (needs --out)",
+    )  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -49,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out is not None and (problem := output_directory_problem(args.out)) is not None:
         return _fail(f"--out {args.out}: {problem}")
+    if args.video and (problem := _video_problem(args.video, args.out)) is not None:
+        return _fail(problem)
 
     from multion_agents.evaluate import evaluate
     from multion_agents.report.run_summary import format_table, summarize, title_of, write_report
@@ -75,6 +82,37 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         written = write_report(result, args.out, pictures=args.pictures)
         print(f"wrote {len(written)} files to {args.out}")
+    if args.video:
+        return _write_videos(args.out, args.video)
+    return 0
+
+
+def _video_problem(count: int, out: Path | None) -> str | None:
+    """Why ``--video`` cannot be done, checked before the evaluation starts."""
+    from multion_agents.video.encoder import EncoderUnavailable, check_encoder
+    from multion_agents.video.film import MAX_VIDEOS
+
+    if not 0 <= count <= MAX_VIDEOS:
+        return f"--video must be in [0, {MAX_VIDEOS}], got {count}"
+    if out is None:
+        return "--video needs --out: the videos are written beside episodes.jsonl"
+    try:
+        check_encoder()
+    except EncoderUnavailable as error:
+        return f"--video: {error}"
+    return None
+
+
+def _write_videos(out: Path, count: int) -> int:
+    from multion_agents.cli_video import describe
+    from multion_agents.video.film import film_run
+    from multion_agents.video.recorded import VideoError, read_run
+
+    try:
+        for film in film_run(read_run(out), count):
+            print(describe(film.path, film.frames, film.bytes, film.seconds))
+    except VideoError as error:
+        return _fail(f"--video: {error}")
     return 0
 
 

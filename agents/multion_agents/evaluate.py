@@ -57,6 +57,8 @@ class EpisodeRecord:
     path: np.ndarray  # (T + 1, 2) world x, y from the start to the end
     agent_seconds: float
     total_seconds: float
+    actions: list[int] = field(default_factory=list)
+    """The actions played, in order: what ``multion video`` replays to film the episode."""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -66,7 +68,14 @@ class EpisodeRecord:
             "metrics": self.metrics,
             "agent_seconds": round(self.agent_seconds, 4),
             "total_seconds": round(self.total_seconds, 4),
+            "actions": actions_text(self.actions),
         }
+
+
+def actions_text(actions: Sequence[int]) -> str:
+    """Actions as one digit each (0 FOUND, 1 forward, 2 left, 3 right), as the leaderboard
+    stores them: a 2,500-step episode is a 2,500-character string in ``episodes.jsonl``."""
+    return "".join(str(int(action)) for action in actions)
 
 
 @dataclass
@@ -216,6 +225,7 @@ def run_episode(
     agent.reset()
     visible = set(agent.sensors)
     gps = [np.asarray(observation[RECORDED_SENSOR], dtype=np.float64)]
+    actions: list[int] = []
     thinking = 0.0
     done = False
     while not done:
@@ -223,6 +233,7 @@ def run_episode(
         action = agent.act({k: v for k, v in observation.items() if k in visible})
         thinking += time.perf_counter() - tick
         observation, _, terminated, truncated, info = env.step(action)
+        actions.append(int(action))
         gps.append(np.asarray(observation[RECORDED_SENSOR], dtype=np.float64))
         done = terminated or truncated
     return EpisodeRecord(
@@ -233,6 +244,7 @@ def run_episode(
         path=gps_to_world(np.asarray(gps), episode),
         agent_seconds=thinking,
         total_seconds=time.perf_counter() - started,
+        actions=actions,
     )
 
 

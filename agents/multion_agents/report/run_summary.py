@@ -8,7 +8,8 @@ Files written to the output directory:
 * ``metrics.json``: the aggregates and the run's configuration (agent, task, split, episodes,
   seed, server, the agent's own settings, the ``--set`` overrides, the environment config as sent and with every default
   filled in, the dataset file's SHA-256, package versions);
-* ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings);
+* ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings, the
+  actions played: what ``multion video`` replays);
 * ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion.pictures`).
 """
 
