@@ -1,12 +1,15 @@
-"""``multion bench --only reset``: online episode sampling, before and after issue 30, in one run.
+"""``multion bench --only reset``: the two train samplers' resets side by side (issue 44).
 
 Two environments on the train houses (36² RGB-D + goal + oracle map, 5 episodes per house as in
-the v3 recipe) reset in turn from the same seed, so they draw the same episodes under the same
-load. The *before* one checks the agent's steps with :func:`breadth_first_reach` (the
-breadth-first search that datasets version 3 came with, kept here as the reference) and computes
-every goal's distance field twice, in sampling and again in its reset (no :class:`FieldCache`);
-the *after* one is the env as it is. For the after env it also times the fast marchings
-(:class:`MarchingClock`), the part of a reset that drawing the same episodes cannot avoid.
+the v3 recipe) reset in turn from the same seed, under the same load: one draws episodes as
+every run before issue 44 did (``train_sampler = "online"``, ``m + 1`` fields marched per
+episode), the other from the houses' goal sites (``"sites"``, :mod:`multion.task.goal_sites`).
+The sites env first marches every site of every train house (what a training run's env has done
+after its first visits; the time is printed), so its resets are timed as they are once warm.
+For both it times the fast marchings (:class:`MarchingClock`) within each reset.
+
+:func:`breadth_first_reach` is the step-reach check before issue 30, kept as the reference that
+``tests/task/test_step_reach.py`` compares the best-first search with.
 """
 
 from __future__ import annotations
@@ -20,14 +23,15 @@ import numpy as np
 
 from multion.config.codec import env_config_from_dict
 from multion.config.sim import AgentConfig
+from multion.scenes.registry import scene_ids
 from multion.sim import geodesic
-from multion.sim.geodesic import FieldCache
 from multion.sim.navgrid import NavGrid
 from multion.task.env import MultiONEnv
+from multion.task.goal_sites import GoalSites
 from multion.task.step_reach import step_headings
 
 TARGET_MS = {1: 15.0, 3: 40.0}
-"""Issue 30's targets for the median reset."""
+"""Issue 30's and 44's targets for the median reset."""
 
 
 def breadth_first_reach(
@@ -82,7 +86,12 @@ class MarchingClock:
     """Counts and times the fast marchings (:func:`multion.sim.geodesic.distance_field`) made
     while :meth:`watch` is open, wherever they are called from."""
 
-    CALLERS = ("multion.sim.geodesic", "multion.task.dataset", "multion.task.env")
+    CALLERS = (
+        "multion.sim.geodesic",
+        "multion.task.dataset",
+        "multion.task.env",
+        "multion.task.goal_sites",
+    )
 
     def __init__(self) -> None:
         self.fields = 0
@@ -106,7 +115,7 @@ class MarchingClock:
             yield
 
 
-def _env(num_goals: int) -> MultiONEnv:
+def _env(num_goals: int, sampler: str) -> MultiONEnv:
     config = env_config_from_dict(
         {
             "task": {"num_goals": num_goals},
@@ -115,81 +124,96 @@ def _env(num_goals: int) -> MultiONEnv:
             "camera": {"width": 36, "height": 36},
             "maps": {"ego_size": 25},
             "episodes_per_scene": 5,
+            "train_sampler": sampler,
         }
     )
     return MultiONEnv(config)
 
 
-def run_reset_bench(resets: int = 60, tasks: Sequence[int] = (1, 3)) -> dict[str, float]:
-    """Print and return median and mean reset times, before and after, per task."""
+def march_every_site(env: MultiONEnv) -> float:
+    """March every goal site of every train house into ``env``'s cache; seconds taken."""
+    tick = time.perf_counter()
+    sites: GoalSites = env._goal_sites  # the env's own cache, warmed as its visits would
+    for scene in scene_ids("train"):
+        house = sites.house(scene, env.sim.load_scene(scene))
+        for site in range(len(house.sites)):
+            sites.values(house, site)
+    return time.perf_counter() - tick
+
+
+def run_reset_bench(
+    resets: int = 60, tasks: Sequence[int] = (1, 3), warm: bool = True
+) -> dict[str, float]:
+    """Print and return the median and mean resets of both samplers, per task. ``warm``:
+    march every site first (several minutes on a cold grid cache); without it the sites env's
+    resets include its first marchings."""
     results: dict[str, float] = {}
+    shared: GoalSites | None = None  # one cache for both tasks: a site's field ignores m
     print(
-        f"online episode sampling on the train houses: {resets} resets per task, the two envs "
-        "in turn (same seed, same episodes)"
+        f"train episodes: {resets} resets per task, the online and the sites env in turn "
+        "(same seed)"
     )
-    print(f"{'task':>6} {'':>7} {'median ms':>10} {'mean ms':>9} {'p90 ms':>8}")
     for num_goals in tasks:
-        before, after = _env(num_goals), _env(num_goals)
-        before._field_cache = FieldCache(size=0)  # every field computed where it is used
-        times: dict[str, list[float]] = {"before": [], "after": []}
-        marching: list[float] = []  # the after env's seconds of fast marching, per reset
-        fields: list[int] = []
-        same = True
+        envs = {"online": _env(num_goals, "online"), "sites": _env(num_goals, "sites")}
         try:
-            for index in range(resets + 1):
-                seed = 0 if index == 0 else None
-                with mock.patch("multion.task.dataset.steps_reach_goals", breadth_first_reach):
-                    tick = time.perf_counter()
-                    before.reset(seed=seed)
-                    times["before"].append(time.perf_counter() - tick)
-                clock = MarchingClock()
-                with clock.watch():
-                    tick = time.perf_counter()
-                    after.reset(seed=seed)
-                    times["after"].append(time.perf_counter() - tick)
-                marching.append(clock.seconds)
-                fields.append(clock.fields)
-                same &= before.episode == after.episode
+            if shared is None:
+                shared = envs["sites"]._goal_sites
+                if warm:
+                    seconds = march_every_site(envs["sites"])
+                    results["warm_up_s"] = seconds
+                    results["sites_fields_held"] = float(shared.fields_held)
+                    results["sites_held_mib"] = shared.held_bytes / 2**20
+                    print(
+                        f"sites: marched all {shared.fields_held} site fields of the train houses "
+                        f"in {seconds:.0f} s, {shared.held_bytes / 2**20:.0f} MiB held"
+                    )
+            envs["sites"]._goal_sites = shared
+            results.update(_time_resets(num_goals, envs, resets))
         finally:
-            before.close()
-            after.close()
-        for name, values in times.items():
-            ms = 1000 * np.asarray(values[1:])  # the first loads the first house
-            results[f"{num_goals}on_{name}_median_ms"] = float(np.median(ms))
-            results[f"{num_goals}on_{name}_mean_ms"] = float(ms.mean())
-            print(
-                f"{num_goals}-ON {name:>7} {np.median(ms):>10.1f} {ms.mean():>9.1f} "
-                f"{np.percentile(ms, 90):>8.1f}"
-            )
-        speedup = (
-            results[f"{num_goals}on_before_median_ms"] / results[f"{num_goals}on_after_median_ms"]
-        )
-        results[f"{num_goals}on_speedup"] = speedup
-        results[f"{num_goals}on_same_episodes"] = float(same)
-        print(
-            f"{'':>6} median speed-up {speedup:.1f}× (target ≥ 20×, median ≤ "
-            f"{TARGET_MS[num_goals]:g} ms); same episodes: {'yes' if same else 'NO'}"
-        )
-        results.update(_marching_share(num_goals, times["after"][1:], marching[1:], fields[1:]))
+            for env in envs.values():
+                env.close()
     return results
 
 
-def _marching_share(
-    num_goals: int, totals: Sequence[float], marching: Sequence[float], fields: Sequence[int]
-) -> dict[str, float]:
-    """Print and return how much of the after env's resets is fast marching: the part that
-    the same episodes cannot do without (one field from the start, one per goal)."""
-    total_ms, march_ms = 1000 * np.asarray(totals), 1000 * np.asarray(marching)
-    count = np.asarray(fields, dtype=np.float64)
-    per_field = float(march_ms.sum() / max(count.sum(), 1.0))
-    rest = float(np.median(total_ms - march_ms))
+def _time_resets(num_goals: int, envs: dict[str, MultiONEnv], resets: int) -> dict[str, float]:
+    times: dict[str, list[float]] = {name: [] for name in envs}
+    marching: dict[str, list[float]] = {name: [] for name in envs}
+    fields: dict[str, list[int]] = {name: [] for name in envs}
+    for index in range(resets + 1):
+        for name, env in envs.items():
+            clock = MarchingClock()
+            with clock.watch():
+                tick = time.perf_counter()
+                env.reset(seed=0 if index == 0 else None)
+                times[name].append(time.perf_counter() - tick)
+            marching[name].append(clock.seconds)
+            fields[name].append(clock.fields)
+    results: dict[str, float] = {}
     print(
-        f"{'':>6} after: fast marching {np.median(march_ms):.1f} ms of the median reset "
-        f"({np.median(count):g} fields, {per_field:.1f} ms each), everything else {rest:.1f} ms"
+        f"{'task':>6} {'sampler':>7} {'median ms':>10} {'mean ms':>9} {'p90 ms':>8}  "
+        "fast marching (median ms, fields)"
     )
-    return {
-        f"{num_goals}on_marching_median_ms": float(np.median(march_ms)),
-        f"{num_goals}on_fields_median": float(np.median(count)),
-        f"{num_goals}on_ms_per_field": per_field,
-        f"{num_goals}on_rest_median_ms": rest,
-    }
+    for name in envs:
+        ms = 1000 * np.asarray(times[name][1:])  # the first loads the first house
+        march_ms = 1000 * np.asarray(marching[name][1:])
+        count = np.asarray(fields[name][1:], dtype=np.float64)
+        key = f"{num_goals}on_{name}"
+        results[f"{key}_median_ms"] = float(np.median(ms))
+        results[f"{key}_mean_ms"] = float(ms.mean())
+        results[f"{key}_marching_median_ms"] = float(np.median(march_ms))
+        results[f"{key}_fields_median"] = float(np.median(count))
+        results[f"{key}_fields_mean"] = float(count.mean())
+        results[f"{key}_rest_median_ms"] = float(np.median(ms - march_ms))
+        print(
+            f"{num_goals}-ON {name:>7} {np.median(ms):>10.1f} {ms.mean():>9.1f} "
+            f"{np.percentile(ms, 90):>8.1f}  {np.median(march_ms):.1f} ms, "
+            f"{np.median(count):g} fields (mean {count.mean():.2f}); everything else "
+            f"{np.median(ms - march_ms):.1f} ms"
+        )
+    speedup = results[f"{num_goals}on_online_median_ms"] / results[f"{num_goals}on_sites_median_ms"]
+    results[f"{num_goals}on_speedup"] = speedup
+    print(
+        f"{'':>6} sites: median {speedup:.1f}× faster (target: median ≤ "
+        f"{TARGET_MS[num_goals]:g} ms)"
+    )
+    return results

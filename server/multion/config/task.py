@@ -25,6 +25,12 @@ SENSORS = (
 )
 
 
+TRAIN_SAMPLERS = ("sites", "online")
+"""How train episodes are drawn (``EnvConfig.train_sampler``)."""
+GOAL_SITES = 32
+GOAL_SITE_CACHE_MIB = 1024
+
+
 @dataclass(frozen=True)
 class EpisodeConstraints:
     """What a generated episode must satisfy (paper §5)."""
@@ -166,6 +172,19 @@ class EnvConfig:
     """Online (train) sampling keeps each goal within this geodesic distance, metres, of the
     start or the previous goal; below the datasets' 20 m it makes a curriculum's easy stage
     (``multion train --curriculum``). Packaged and file datasets ignore it."""
+    train_sampler: str = one_of("sites", TRAIN_SAMPLERS)
+    """How train episodes are drawn when no dataset is given. ``sites`` (the default since
+    issue 44): every goal is one of ``goal_sites`` fixed, seeded sites of the house, whose
+    distance fields are marched once and kept (:mod:`multion.task.goal_sites`), so a reset
+    marches no field once a house's sites are cached. ``online``: start and goals anywhere on
+    the floor, ``m + 1`` fields marched per episode (the sampler of every run published before
+    issue 44; choose it to reproduce them). Both keep the same constraints."""
+    goal_sites: int = bounded(GOAL_SITES, 16, 1024)
+    """Goal sites per train house (``train_sampler = "sites"``): one in every room (a house has
+    at most 16), the rest spread over the floor."""
+    goal_site_cache_mib: int = bounded(GOAL_SITE_CACHE_MIB, 1, 65_536)
+    """Memory for the goal sites' distance fields, MiB per env (0.5 MB a field in a median
+    train house); the least recently used are dropped, and marched again when drawn."""
 
     def __post_init__(self) -> None:
         check_fields(self, "")

@@ -87,6 +87,21 @@ class FieldCache:
             self._fields.move_to_end(key)
         return field
 
+    def put(
+        self, grid: NavGrid, target: np.ndarray, target_radius: float, field: np.ndarray
+    ) -> None:
+        """Keep a field made elsewhere (a goal site's, :mod:`multion.task.goal_sites`): it must
+        be :func:`distance_field` of the same arguments, which :meth:`get` then returns."""
+        if grid is not self._grid:
+            self._grid = grid
+            self._fields.clear()
+        key = (float(target[0]), float(target[1]), float(target_radius))
+        field.flags.writeable = False
+        self._fields[key] = field
+        self._fields.move_to_end(key)
+        if len(self._fields) > self.size:
+            self._fields.popitem(last=False)
+
 
 def geodesic_distance(grid: NavGrid, field: np.ndarray, xy: np.ndarray) -> float:
     """Read ``field`` at a world point (``inf`` off the grid)."""

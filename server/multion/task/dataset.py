@@ -272,7 +272,7 @@ def sample_episode(
         if not all(constraints.min_geodesic <= d <= constraints.max_geodesic for d in measured):
             continue  # the footprint distance can differ from the cell distance by a few cm
         distractors = (
-            _sample_distractors(rng, cells, goals, num_distractors, constraints, z)
+            sample_distractors(rng, cells, goals, num_distractors, constraints, z)
             if num_distractors
             else ()
         )
@@ -308,7 +308,7 @@ def can_step(grid: NavGrid, xy: np.ndarray, yaw: float, agent: AgentConfig = Age
     return False
 
 
-def _sample_distractors(
+def sample_distractors(
     rng: np.random.Generator,
     cells: np.ndarray,
     goals: Sequence[Goal],

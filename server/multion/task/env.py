@@ -31,6 +31,7 @@ from multion.task.errors import (
     EpisodeOverError,
     IllegalActionError,
 )
+from multion.task.goal_sites import GoalSites, sample_site_episode
 from multion.task.maps import EgoMapReveal, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
 from multion.task.spaces import build_observation_space
@@ -122,6 +123,11 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             max_geodesic=self.config.online_max_geodesic,
             reach=self.config.task.success_distance,
         )
+        self._goal_sites = GoalSites(
+            self.config.goal_sites,
+            self.config.task.goal_radius,
+            self.config.goal_site_cache_mib * 2**20,
+        )
 
     # ------------------------------------------------------------------ episodes
     def _default_episodes(self) -> list[Episode] | None:
@@ -160,16 +166,29 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             scene = self._online_scene
             grid = self.sim.load_scene(scene)
             self._online_count += 1
-            episode = sample_episode(
-                grid,
-                scene,
-                self.config.task.num_goals,
-                self.np_random,
-                f"train-online-{self._online_count:07d}",
-                num_distractors=self.config.task.num_distractors,
-                constraints=self._online_constraints,
-                fields=self._field_cache,
-            )
+            if self.config.train_sampler == "online":
+                episode = sample_episode(
+                    grid,
+                    scene,
+                    self.config.task.num_goals,
+                    self.np_random,
+                    f"train-online-{self._online_count:07d}",
+                    num_distractors=self.config.task.num_distractors,
+                    constraints=self._online_constraints,
+                    fields=self._field_cache,
+                )
+            else:
+                episode = sample_site_episode(
+                    self._goal_sites,
+                    grid,
+                    scene,
+                    self.config.task.num_goals,
+                    self.np_random,
+                    f"train-sites-{self._online_count:07d}",
+                    num_distractors=self.config.task.num_distractors,
+                    constraints=self._online_constraints,
+                    fields=self._field_cache,
+                )
             if episode is None:  # no valid episode found here: try another scene
                 self._online_scene = None
                 return self._next_episode(options)

@@ -1,0 +1,288 @@
+"""Train episodes drawn from a fixed set of goal sites per house (issue 44).
+
+Online sampling (:func:`multion.task.dataset.sample_episode`) marches ``m + 1`` distance fields
+per episode: the start's and each goal's. Here each train house has a seeded set of goal sites
+(:func:`choose_sites`: one in every room, the rest spread over the floor), and every goal of an
+episode is a site. A site's distance field (made with the goal's footprint, as the env makes it)
+is marched the first time a goal is drawn there and kept (:class:`GoalSites`, within a byte
+budget), so once a house's sites are cached a reset marches nothing.
+
+Goals are drawn backwards (:func:`sample_site_episode`): the last goal among the sites, each
+earlier one among the sites whose geodesic to the next goal (read in that goal's field) obeys
+the leg's constraints, and the start among the navigable cells within the constraints of the
+first goal's field. The constraints are the online sampler's: every leg 2-20 m (or
+``online_max_geodesic``), goals ``min_goal_separation`` apart, a start that can step, every goal
+reached by the agent's own steps, distractors as before.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from multion.config.episode import Episode, Goal
+from multion.config.task import EpisodeConstraints
+from multion.scenes.layout import Room
+from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.sim.geodesic import FieldCache, distance_field
+from multion.sim.navgrid import NavGrid
+from multion.task.dataset import can_step, sample_distractors
+from multion.task.step_reach import steps_reach_goals
+from multion_client.constants import NUM_CATEGORIES
+
+SITES_SEED = 44
+"""Seeds every house's sites together with its scene id: the sites of a house never depend on
+the env's seed, the order houses are visited in, or how many sites are asked for (the first
+``k`` of ``n > k`` sites are the ``k`` sites)."""
+SPREAD_CANDIDATES = 16
+"""Each site after the rooms' is the farthest from the sites so far of this many random
+navigable cells (Mitchell's best candidate): spread out, yet random."""
+
+
+def house_rooms(scene_id: str) -> tuple[Room, ...]:
+    """The rooms of a procedural scene (none for a mesh scan)."""
+    if is_mesh_scene(scene_id):
+        return ()
+    return layout_for(scene_id).rooms
+
+
+def room_of(rooms: Sequence[Room], xy: np.ndarray) -> np.ndarray:
+    """The index of the room holding each point of ``xy`` (shape ``(n, 2)``); -1 outside every
+    room (a door's gap between two rooms' interiors)."""
+    points = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    index = np.full(len(points), -1, dtype=np.int64)
+    for number, room in enumerate(rooms):
+        x0, y0, x1, y1 = room.rect
+        inside = (
+            (points[:, 0] >= x0)
+            & (points[:, 0] <= x1)
+            & (points[:, 1] >= y0)
+            & (points[:, 1] <= y1)
+        )
+        index[(index < 0) & inside] = number
+    return index
+
+
+def choose_sites(grid: NavGrid, rooms: Sequence[Room], count: int, scene_id: str) -> np.ndarray:
+    """``count`` goal sites of a house: indices into its navigable cells (the order of
+    ``np.nonzero(grid.navigable)``). First one random cell in every room that has navigable
+    cells (the rooms in a seeded order, so with fewer sites than rooms the rooms kept are
+    random), then sites spread over the whole floor. Seeded by ``scene_id`` alone."""
+    rng = np.random.default_rng([SITES_SEED, zlib.crc32(scene_id.encode("utf-8"))])
+    rows, cols = np.nonzero(grid.navigable)
+    cells = grid.cell_to_world(rows, cols)
+    if len(cells) < count:
+        raise ValueError(
+            f"{scene_id} has {len(cells)} navigable cells, fewer than the {count} goal sites asked"
+        )
+    in_room = room_of(rooms, cells)
+    chosen: list[int] = []
+    for number in rng.permutation(len(rooms)):
+        members = np.flatnonzero(in_room == number)
+        if len(members) and len(chosen) < count:
+            chosen.append(int(members[rng.integers(len(members))]))
+    nearest = np.full(len(cells), np.inf)
+    for site in chosen:
+        nearest = np.minimum(nearest, np.hypot(*(cells - cells[site]).T))
+    if not chosen:  # no rooms: the first site anywhere
+        chosen.append(int(rng.integers(len(cells))))
+        nearest = np.hypot(*(cells - cells[chosen[0]]).T)
+    while len(chosen) < count:
+        candidates = rng.integers(len(cells), size=SPREAD_CANDIDATES)
+        site = int(candidates[np.argmax(nearest[candidates])])
+        if nearest[site] == 0.0:  # every candidate is a site already: take any other cell
+            site = int(np.flatnonzero(nearest > 0)[0])
+        chosen.append(site)
+        nearest = np.minimum(nearest, np.hypot(*(cells - cells[site]).T))
+    return np.asarray(chosen, dtype=np.int64)
+
+
+@dataclass
+class HouseSites:
+    """One house's grid, navigable cells and goal sites."""
+
+    scene_id: str
+    grid: NavGrid
+    rows: np.ndarray
+    cols: np.ndarray
+    cells: np.ndarray
+    """World ``(x, y)`` of the navigable cells' centres, in ``np.nonzero`` order."""
+    sites: np.ndarray
+    """Indices of the sites into ``cells``."""
+    site_xy: np.ndarray
+    """The sites' world ``(x, y)``, rounded as an episode stores a goal's position."""
+
+    def full_field(self, values: np.ndarray) -> np.ndarray:
+        """A field over the whole grid from its values on the navigable cells (``inf``
+        elsewhere, as :func:`distance_field` makes it)."""
+        field = np.full(self.grid.shape, np.inf)
+        field[self.rows, self.cols] = values
+        field.flags.writeable = False
+        return field
+
+
+class GoalSites:
+    """The goal sites of the houses an env visits and the distance fields of their sites.
+
+    A site's field is marched when a goal is first drawn there and kept as its values on the
+    navigable cells (8 bytes a cell: 0.5 MB in a median train house). The least recently used
+    fields are dropped to keep them within ``budget_bytes``; ``held_bytes`` says what is held.
+    """
+
+    def __init__(self, count: int, goal_radius: float, budget_bytes: int) -> None:
+        self.count = count
+        self.goal_radius = goal_radius
+        self.budget_bytes = budget_bytes
+        self.held_bytes = 0
+        self.marched = 0
+        """Fields marched so far (a cache miss each)."""
+        self._houses: dict[str, HouseSites] = {}
+        self._fields: OrderedDict[tuple[str, int], np.ndarray] = OrderedDict()
+
+    def house(self, scene_id: str, grid: NavGrid) -> HouseSites:
+        """The sites of ``scene_id``, chosen on the first visit. A grid built again for the same
+        scene (the simulator keeps only some in memory) keeps them when its cells are the same."""
+        known = self._houses.get(scene_id)
+        if known is not None and (known.grid is grid or _same_grid(known.grid, grid)):
+            known.grid = grid
+            return known
+        if known is not None:
+            self._forget(scene_id)
+        rows, cols = np.nonzero(grid.navigable)
+        cells = grid.cell_to_world(rows, cols)
+        sites = choose_sites(grid, house_rooms(scene_id), self.count, scene_id)
+        house = HouseSites(scene_id, grid, rows, cols, cells, sites, np.round(cells[sites], 4))
+        self._houses[scene_id] = house
+        return house
+
+    def values(self, house: HouseSites, site: int) -> np.ndarray:
+        """Site ``site``'s distance field on the house's navigable cells (``np.nonzero``
+        order): the geodesic from each cell to the goal's footprint, as the env measures it."""
+        key = (house.scene_id, site)
+        values = self._fields.get(key)
+        if values is not None:
+            self._fields.move_to_end(key)
+            return values
+        field = distance_field(house.grid, house.site_xy[site], self.goal_radius)
+        self.marched += 1
+        values = field[house.rows, house.cols]
+        values.flags.writeable = False
+        self._fields[key] = values
+        self.held_bytes += values.nbytes
+        while self.held_bytes > self.budget_bytes and len(self._fields) > 1:
+            _, dropped = self._fields.popitem(last=False)
+            self.held_bytes -= dropped.nbytes
+        return values
+
+    @property
+    def fields_held(self) -> int:
+        return len(self._fields)
+
+    def _forget(self, scene_id: str) -> None:
+        for key in [k for k in self._fields if k[0] == scene_id]:
+            self.held_bytes -= self._fields.pop(key).nbytes
+        del self._houses[scene_id]
+
+
+def _same_grid(a: NavGrid, b: NavGrid) -> bool:
+    return (
+        a.origin == b.origin
+        and a.cell_size == b.cell_size
+        and a.shape == b.shape
+        and bool(np.array_equal(a.navigable, b.navigable))
+    )
+
+
+def sample_site_episode(
+    sites: GoalSites,
+    grid: NavGrid,
+    scene_id: str,
+    num_goals: int,
+    rng: np.random.Generator,
+    episode_id: str,
+    constraints: EpisodeConstraints = EpisodeConstraints(),
+    num_distractors: int = 0,
+    fields: FieldCache | None = None,
+) -> Episode | None:
+    """Sample one episode whose goals are goal sites, or None when ``max_tries`` draws fail.
+
+    The same guarantees as :func:`multion.task.dataset.sample_episode`: every leg's geodesic
+    (start to goal 1, goal i to goal i + 1, each read in the goal's field as the env reads it)
+    in ``[min_geodesic, max_geodesic]``, goals ``min_goal_separation`` apart, categories without
+    replacement, distractors away from the goals, a start that can step, every goal reached by
+    the agent's steps. ``fields``, when given, receives the goals' full fields for the reset.
+    """
+    if not 0 <= num_distractors <= NUM_CATEGORIES - num_goals:
+        raise ValueError(
+            f"num_distractors must be in 0..{NUM_CATEGORIES - num_goals} for {num_goals} goals, "
+            f"got {num_distractors}"
+        )
+    house = sites.house(scene_id, grid)
+    low, high = constraints.min_geodesic, constraints.max_geodesic
+    z = grid.floor_z
+    for _ in range(constraints.max_tries):
+        backwards = [int(rng.integers(len(house.sites)))]  # the last goal first
+        for _earlier in range(num_goals - 1):
+            to_next = sites.values(house, backwards[-1])[house.sites]
+            ok = (to_next >= low) & (to_next <= high)
+            for later in backwards:
+                gap = np.hypot(*(house.site_xy - house.site_xy[later]).T)
+                ok &= gap >= constraints.min_goal_separation
+            candidates = np.flatnonzero(ok)
+            if len(candidates) == 0:
+                break
+            backwards.append(int(candidates[rng.integers(len(candidates))]))
+        if len(backwards) != num_goals:
+            continue
+        order = backwards[::-1]
+        to_first = sites.values(house, order[0])
+        candidates = np.flatnonzero((to_first >= low) & (to_first <= high))
+        if len(candidates) == 0:
+            continue
+        start_cell = int(candidates[rng.integers(len(candidates))])
+        measured = [float(to_first[start_cell])] + [
+            float(sites.values(house, goal)[house.sites[before]])
+            for before, goal in zip(order, order[1:], strict=False)
+        ]
+        categories = rng.choice(NUM_CATEGORIES, size=num_goals, replace=False)
+        goals = tuple(
+            Goal(
+                category=int(c),
+                position=(float(house.site_xy[s][0]), float(house.site_xy[s][1]), z),
+            )
+            for c, s in zip(categories, order, strict=True)
+        )
+        distractors = (
+            sample_distractors(rng, house.cells, goals, num_distractors, constraints, z)
+            if num_distractors
+            else ()
+        )
+        if distractors is None:
+            continue
+        start = house.cells[start_cell]
+        start_xy = (round(float(start[0]), 4), round(float(start[1]), 4))
+        start_yaw = round(float(rng.uniform(-np.pi, np.pi)), 6)
+        if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
+            continue
+        goal_fields = [house.full_field(sites.values(house, s)) for s in order]
+        if constraints.step_paths and not steps_reach_goals(
+            grid, np.asarray(start_xy), start_yaw, goal_fields, constraints.reach
+        ):
+            continue
+        if fields is not None:
+            for site, field in zip(order, goal_fields, strict=True):
+                fields.put(grid, house.site_xy[site], sites.goal_radius, field)
+        return Episode(
+            episode_id=episode_id,
+            scene_id=scene_id,
+            start_position=(*start_xy, z),
+            start_yaw=start_yaw,
+            goals=goals,
+            geodesic_distances=tuple(measured),
+            distractors=distractors,
+        )
+    return None
