@@ -1,64 +1,84 @@
-"""Habitat-style MultiON challenge agents against a leaderboard run, with one changed import.
+"""Habitat-style MultiON challenge agents against a leaderboard run, with one changed line.
 
-A participant's ``evaluate.py`` from the MultiON challenges (3dlg-hcvc/multion-challenge) runs
-unchanged but for its import::
+A participant's ``evaluate.py`` from the MultiON challenges (3dlg-hcvc/multion-challenge, tags
+``chal-2021`` and ``chal_2022``) runs unchanged but for the line ``import habitat``::
 
     import multion_client.habitat_compat as habitat   # was: import habitat
+    from habitat.core.challenge import Challenge       # the 2021 starter's: works as it is
 
     class RandomWalker(habitat.Agent):
+        def __init__(self, task_config: habitat.Config):           # the 2022 starter's
+            self._POSSIBLE_ACTIONS = task_config.TASK.POSSIBLE_ACTIONS
+
         def reset(self):
             pass
 
         def act(self, observations):                  # 2022: one episode at a time
-            return {"action": np.random.choice(4)}    # an int, a name, or {"action": ...}
+            return {"action": np.random.choice(self._POSSIBLE_ACTIONS)}  # an int, a name…
 
-    habitat.Challenge().submit(RandomWalker())
+    config = habitat.get_config("./configs/multinav_real.yaml")     # the track's config
+    habitat.Challenge().submit(RandomWalker(task_config=config))
+
+Importing this module makes ``habitat.core.challenge`` name it (only that module path, so a
+real habitat installed beside keeps its own ``habitat``), which is why the 2021 starter's second
+import needs no change. ``Config`` and ``get_config`` are in :mod:`multion_client.habitat_config`.
 
 The 2021 challenge's batched form, ``act(observations_list, not_done_masks)`` returning one
 action per observation, is recognised by its two parameters and played over the run's lanes
-(``MULTION_NUM_ENVS`` episodes at once, the challenge's ``max_envs_per_run`` at most).
-``not_done_masks`` is a float32 array of shape (K, 1), 0 for a lane whose episode just started;
-a lane with no episode left leaves the batch, and the lists shrink, as habitat-baselines pauses
-finished environments.
+(``MULTION_NUM_ENVS`` episodes at once, at most the challenge's ``max_envs_per_run`` and the
+phase's episodes). ``not_done_masks`` is a float32 array of shape (K, 1), 0 for a lane whose
+episode just started. Lane k stays at position k for the whole run, so state an agent keeps per
+position never passes to another episode: a lane with no episode left keeps its place with its
+last observation repeated and mask 1 until every lane is done, and its actions are ignored.
 
 Where to play comes from the environment, as a habitat challenge reads its own: ``MULTION_SERVER``
 (the URL), ``MULTION_TRACK``, ``MULTION_PHASE``, ``MULTION_METHOD`` (the name shown on the
-leaderboard) and ``MULTION_TOKEN``; ``Challenge(...)`` keywords override them.
+leaderboard), ``MULTION_TOKEN``, and ``MULTION_RUN_ID`` to resume a run instead of creating one;
+``Challenge(...)`` keywords override them. ``submit`` prints what ``multion submit`` prints: the
+run's id as it starts, then its state and results. If the agent raises (or the process is
+stopped by Ctrl-C or SIGTERM), the run is abandoned on the way out (its missing episodes count as
+failures) unless ``Challenge(abandon_on_error=False)``; a lost connection leaves it running to
+be resumed with ``MULTION_RUN_ID``.
 
 Observations use the reference's names and conventions: ``rgb`` (H, W, 3) uint8, ``depth``
 (H, W, 1) float32 in [0, 1] of 0-10 m, ``multiobjectgoal`` an int64 array of shape (1,) in the
 reference's category order (red, green, blue, yellow, white, pink, black, cyan; on tracks with
 other goal objects, their ids here), ``gps``
 [forward, right] metres from the start, ``compass`` (1,) radians, counter-clockwise, and on tracks
-that allow an oracle map ``semMap`` (S, S, 2): occupancy, then object ids in the reference's order
-+ 1 (``oracle_map``) or + 2 (``oracle_ego_map``) as the reference's ``habitat/core/env.py``
-(saimwani/multiON, l. 252-253 and 279) writes them.
+that allow an oracle map ``semMap`` (S, S, 2), the reference's map cell for cell: the run asks
+for ``maps.convention = "reference"`` (ahead down, as ``habitat/core/env.py`` l. 291-293 of
+saimwani/multiON cuts it) and :mod:`multion_client.semantic_map` puts object ids in the reference's
+order + 1 (``oracle_map``) or + 2 (``oracle_ego_map``, 1 for a seen cell without one).
 """
 
 from __future__ import annotations
 
-import inspect
-import os
-from abc import ABC, abstractmethod
+import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from multion_client.client import Client
-from multion_client.constants import REFERENCE_TO_CATEGORY, Action, action_id
-from multion_client.run import RunEnv
+from multion_client.constants import REFERENCE_TO_CATEGORY
+from multion_client.errors import MultiONError, RunOver, ServerUnavailable
+from multion_client.habitat_agent import Agent as Agent  # habitat.Agent (re-exported)
+from multion_client.habitat_agent import (
+    Observations,
+    StopOnSigterm,
+    is_batched,
+    play_batched,
+    play_one_by_one,
+)
+from multion_client.habitat_agent import to_action as to_action
+from multion_client.habitat_config import SETTINGS as SETTINGS
+from multion_client.habitat_config import Config as Config  # habitat.Config
+from multion_client.habitat_config import find_track, setting
+from multion_client.habitat_config import get_config as get_config  # habitat.get_config
+from multion_client.run import RunEnv, describe_run
+from multion_client.semantic_map import REFERENCE_MAPS, reference_sem_map
 
-Observations = dict[str, np.ndarray]
-ActionChoice = int | str | Mapping[str, Any] | np.integer[Any]
-SETTINGS = {
-    "server": "MULTION_SERVER",
-    "track": "MULTION_TRACK",
-    "phase": "MULTION_PHASE",
-    "method": "MULTION_METHOD",
-    "num_envs": "MULTION_NUM_ENVS",
-}
-"""Each setting of :class:`Challenge` and the environment variable it is read from."""
+HABITAT_PATHS = ("habitat.core.challenge",)
+"""The habitat module paths that name this module once it is imported (the starters' imports)."""
 WANTED_SENSORS = ("rgb", "depth", "goal", "gps", "compass", "oracle_map", "oracle_ego_map")
 REFERENCE_MAX_DEPTH = 10.0
 """Habitat's depth range, which the reference keeps: [0, 10] m, normalised."""
@@ -66,41 +86,6 @@ CATEGORY_TO_REFERENCE: tuple[int, ...] = tuple(
     REFERENCE_TO_CATEGORY.index(category) for category in range(len(REFERENCE_TO_CATEGORY))
 )
 """The reference's index of each category id here."""
-
-
-class Agent(ABC):
-    """habitat's ``Agent``: subclass it and implement ``reset()`` and ``act(observations)``
-    (abstract here, where habitat's raise when called: a subclass missing one is refused when
-    it is made, not in the middle of a run)."""
-
-    @abstractmethod
-    def reset(self) -> None:
-        """Called before each episode."""
-
-    @abstractmethod
-    def act(self, observations: Observations) -> ActionChoice:
-        """The action for ``observations``: an int 0..3, a name such as ``"MOVE_FORWARD"``, or
-        ``{"action": one of those}``."""
-
-
-def to_action(choice: Any) -> int:
-    """An agent's answer as an action id; a ``ValueError`` naming what is accepted."""
-    value = choice.get("action") if isinstance(choice, Mapping) else choice
-    if isinstance(value, str) and value.upper() in Action.__members__:
-        return int(Action[value.upper()])
-    number = action_id(value)
-    if number is None:
-        names = ", ".join(f"{a.value} or {a.name!r}" for a in Action)
-        raise ValueError(
-            f"act() returned {choice!r:.80}; an action is one of {names}, "
-            "or {'action': one of those}"
-        )
-    return number
-
-
-def is_batched(agent: Agent) -> bool:
-    """True for the 2021 form ``act(observations_list, not_done_masks)``."""
-    return len(inspect.signature(agent.act).parameters) == 2
 
 
 class DepthRange:
@@ -120,18 +105,6 @@ class DepthRange:
 
 IDENTITY = tuple(range(len(CATEGORY_TO_REFERENCE)))
 """The order of the goal sets other than ``colours``, which the reference does not have."""
-
-
-def reference_map(
-    crop: np.ndarray, offset: int, order: Sequence[int] = CATEGORY_TO_REFERENCE
-) -> np.ndarray:
-    """An oracle map crop with its object ids in ``order`` (the reference's), + ``offset``."""
-    out = np.array(crop, copy=True)
-    objects = out[..., 1]
-    marked = objects > 0
-    lookup = np.array(order, dtype=np.int64)
-    objects[marked] = (lookup[objects[marked].astype(np.int64) - 1] + offset).astype(out.dtype)
-    return out
 
 
 def habitat_observations(
@@ -154,15 +127,15 @@ def habitat_observations(
     if "compass" in obs:
         out["compass"] = np.asarray(obs["compass"], dtype=np.float32).reshape(1)
     if "oracle_map" in obs:
-        out["semMap"] = reference_map(obs["oracle_map"], 1, order)
+        out["semMap"] = reference_sem_map(obs["oracle_map"], "oracle_map", order)
     elif "oracle_ego_map" in obs:
-        out["semMap"] = reference_map(obs["oracle_ego_map"], 2, order)
+        out["semMap"] = reference_sem_map(obs["oracle_ego_map"], "oracle_ego_map", order)
     return out
 
 
 class Challenge:
-    """habitat's ``Challenge``: ``submit(agent)`` plays one leaderboard run to its end and
-    returns the run's results as the phase shows them."""
+    """habitat's ``Challenge``: ``submit(agent)`` plays one leaderboard run to its end, prints
+    what ``multion submit`` prints and returns the run's results as the phase shows them."""
 
     def __init__(
         self,
@@ -174,51 +147,93 @@ class Challenge:
         method: str | None = None,
         token: str | None = None,
         num_envs: int | None = None,
+        run_id: str | None = None,
+        abandon_on_error: bool = True,
     ) -> None:
         del eval_remote  # habitat's local/remote switch: a leaderboard run is always remote
+        self.run_id = setting("run_id", run_id)
         given = {"server": server, "track": track, "phase": phase, "method": method}
-        values = {k: v or os.environ.get(SETTINGS[k]) for k, v in given.items()}
-        missing = [SETTINGS[k] for k, v in values.items() if not v]
+        values = {k: setting(k, v) for k, v in given.items()}
+        needed = ["server"] if self.run_id else list(given)  # a resumed run knows the rest
+        missing = [SETTINGS[k] for k in needed if values[k] is None]
         if missing:
             raise ValueError(f"set {', '.join(missing)} (or pass them to Challenge())")
-        self.server, self.track, self.phase, self.method = (
-            str(values[k]) for k in ("server", "track", "phase", "method")
-        )
+        self.server, self.track, self.phase, self.method = (values[k] or "" for k in given)
         self.token = token
-        lanes = num_envs if num_envs is not None else os.environ.get(SETTINGS["num_envs"], "4")
+        lanes = setting("num_envs", num_envs) or "4"
         try:
             self.num_envs = int(lanes)
         except ValueError:
             raise ValueError(f"{SETTINGS['num_envs']} must be an int ≥ 1, got {lanes!r}") from None
         if self.num_envs < 1:
             raise ValueError(f"{SETTINGS['num_envs']} must be an int ≥ 1, got {self.num_envs}")
+        self.abandon_on_error = abandon_on_error
         self._depth = DepthRange({})  # both read from the track when a run opens
         self._order: Sequence[int] = CATEGORY_TO_REFERENCE
 
     def submit(self, agent: Agent) -> dict[str, Any]:
-        """Play the run; its results as the phase shows them (empty while sealed)."""
-        lanes = self._open(self.num_envs if is_batched(agent) else 1)
+        """Play the run (or the rest of ``MULTION_RUN_ID``'s); its results as the phase shows
+        them (empty while sealed). Printed: the run's id as it starts, its results at the end."""
+        batched = is_batched(agent)
+        lanes = self._open(self.num_envs if batched else 1)
+        first = lanes[0]
+        print(
+            f"run {first.run_id}: {first.num_episodes} episodes, {len(lanes)} at once "
+            f"(resume with {SETTINGS['run_id']}={first.run_id})",
+            flush=True,
+        )
         try:
-            if is_batched(agent):
-                self._play_batched(agent, lanes)
-            else:
-                self._play(agent, lanes[0])
-            return lanes[0].status().results or {}  # None on a sealed phase
+            with StopOnSigterm():
+                try:
+                    play = play_batched if batched else play_one_by_one
+                    play(agent, lanes, self._convert)
+                except RunOver:
+                    pass  # the server ended the run (time budget, timeouts): its status says why
+            status = first.status()
+        except ServerUnavailable:
+            print(
+                f"run {first.run_id}: the server cannot be reached; the run goes on: resume it "
+                f"with {SETTINGS['run_id']}={first.run_id}",
+                file=sys.stderr,
+            )
+            raise
+        except BaseException as error:
+            self._stop(first, error)
+            raise
         finally:
             for env in lanes:
                 env.close()
+        print(describe_run(status), flush=True)
+        return status.results or {}  # None on a sealed phase
 
     # ------------------------------------------------------------------ internals
+    def _convert(self, obs: Mapping[str, np.ndarray]) -> Observations:
+        return habitat_observations(obs, self._depth, self._order)
+
     def _open(self, num_envs: int) -> list[RunEnv]:
-        client = Client(self.server)
-        try:
-            info = client.challenge()
-        finally:
-            client.close()
-        track = next((t for t in info["tracks"] if t["name"] == self.track), None)
-        if track is None:
-            names = [t["name"] for t in info["tracks"]]
-            raise ValueError(f"no track {self.track!r} on {self.server}; tracks: {names}")
+        """The lanes of a new run, or of run ``run_id`` resumed."""
+        if self.run_id is not None:
+            first = RunEnv(self.server, token=self.token, run_id=self.run_id)
+            lanes = [first] + [
+                RunEnv(self.server, token=self.token, run_id=self.run_id, lane=k)
+                for k in range(1, first.num_envs)
+            ]
+            self.track = first.status().track
+            self._read_track(find_track(self.server, self.track)[0])
+            return lanes
+        track, limits = find_track(self.server, self.track)
+        sensors = self._read_track(track)
+        phases: list[dict[str, Any]] = track.get("phases", [])
+        phase = next((p for p in phases if p["name"] == self.phase), {})
+        most = [int(limits.get("max_envs_per_run", num_envs)), int(phase.get("episodes", num_envs))]
+        return RunEnv.lanes(
+            self.server, self.track, self.phase, self.method, num_envs=min(num_envs, *most),
+            token=self.token, sensors=sensors,
+            maps=REFERENCE_MAPS if {"oracle_map", "oracle_ego_map"} & set(sensors) else None,
+        )  # fmt: skip
+
+    def _read_track(self, track: Mapping[str, Any]) -> list[str]:
+        """Take the track's depth range and goal order; the sensors to ask for."""
         allowed = set(track.get("sensors", ()))
         sensors = [s for s in WANTED_SENSORS if s in allowed]
         if "oracle_map" in sensors and "oracle_ego_map" in sensors:
@@ -226,48 +241,30 @@ class Challenge:
         self._depth = DepthRange(track.get("camera") or {})
         colours = track.get("goal_set", "colours") == "colours"
         self._order = CATEGORY_TO_REFERENCE if colours else IDENTITY
-        limit = int(info["limits"].get("max_envs_per_run", num_envs))
-        return RunEnv.lanes(
-            self.server, self.track, self.phase, self.method, num_envs=min(num_envs, limit),
-            token=self.token, sensors=sensors,
-        )  # fmt: skip
+        return sensors
 
-    def _play(self, agent: Agent, env: RunEnv) -> None:
-        while not env.run_done:
-            obs, _ = env.reset()
-            agent.reset()
-            done = False
-            while not done:
-                action = to_action(agent.act(habitat_observations(obs, self._depth, self._order)))
-                obs, _, terminated, truncated, _ = env.step(action)
-                done = terminated or truncated
+    def _stop(self, env: RunEnv, error: BaseException) -> None:
+        """The exit path after ``error``: abandon the run (unless told not to), or say how to
+        resume it."""
+        why = type(error).__name__
+        if not self.abandon_on_error:
+            print(
+                f"run {env.run_id}: stopped by {why}; it goes on until it expires: resume it with "
+                f"{SETTINGS['run_id']}={env.run_id}",
+                file=sys.stderr,
+            )
+            return
+        try:
+            env.abandon()
+        except MultiONError as failure:  # over already, or unreachable: nothing more to do
+            print(f"run {env.run_id}: stopped by {why}; abandoning it failed: {failure}",
+                  file=sys.stderr)  # fmt: skip
+            return
+        print(
+            f"run {env.run_id}: abandoned after {why} (its missing episodes count as failures)",
+            file=sys.stderr,
+        )
 
-    def _play_batched(self, agent: Agent, lanes: Sequence[RunEnv]) -> None:
-        agent.reset()
-        active = [env for env in lanes if not env.run_done]
-        observations: list[Mapping[str, np.ndarray]] = [env.reset()[0] for env in active]
-        masks = np.zeros((len(active), 1), dtype=np.float32)
-        batched_act: Any = agent.act  # the 2021 signature, not the base class's
-        while active:
-            batch = [habitat_observations(o, self._depth, self._order) for o in observations]
-            actions = list(batched_act(batch, masks))
-            if len(actions) != len(active):
-                raise ValueError(
-                    f"act() returned {len(actions)} actions for {len(active)} observations"
-                )
-            still: list[RunEnv] = []
-            next_obs: list[Mapping[str, np.ndarray]] = []
-            next_masks: list[float] = []
-            for env, choice in zip(active, actions, strict=True):
-                obs, _, terminated, truncated, _ = env.step(to_action(choice))
-                if terminated or truncated:
-                    if env.run_done:
-                        continue  # this lane is finished: it leaves the batch
-                    obs, _ = env.reset()
-                    next_masks.append(0.0)
-                else:
-                    next_masks.append(1.0)
-                still.append(env)
-                next_obs.append(obs)
-            active, observations = still, next_obs
-            masks = np.array(next_masks, dtype=np.float32).reshape(-1, 1)
+
+for _path in HABITAT_PATHS:  # see the module docstring: the starters' own imports work
+    sys.modules[_path] = sys.modules[__name__]
