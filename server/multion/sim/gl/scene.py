@@ -33,6 +33,7 @@ from multion.sim.gl.shapes import (
     cylinder_mesh,
     obj_mesh,
     sphere_mesh,
+    stl_mesh,
 )
 
 FLOATS_PER_VERTEX = 17
@@ -103,7 +104,12 @@ def _tessellate(geometry: int, dims: tuple[float, ...], mesh_file: str) -> Shape
     if geometry == GEOM_SPHERE:
         return sphere_mesh(dims[0])
     if geometry == GEOM_MESH and mesh_file:
-        return obj_mesh(Path(mesh_file), (dims[0], dims[1], dims[2]))
+        path, scale = Path(mesh_file), (dims[0], dims[1], dims[2])
+        if path.suffix.lower() == ".stl":
+            return stl_mesh(path, scale)
+        if path.suffix.lower() == ".obj":
+            return obj_mesh(path, scale)
+        raise ValueError(f"the gl renderer reads OBJ and STL meshes, not {path}")
     return None  # planes and heightfields: TinyRenderer draws neither
 
 

@@ -217,6 +217,21 @@ def obj_mesh(path: Path, scale: tuple[float, float, float]) -> ShapeMesh:
     return ShapeMesh(vertex, normal, uv, texture)
 
 
+def stl_mesh(path: Path, scale: tuple[float, float, float]) -> ShapeMesh | None:
+    """A binary STL file as Bullet reads it (``LoadMeshFromSTL.h``): each facet's normal from
+    the file for its three corners, texture coordinates (0.5, 0.5); None for a file Bullet
+    refuses (its size does not match its triangle count, e.g. an ASCII STL)."""
+    data = path.read_bytes()
+    count = int.from_bytes(data[80:84], "little", signed=True) if len(data) >= 84 else 0
+    if count <= 0 or len(data) != 84 + 50 * count:
+        return None
+    record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+    facets = np.frombuffer(data, dtype=record, count=count, offset=84)
+    positions = facets["corners"].reshape(-1, 3).astype(np.float64) * np.asarray(scale, float)
+    normals = np.repeat(facets["normal"].astype(np.float64), 3, axis=0)
+    return ShapeMesh(positions, normals, np.full((len(positions), 2), 0.5))
+
+
 def _face_corner(item: str, positions: int, uvs: int, normals: int) -> tuple[int, int, int]:
     """``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn`` as 0-based indices (negative ones count
     from the end, as OBJ says); -1 where absent."""
