@@ -242,7 +242,7 @@ def test_malformed_bodies(
         ({"camera": {"width": "64"}}, "field 'camera.width' must be an int"),
         ({"sensors": ["sonar"]}, "unknown sensor"),
         ({"task": {"num_goals": 3}}, "has 2 goals but task.num_goals is 3"),
-        ({"episodes": [{"scene_id": "room-6x4"}]}, "episodes[0] is not a valid episode"),
+        ({"episodes": [{"scene_id": "room-6x4"}]}, "missing field 'episodes[0].episode_id'"),
         ({"split": "nowhere"}, "split = 'nowhere' is not allowed"),
         ({"split": "../../tmp/x"}, "allowed one of 'train', 'val', 'test'"),
         ({"camera": {"width": 0}}, "camera.width = 0 is out of range: allowed an integer in [1,"),

@@ -21,7 +21,8 @@ from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
 from multion.config.codec import ConfigError, session_config_from_dict
 from multion.task.env import check_reset_options
-from multion.task.errors import BadResetOptionError
+from multion.task.episode_checks import check_caller_episodes
+from multion.task.errors import BadEpisodeError, BadResetOptionError
 from multion.task.memory import estimate_env_bytes, mib
 from multion_client import errors
 from multion_client.constants import ACTIONS_TEXT, action_id
@@ -98,7 +99,7 @@ class SessionRegistry:
         ``owner`` names the client of a plain session (its per-client cap); ``for_run``
         marks a leaderboard run's session, which may use the share kept for runs."""
         try:  # fail fast, before any worker is involved
-            config, _ = session_config_from_dict(message.config)
+            config, episodes = session_config_from_dict(message.config)
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
         env_bytes = estimate_env_bytes(config)
@@ -111,6 +112,10 @@ class SessionRegistry:
             )
         # Files the config names are on this server's disk: only allowed directories (403).
         message = dataclasses.replace(message, config=checked_config(message.config, self.roots))
+        try:  # after the path check: whether a mesh file exists is told only where it may be read
+            check_caller_episodes(episodes or [], config.task, "episodes")
+        except BadEpisodeError as error:
+            raise errors.InvalidEpisode(str(error)) from None
         n, s = message.num_envs, self.settings
         if n > s.max_envs_per_session:
             raise errors.TooManyEnvs(

@@ -112,6 +112,8 @@ def _create(shards: dict[str, Shard], shard_id: str, payload: dict[str, Any]) ->
     try:
         config, episodes = session_config_from_dict(payload["config"])
         envs = [MultiONEnv(config, episodes) for _ in range(payload["num_envs"])]
+    except BadEpisodeError as error:  # the server checked them: only direct callers
+        raise errors.InvalidEpisode(str(error)) from None
     except (ConfigError, DatasetError, ValueError, TypeError) as error:
         raise errors.InvalidConfig(str(error)) from None
     shards[shard_id] = Shard(envs, payload["auto_reset"])

@@ -67,12 +67,7 @@ def session_config_from_dict(data: Mapping[str, Any]) -> tuple[EnvConfig, list[E
     for index, item in enumerate(raw):
         if not isinstance(item, Mapping):
             raise ConfigError(f"episodes[{index}] must be a map, got {type(item).__name__}")
-        try:
-            episode = Episode.from_dict(item)
-        except (KeyError, TypeError, ValueError) as error:
-            raise ConfigError(
-                f"episodes[{index}] is not a valid episode: {_describe(error)}"
-            ) from None
+        episode = Episode.from_dict(item, f"episodes[{index}]")  # ConfigError naming the field
         if episode.num_goals != config.task.num_goals:
             raise ConfigError(
                 f"episodes[{index}] ({episode.episode_id}) has {episode.num_goals} goals but "
@@ -173,7 +168,3 @@ def _plain(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_plain(v) for v in value]
     return value
-
-
-def _describe(error: Exception) -> str:
-    return f"missing field {error}" if isinstance(error, KeyError) else str(error)

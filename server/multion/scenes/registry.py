@@ -37,11 +37,22 @@ and grids take the layout's floor height (issue 33: small houses walked on their
 MESH_SUFFIXES = (".obj", ".glb", ".gltf", ".ply")
 MAX_SIZED_ROOMS = 16
 """``house-N-rK`` takes K in 1..this (the generator's calibrated maximum)."""
+MAX_HOUSE_DIGITS = 18
+"""A house number has at most this many digits: a seed of 64 bits (the leaderboard's hidden
+houses are numbered from 10**9 to about 10**12), and no int() of a megabyte of digits."""
 
 _HOUSE = re.compile(r"house-(\d+)")
 _SIZED_HOUSE = re.compile(r"house-(\d+)-r([1-9]|1[0-6])")
 _ROOM = re.compile(r"room-(\d+(?:\.\d+)?)x(\d+(?:\.\d+)?)")
 _ACCEPTED = "'house-NNNNN' (e.g. house-00042), 'room-WxD' in metres (e.g. room-6x4, room-10x2.5)"
+_ACCEPTED_ALL = (
+    f"{_ACCEPTED}, 'house-NNNNN-rK' (K rooms, 1..{MAX_SIZED_ROOMS}) or a mesh file path ending "
+    f"in {', '.join(MESH_SUFFIXES)}"
+)
+
+
+class SceneIdError(ValueError):
+    """A scene id of no accepted form, or out of its range; the message says what is allowed."""
 
 
 def _first_seeds() -> dict[str, int]:
@@ -61,7 +72,8 @@ def house_parameters(scene_id: str) -> tuple[int, HouseConfig]:
     """The (seed, generator parameters) that build procedural house ``scene_id``."""
     match = _HOUSE.fullmatch(scene_id)
     if match is None:
-        raise ValueError(f"{scene_id!r} is not a procedural house id ('house-NNNNN')")
+        raise SceneIdError(f"{scene_id!r} is not a procedural house id ('house-NNNNN')")
+    check_scene_id(scene_id)
     return int(match.group(1)), HOUSE_CONFIG
 
 
@@ -108,9 +120,53 @@ def is_mesh_scene(scene_id: str) -> bool:
     return scene_id.lower().endswith(MESH_SUFFIXES)
 
 
+def check_scene_id(scene_id: str) -> None:
+    """Raise :class:`SceneIdError` unless ``scene_id`` has an accepted form and range.
+
+    Cheap (no scene is built): the server checks a client's episodes with it before any
+    simulator work. A mesh path passes here; whether its file may be read is the caller's check.
+    """
+    house = _HOUSE.fullmatch(scene_id) or _SIZED_HOUSE.fullmatch(scene_id)
+    if house is not None:
+        if len(house.group(1)) > MAX_HOUSE_DIGITS:
+            raise SceneIdError(
+                f"scene id {scene_id!r:.60}: a house number has at most {MAX_HOUSE_DIGITS} digits"
+            )
+        return
+    if match := _ROOM.fullmatch(scene_id):
+        width, depth = float(match.group(1)), float(match.group(2))
+        if not (0 < width <= MAX_ROOM_SIDE_M and 0 < depth <= MAX_ROOM_SIDE_M):
+            raise SceneIdError(
+                f"scene id {scene_id!r:.60}: room width and depth must be in "
+                f"(0, {MAX_ROOM_SIDE_M:g}] metres"
+            )
+        return
+    if is_mesh_scene(scene_id):
+        return
+    if re.fullmatch(r"house-\d+-r\d+", scene_id):
+        raise SceneIdError(
+            f"scene id {scene_id!r:.60}: a house's room count K in 'house-NNNNN-rK' must be in "
+            f"1..{MAX_SIZED_ROOMS}"
+        )
+    raise SceneIdError(f"unknown scene id {scene_id!r:.80}; accepted forms are {_ACCEPTED_ALL}")
+
+
+def room_extent(scene_id: str) -> tuple[float, float] | None:
+    """The (width, depth) of a ``room-WxD`` id, whose free interior is [0, W] x [0, D]; None for
+    any other id."""
+    match = _ROOM.fullmatch(scene_id)
+    return None if match is None else (float(match.group(1)), float(match.group(2)))
+
+
 @functools.lru_cache(maxsize=64)
 def layout_for(scene_id: str) -> SceneLayout:
-    """The layout of a procedural scene id (see the module docstring for the accepted forms)."""
+    """The layout of a procedural scene id (see the module docstring for the accepted forms);
+    :class:`SceneIdError` for any other id (a mesh path included: it has no layout)."""
+    if is_mesh_scene(scene_id):
+        raise SceneIdError(
+            f"scene id {scene_id!r} is a mesh file; it has no procedural layout (load the mesh)"
+        )
+    check_scene_id(scene_id)
     if _HOUSE.fullmatch(scene_id):
         seed, config = house_parameters(scene_id)
         return generate_house(seed, config, scene_id=scene_id)
@@ -118,16 +174,6 @@ def layout_for(scene_id: str) -> SceneLayout:
         rooms = int(match.group(2))
         config = dataclasses.replace(HOUSE_CONFIG, min_rooms=rooms, max_rooms=rooms)
         return generate_house(int(match.group(1)), config, scene_id=scene_id)
-    if match := _ROOM.fullmatch(scene_id):
-        width, depth = float(match.group(1)), float(match.group(2))
-        if not (0 < width <= MAX_ROOM_SIDE_M and 0 < depth <= MAX_ROOM_SIDE_M):
-            raise ValueError(
-                f"scene id {scene_id!r}: room width and depth must be in (0, {MAX_ROOM_SIDE_M:g}] "
-                "metres"
-            )
-        return make_room(width, depth, scene_id=scene_id)
-    if is_mesh_scene(scene_id):
-        raise ValueError(
-            f"scene id {scene_id!r} is a mesh file; it has no procedural layout (load the mesh)"
-        )
-    raise ValueError(f"unknown scene id {scene_id!r}; accepted forms are {_ACCEPTED}")
+    extent = room_extent(scene_id)
+    assert extent is not None  # check_scene_id let through houses, rooms and meshes only
+    return make_room(*extent, scene_id=scene_id)

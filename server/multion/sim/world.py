@@ -33,6 +33,11 @@ HIDDEN_POSITION = (0.0, 0.0, -100.0)
 DEFAULT_LIGHTING = (0.6, 0.4)  # (ambient, diffuse): rooms, meshes, houses that say nothing
 
 
+class MeshSceneError(ValueError):
+    """A mesh scene file that cannot be used (its format, or a file PyBullet or trimesh cannot
+    read): the fault of whoever named it, not of the simulator."""
+
+
 class PyBulletWorld:
     """A PyBullet physics client with one scene loaded.
 
@@ -167,7 +172,7 @@ class PyBulletWorld:
         """
         path = Path(path)
         if path.suffix.lower() not in MESH_SUFFIXES:
-            raise ValueError(
+            raise MeshSceneError(
                 f"unsupported mesh format {path.suffix!r} for {path}; use one of {MESH_SUFFIXES}"
             )
         if not path.is_file():
@@ -182,7 +187,7 @@ class PyBulletWorld:
         )
         vis = p.createVisualShape(p.GEOM_MESH, fileName=str(obj_path), physicsClientId=world.client)
         if col < 0 or vis < 0:
-            raise ValueError(f"PyBullet could not load the mesh {path}")
+            raise MeshSceneError(f"PyBullet could not load the mesh {path}")
         body = p.createMultiBody(0, col, vis, physicsClientId=world.client)
         world.scene_bodies.append(body)
         world.mirror_in_gl()
@@ -401,7 +406,7 @@ def convert_mesh(source: Path, target: Path, transform: np.ndarray | None = None
     try:
         mesh = trimesh.load(source, force="mesh")
     except Exception as error:  # trimesh raises many kinds of errors for bad files
-        raise ValueError(f"could not read mesh scene {source}: {error}") from error
+        raise MeshSceneError(f"could not read mesh scene {source}: {error}") from error
     if transform is not None:
         mesh.apply_transform(transform)
     target.parent.mkdir(parents=True, exist_ok=True)

@@ -12,17 +12,19 @@ from gymnasium import spaces
 
 from multion.config.episode import Episode
 from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
-from multion.scenes.registry import scene_ids
+from multion.scenes.registry import SceneIdError, scene_ids
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.goal_objects import OBJECT_GOAL_SETS, goal_yaw
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
+from multion.sim.world import MeshSceneError
 from multion.task.dataset import (
     load_dataset,
     packaged_dataset_path,
     sample_episode,
     variant_name,
 )
+from multion.task.episode_checks import check_caller_episode, check_caller_episodes, check_on_grid
 from multion.task.errors import (
     BadEpisodeError,
     BadResetOptionError,
@@ -98,6 +100,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self.config = config or EnvConfig()
         self.render_mode = render_mode
         self.sim = Simulator(self.config.agent, self.config.camera, self.config.navgrid)
+        if episodes is not None:  # the caller's: checked here, a dataset's when it is read
+            check_caller_episodes(episodes, self.config.task, "episodes")
         self.episodes = list(episodes) if episodes is not None else self._default_episodes()
         self._cursor = 0
         self._train_scenes = scene_ids("train") if self.episodes is None else []
@@ -149,13 +153,13 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     def _next_episode(self, options: dict[str, Any]) -> Episode:
         if "episode" in options:
             episode = options["episode"]
-            if isinstance(episode, Episode):
-                return episode
-            try:
-                return Episode.from_dict(episode)
-            except (KeyError, TypeError, ValueError) as error:
-                problem = f"no field {error}" if isinstance(error, KeyError) else str(error)
-                raise BadEpisodeError(f"malformed inline episode: {problem}") from None
+            if not isinstance(episode, Episode):
+                try:
+                    episode = Episode.from_dict(episode, "options.episode")
+                except ValueError as error:  # from_dict's ConfigError, naming the field
+                    raise BadEpisodeError(f"malformed inline episode: {error}") from None
+            check_caller_episode(episode, self.config.task, "options.episode")
+            return episode
         if self.episodes is None:
             if (
                 self._online_scene is None
@@ -209,13 +213,13 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self._cursor = (self._cursor + 1) % len(self.episodes)
         return episode
 
-    def _load_scene(self, episode: Episode, inline: bool) -> NavGrid:
-        if not inline:
-            return self.sim.load_scene(episode.scene_id)
-        try:  # a scene id the caller wrote: an unknown one is the caller's mistake
-            return self.sim.load_scene(episode.scene_id)
-        except (ValueError, OSError) as error:
-            raise BadEpisodeError(f"episode {episode.episode_id}: {error}") from None
+    def _load_scene(self, episode: Episode) -> NavGrid:
+        try:  # the scene ids the server makes are sound: a bad one is the caller's mistake
+            grid = self.sim.load_scene(episode.scene_id)
+        except (SceneIdError, MeshSceneError, FileNotFoundError) as error:
+            raise BadEpisodeError(f"episode {episode.episode_id}: scene_id: {error}") from None
+        check_on_grid(episode, grid)
+        return grid
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -233,13 +237,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         if seed is not None and self.episodes:
             self._cursor = seed % len(self.episodes)
         episode = self._next_episode(dict(options or {}))
-        grid = self._load_scene(episode, inline="episode" in (options or {}))
+        grid = self._load_scene(episode)
         start = np.asarray(episode.start_position[:2], dtype=np.float64)
-        if not bool(grid.is_navigable(start)):
-            raise BadEpisodeError(
-                f"episode {episode.episode_id}: start {episode.start_position} is not navigable "
-                f"in {episode.scene_id}"
-            )
         task = self.config.task
         self._fields = [
             self._field_cache.get(grid, np.asarray(g.position[:2]), task.goal_radius)
