@@ -19,7 +19,7 @@ from multion_agents import cli_eval, cli_video
 from multion_agents.eval_settings import EvalSettings
 from multion_agents.evaluate import evaluate
 from multion_agents.video.encoder import read_frames, size_bound
-from multion_agents.video.film import END_HOLD, FOUND_HOLD, MAX_VIDEO_STEPS, MAX_VIDEOS
+from multion_agents.video.film import END_HOLD, FOUND_HOLD, MAX_VIDEO_FRAMES, MAX_VIDEOS
 from multion_agents.video.recorded import VideoError, read_run, replay, replay_env
 
 MAX_STEPS = 30
@@ -173,12 +173,11 @@ def test_bad_video_requests_get_clear_errors(
 
     long = tmp_path / "long"  # longer than the cap
     shutil.copytree(filmed_run, long)
-    records[0]["actions"] = "2" * (MAX_VIDEO_STEPS + 1)
+    records[0]["actions"] = "2" * (MAX_VIDEO_FRAMES - END_HOLD)  # one frame too many
     (long / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
     message = error_of(_video([str(long), "--episode", records[0]["episode_id"]]))
-    assert (
-        f"{MAX_VIDEO_STEPS + 1} actions" in message and f"limited to {MAX_VIDEO_STEPS}" in message
-    )
+    assert f"{MAX_VIDEO_FRAMES + 1} frames" in message
+    assert f"limited to {MAX_VIDEO_FRAMES} frames (10 minutes)" in message
 
 
 def test_a_moved_dataset_is_named_and_can_be_given(

@@ -15,9 +15,9 @@ import numpy as np
 
 FPS = 10
 """Frames per second: one step every 0.1 s (the environment's ``render_fps``)."""
-MAX_BITRATE = 1_000_000
-"""Bits per second at most (x264 ``maxrate``)."""
-VBV_BUFFER = 2_000_000
+MAX_BITRATE = 500_000
+"""Bits per second at most (x264 ``maxrate``); typical episodes use about 200 kbit/s."""
+VBV_BUFFER = 1_000_000
 """Bits (x264 ``bufsize``): how far above the rate a short stretch may go."""
 CONTAINER_BYTES = 64_000
 """A generous allowance for the MP4 boxes (sample tables: a few bytes a frame)."""

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from multion.sim.navgrid import NavGrid
 from multion.task.env import MultiONEnv
-from multion_agents.video.encoder import Mp4Writer
+from multion_agents.video.encoder import FPS, Mp4Writer
 from multion_agents.video.frames import FrameComposer
 from multion_agents.video.recorded import (
     RecordedEpisode,
@@ -28,8 +28,9 @@ from multion_client.constants import Action, goal_categories
 
 MAX_VIDEOS = 100
 """``multion eval --video N``: N at most this (each video replays its episode: seconds each)."""
-MAX_VIDEO_STEPS = 5000
-"""Longest filmed episode, in actions: 500 s of video, at most ~63 MB (:func:`size_bound`)."""
+MAX_VIDEO_FRAMES = 6000
+"""Longest video: 10 minutes at 10 frames a second (an episode of the paper's 2,500 steps fits
+with room for its held frames), at most 37.6 MB (:func:`~.encoder.size_bound`)."""
 FOUND_HOLD = 5
 END_HOLD = 20
 
@@ -63,10 +64,11 @@ def film_episode(
 ) -> Film:
     """Write the video of ``recorded`` to ``out``; ``env`` (from :func:`replay_env`) may be
     reused between episodes of one run. Nothing is left at ``out`` on failure."""
-    if len(recorded.actions) > MAX_VIDEO_STEPS:
+    if (frames := frame_count(recorded.actions)) > MAX_VIDEO_FRAMES:
         raise VideoError(
-            f"episode {recorded.episode_id} has {len(recorded.actions)} actions; videos are "
-            f"limited to {MAX_VIDEO_STEPS}"
+            f"episode {recorded.episode_id} would make a video of {frames} frames "
+            f"({len(recorded.actions)} actions); videos are limited to {MAX_VIDEO_FRAMES} frames "
+            f"({MAX_VIDEO_FRAMES // FPS // 60} minutes)"
         )
     started = time.perf_counter()
     episode = dataset_episode(run, recorded.episode_id)
