@@ -29,11 +29,12 @@ from multion.config.task import EnvConfig, TaskConfig
 from multion.scenes.registry import layout_for
 from multion.sim import grid_cache, simulator
 from multion.sim.bullet import pybullet as p
-from multion.sim.camera import EGL_LIGHT_POSITION, EGL_PLUGIN_LIGHT, Camera, resolve_renderer
+from multion.sim.camera import EGL_LIGHT_POSITION, EGL_PLUGIN_LIGHT, Camera, egl_plugin_loads
 from multion.sim.world import DEFAULT_LIGHTING, PyBulletWorld
 from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
 from multion_agents.bench.explorer import run_explorer_bench
+from multion_agents.bench.gl import bench_gl
 from multion_agents.bench.http import run_http_bench
 from multion_agents.bench.lanes import run_lanes_bench
 from multion_agents.bench.leaderboard import run_leaderboard_bench
@@ -113,24 +114,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--renderer",
-        choices=["all", "tiny", "egl"],
+        choices=["all", "tiny", "gl", "egl"],
         default="all",
         help="renderers of the sim bench: every one that loads here (default), or only one "
-        "(egl needs a GPU or Mesa's EGL)",
+        "(gl and egl need a GPU or Mesa's EGL; gl is measured beside tiny)",
     )
 
 
 def run(args: argparse.Namespace) -> int:
     parts = args.only or ["sim", "cache", "http"]
     if "sim" in parts:
-        if args.renderer == "egl" and resolve_renderer("auto") != "egl":
+        if args.renderer == "egl" and not egl_plugin_loads():
             print(
                 "sim bench with --renderer egl needs EGL: pybullet's eglRenderer plugin did not "
                 "load here (a GPU with its driver's libEGL, or Mesa's: apt-get install libegl1 "
                 "libegl-mesa0 libgl1-mesa-dri)"
             )
             return 2
-        bench_sim(args.steps, args.episodes, args.renderer)
+        if args.renderer != "gl":
+            bench_sim(args.steps, args.episodes, args.renderer)
+        if args.renderer in ("all", "gl"):
+            bench_gl(args.steps)
     if "reset" in parts:
         run_reset_bench()
     if "cache" in parts:
@@ -184,7 +188,7 @@ def bench_sim(steps: int = 300, episodes: int = 1000, renderer: str = "all") -> 
     episode_list = generate_episodes(3, "val", 4, seed=0, scenes=[SCENE], progress=False)
     results["scene_build_s"] = time.perf_counter() - start  # includes 4 episodes (~0.2 s)
     print(f"scene {SCENE}: build + navigable grid + 4 episodes: {results['scene_build_s']:.2f} s")
-    renderers = ["tiny"] + (["egl"] if resolve_renderer("auto") == "egl" else [])
+    renderers = ["tiny"] + (["egl"] if egl_plugin_loads() else [])
     if len(renderers) == 1:
         print("EGL: the eglRenderer plugin does not load here (see docs/learned.md); tiny only")
     if renderer != "all":
