@@ -88,7 +88,9 @@ def test_health_spec_and_docs(api: TestClient) -> None:
     assert spec["actions"] == {"FOUND": 0, "MOVE_FORWARD": 1, "TURN_LEFT": 2, "TURN_RIGHT": 3}
     assert "rgb" in spec["sensors"] and spec["defaults"]["camera"]["width"] == 256
     assert spec["renderer"]["default"] == spec["defaults"]["camera"]["renderer"] == "tiny"
-    assert spec["renderer"]["auto"] in ("tiny", "egl")
+    assert spec["renderer"]["auto"] in ("tiny", "gl")
+    # auto falls back to tiny exactly where gl cannot run, and then says why
+    assert (spec["renderer"]["auto"] == "tiny") == (spec["renderer"]["gl_unavailable"] is not None)
     assert space_from_wire(spec["observation_space"]) == build_observation_space(EnvConfig())
     assert spec["limits"]["max_sessions"] == 4
     # the defaults that decide the map vs no-map comparison cite the reference code (issue 31)

@@ -12,7 +12,7 @@ from multion.config.codec import config_ranges, env_config_to_dict
 from multion.config.sim import RENDERERS
 from multion.config.task import SENSORS, EnvConfig
 from multion.reference import DEFAULT_SOURCES
-from multion.sim.camera import resolve_renderer
+from multion.sim.camera import resolve_renderer, why_not_gl
 from multion.task.env import MultiONEnv
 from multion.task.memory import mib
 from multion.task.spaces import build_observation_space
@@ -92,11 +92,13 @@ async def spec(settings: Settings) -> MsgpackResponse:
         action_space=spaces.Discrete(NUM_ACTIONS),
         metadata=env_metadata(),
         autoreset_mode="same_step",
-        # what camera.renderer "auto" renders with here (probed once in this process)
+        # what camera.renderer "auto" renders with here (probed once in this process), and
+        # why not "gl" where it falls back to "tiny" (None where gl runs)
         renderer={
             "choices": list(RENDERERS),
             "default": default.camera.renderer,
             "auto": await run_in_threadpool(resolve_renderer, "auto"),
+            "gl_unavailable": await run_in_threadpool(why_not_gl),
         },
         limits={
             "max_sessions": settings.max_sessions,
