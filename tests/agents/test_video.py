@@ -204,3 +204,30 @@ def test_a_moved_dataset_is_named_and_can_be_given(
         from multion_agents.video.recorded import dataset_episode
 
         dataset_episode(read_run(moved, other), episode_id)
+
+
+def test_a_still_is_the_frame_of_its_step(
+    filmed_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from PIL import Image
+
+    record = _records(filmed_run)[1]
+    episode_id, actions = record["episode_id"], record["actions"]
+    step = len(actions) // 2
+    picture = tmp_path / "still.png"
+    argv = [str(filmed_run), "--episode", episode_id, "--still", str(step)]
+    assert _video([*argv, "--out", str(picture)]) == 0
+    with Image.open(picture) as image:
+        still = np.asarray(image.convert("RGB")).astype(np.int16)
+    # the video's frame of that step (after the frames FOUNDs held before it), lossy-encoded
+    index = step + actions[:step].count("0") * (FOUND_HOLD - 1)
+    frame = read_frames(filmed_run / f"episode-{episode_id}.mp4")[index].astype(np.int16)
+    assert still.shape == frame.shape
+    assert np.abs(still - frame).mean() < 3  # H.264 at CRF 23: a few levels
+    neighbour = read_frames(filmed_run / f"episode-{episode_id}.mp4")[index + FOUND_HOLD + 1]
+    assert np.abs(still - neighbour.astype(np.int16)).mean() > np.abs(still - frame).mean()
+
+    assert _video([*argv[:-1], str(len(actions) + 1), "--out", str(picture)]) == 2
+    assert f"--still must be a step in [0, {len(actions)}]" in capsys.readouterr().err
+    assert _video([*argv, "--out", str(tmp_path / "still.mp4")]) == 2
+    assert "a --still is a PNG file" in capsys.readouterr().err

@@ -8,9 +8,12 @@ a viewer can read the result: a video of an episode with ``T`` actions, ``F`` of
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
+from PIL import Image
 
 from multion.sim.navgrid import NavGrid
 from multion.task.env import MultiONEnv
@@ -19,6 +22,7 @@ from multion_agents.video.frames import FrameComposer
 from multion_agents.video.recorded import (
     RecordedEpisode,
     RecordedRun,
+    StepView,
     VideoError,
     dataset_episode,
     replay,
@@ -59,6 +63,29 @@ def video_name(episode_id: str) -> str:
     return f"episode-{episode_id}.mp4"
 
 
+def composed_frames(
+    run: RecordedRun, recorded: RecordedEpisode, env: MultiONEnv
+) -> Iterator[tuple[StepView, np.ndarray]]:
+    """Each replayed step of ``recorded`` and its frame (a VideoError at the end when the replay
+    does not reproduce the recorded metrics)."""
+    episode = dataset_episode(run, recorded.episode_id)
+    views = replay(env, episode, recorded)
+    first = next(views)
+    camera, task = env.config.camera, env.config.task
+    composer = FrameComposer(
+        episode,
+        _grid(env),
+        (camera.width, camera.height),
+        f"{run.agent} · {episode.episode_id} · {episode.scene_id}",
+        goal_categories(task.goal_set),
+        task.max_steps,
+        depth_scale=1.0 if camera.normalize_depth else 1.0 / camera.max_depth,
+    )
+    yield first, composer.frame(first)
+    for view in views:
+        yield view, composer.frame(view)
+
+
 def film_episode(
     run: RecordedRun, recorded: RecordedEpisode, out: Path, env: MultiONEnv | None = None
 ) -> Film:
@@ -71,28 +98,15 @@ def film_episode(
             f"({MAX_VIDEO_FRAMES // FPS // 60} minutes)"
         )
     started = time.perf_counter()
-    episode = dataset_episode(run, recorded.episode_id)
     own = env is None
     env = env or replay_env(run)
     partial = out.with_name(out.name + ".partial")
     try:
-        views = replay(env, episode, recorded)
-        first = next(views)
-        camera, task = env.config.camera, env.config.task
-        composer = FrameComposer(
-            episode,
-            _grid(env),
-            (camera.width, camera.height),
-            f"{run.agent} · {episode.episode_id} · {episode.scene_id}",
-            goal_categories(task.goal_set),
-            task.max_steps,
-            depth_scale=1.0 if camera.normalize_depth else 1.0 / camera.max_depth,
-        )
-        with Mp4Writer(partial, *composer.size) as writer:
-            frame = composer.frame(first)
+        steps = composed_frames(run, recorded, env)
+        _, frame = next(steps)
+        with Mp4Writer(partial, frame.shape[1], frame.shape[0]) as writer:
             writer.write(frame)
-            for view in views:
-                frame = composer.frame(view)
+            for view, frame in steps:
                 for _ in range(FOUND_HOLD if view.action == Action.FOUND else 1):
                     writer.write(frame)
             for _ in range(END_HOLD):
@@ -104,6 +118,26 @@ def film_episode(
         if own:
             env.close()
     return Film(out, frames, time.perf_counter() - started)
+
+
+def still(run: RecordedRun, recorded: RecordedEpisode, step: int) -> Image.Image:
+    """The frame of ``step`` (0: the start) as a picture, for slides and docs; the whole
+    episode is replayed, so its metrics are checked as for a video."""
+    if not 0 <= step <= len(recorded.actions):
+        raise VideoError(
+            f"--still must be a step in [0, {len(recorded.actions)}] of episode "
+            f"{recorded.episode_id}, got {step}"
+        )
+    env = replay_env(run)
+    try:
+        chosen = None
+        for view, frame in composed_frames(run, recorded, env):
+            if view.step == step:
+                chosen = frame
+    finally:
+        env.close()
+    assert chosen is not None
+    return Image.fromarray(chosen)
 
 
 def _grid(env: MultiONEnv) -> NavGrid:
