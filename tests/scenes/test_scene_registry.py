@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from multion.config.scenes import SPLIT_SIZES
@@ -78,3 +80,20 @@ def test_a_house_is_a_pure_function_of_its_number_and_the_parameters():
     assert isinstance(GENERATOR_VERSION, int) and GENERATOR_VERSION >= 2
     with pytest.raises(ValueError, match="house-NNNNN"):
         house_parameters("room-6x4")
+
+
+def test_scene_ids_are_checked_without_building_and_refused_with_a_typed_error():
+    from multion.scenes.registry import SceneIdError, check_scene_id
+
+    for good in ("house-00042", "house-1000000000123-r3", "room-6x4", "scans/a.glb"):
+        check_scene_id(good)
+    for bad, allowed in [
+        ("hidden-minival-3-on-00000", "house-NNNNN-rK"),
+        ("house-" + "9" * 19, "at most 18 digits"),
+        ("house-7-r0", "1..16"),
+        ("room-0x4", "(0, 50] metres"),
+    ]:
+        with pytest.raises(SceneIdError, match=re.escape(allowed)):
+            check_scene_id(bad)
+        with pytest.raises(SceneIdError):  # what the env turns into a 4xx, by its type
+            layout_for(bad)
