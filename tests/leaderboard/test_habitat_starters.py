@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import os
 import pickle
+import re
 import signal
 import subprocess
 import sys
@@ -326,3 +327,13 @@ def test_multion_run_id_resumes_a_run(
     results = habitat.Challenge().submit(agent)
     assert agent.episodes == 2 and results  # episodes 1 and 2
     assert f"run {started.run_id}: finished" in capsys.readouterr().out
+
+
+def test_the_guides_example_runs(settings: dict[str, str], tmp_path: Path) -> None:
+    """docs/leaderboard.md's habitat example, as written, is an ``evaluate.py`` that plays a run."""
+    guide = Path(__file__).resolve().parents[2] / "docs" / "leaderboard.md"
+    blocks = re.findall(r"```python\n(.*?)```", guide.read_text(encoding="utf-8"), re.S)
+    example = next(block for block in blocks if CHANGED_LINE in block)
+    done = run_script(tmp_path, example, settings)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.splitlines()[-5].endswith(": finished")
