@@ -24,7 +24,8 @@ def action_id(value: object) -> int | None:
     """``value`` as an action id, or None if it is not one.
 
     Actions are integers in 0..3: Python or numpy integers, or 0-d integer arrays. Floats
-    (even ``1.0``), bools and strings are refused, by the in-process env and the server alike.
+    (even ``1.0``), bools and strings are refused, by the in-process env, the server's session
+    and run routes, and the light client's ``RunEnv`` alike: each checks with this function.
     """
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
