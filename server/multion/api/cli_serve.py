@@ -48,6 +48,13 @@ _OPTIONS: tuple[tuple[str, type, str], ...] = (
         "sessions cannot take, kept for leaderboard runs (default 0.5, at most 0.9)",
     ),
     (
+        "live_view",
+        str,
+        "a page per plain session at /v1/live/SESSION_ID (RGB-D, map, metrics as it steps) for "
+        "requests from this machine: local, off, or auto (default: local when --host is a "
+        "loopback address, else off)",
+    ),
+    (
         "replica",
         str,
         "this replica's name (1-8 of a-z 0-9) behind a reverse proxy: session and run ids "

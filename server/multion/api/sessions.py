@@ -71,6 +71,13 @@ class Session:
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
     owner: str | None = None
     """Who opened a plain session (``team:ID`` or ``ip:ADDRESS``); None for a run's."""
+    config: dict[str, Any] = field(default_factory=dict)
+    """The config it was created with (the live view finds its episodes with it)."""
+    latest: bytes = b""
+    """The answer to its last reset or step, which the live view shows (kept only where the
+    live view is on)."""
+    last_actions: list[int] = field(default_factory=list)
+    """The actions of its last step; empty after a reset."""
 
 
 class SessionRegistry:
@@ -194,7 +201,7 @@ class SessionRegistry:
             replies = await self._fan_out(session.shards, "reset", payloads)
             session.started = True
             session.done = [d for header, _ in replies for d in header["done"]]
-            return _splice(OBSERVATION_FIELDS, replies, n)
+            return self._keep(session, _splice(OBSERVATION_FIELDS, replies, n), [])
 
         return await self._run(session, run)
 
@@ -217,9 +224,16 @@ class SessionRegistry:
             ]
             replies = await self._fan_out(session.shards, "step", payloads)
             session.done = [d for header, _ in replies for d in header["done"]]
-            return _splice(STEP_FIELDS, replies, session.num_envs)
+            return self._keep(session, _splice(STEP_FIELDS, replies, session.num_envs), actions)
 
         return await self._run(session, run)
+
+    def _keep(self, session: Session, answer: bytes, actions: list[int]) -> bytes:
+        """``answer``, kept for the live view where it is on (elsewhere it would hold the
+        images of every session between its steps)."""
+        if self.settings.live_view_on():
+            session.latest, session.last_actions = answer, actions
+        return answer
 
     async def observe(self, session_id: str) -> bytes:
         session = self.get(session_id)
@@ -335,6 +349,7 @@ class SessionRegistry:
         session = Session(
             session_id, message.num_envs, message.auto_reset, shards,
             done=[True] * message.num_envs, owner=None if for_run else owner or "",
+            config=message.config,
         )  # fmt: skip
         session.info = encode(info.to_wire())
         self.sessions[session_id] = session

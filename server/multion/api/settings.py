@@ -15,6 +15,8 @@ from multion.processes import address_space_limit
 ID_LENGTH = 32
 """Session and run ids are at most this long (the leaderboard's ``runs.id`` is String(32))."""
 REPLICA_PATTERN = re.compile(r"[a-z0-9]{1,8}")
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
+"""Listen addresses that only this machine can reach (``live_view = "auto"`` is on there)."""
 MIN_WORKER_MEMORY_MB = 1024
 """The least address space a simulator worker starts in (the interpreter, PyBullet, numpy)."""
 
@@ -68,6 +70,13 @@ class ServerSettings(BaseSettings):
         description="directories whose dataset files (and mesh scenes) clients may name, besides "
         "the packaged datasets; empty: packaged datasets only. Env: a JSON list",
     )
+    live_view: Literal["auto", "local", "off"] = Field(
+        "auto",
+        description="a page per plain session at /v1/live/SESSION_ID showing its RGB-D, map and "
+        "metrics as it steps, to requests from this machine only (local); off; or auto: local "
+        "when the server listens on a loopback address only, else off. Never for leaderboard "
+        "runs, nor for requests a proxy forwarded",
+    )
     replica: str | None = Field(
         None,
         description="this replica's name, 1-8 characters from a-z and 0-9, or none; it prefixes "
@@ -86,6 +95,12 @@ class ServerSettings(BaseSettings):
                 f"(pattern {REPLICA_PATTERN.pattern}), got {value!r}"
             )
         return value
+
+    def live_view_on(self) -> bool:
+        """Whether the live view answers (still only to requests from this machine)."""
+        if self.live_view == "auto":
+            return self.host in LOOPBACK_HOSTS
+        return self.live_view == "local"
 
     def new_id(self) -> str:
         """A new session or run id: 32 hex digits, or with a replica name ``NAME-`` and as many

@@ -1,0 +1,133 @@
+"""The live view of a session (``/v1/live/{id}``): in a real headless Chromium, the page follows
+a client that steps; requests it must not answer get a clear 4xx.
+
+Without Chromium or Playwright the browser test skips; ``MULTION_REQUIRE_BROWSER=1`` (set by
+.ci/run) makes it required."""
+
+from __future__ import annotations
+
+import io
+import os
+import shutil
+from collections.abc import Iterator
+from typing import Any
+
+import httpx
+import pytest
+from PIL import Image
+
+from multion.api.local_server import LocalServer
+from multion.api.settings import ServerSettings
+from multion_client.constants import Action
+from multion_client.env import RemoteEnv
+
+REQUIRE_BROWSER = "MULTION_REQUIRE_BROWSER"
+BROWSER_HINT = (
+    "needs Chromium and Playwright: `apt-get install chromium` (Debian) and "
+    f"`pip install playwright` (in the dev extra); {REQUIRE_BROWSER}=1 makes this test required"
+)
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update"]  # fmt: skip
+CONFIG = {
+    "task": {"num_goals": 2},
+    "sensors": ["rgb", "depth", "gps", "compass"],
+    "camera": {"width": 32, "height": 32},
+}
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[LocalServer]:
+    with LocalServer(workers=1) as local:  # listens on 127.0.0.1: the live view is on
+        yield local
+
+
+@pytest.fixture
+def env(server: LocalServer) -> Iterator[RemoteEnv]:
+    remote = RemoteEnv(server.url, CONFIG)
+    try:
+        yield remote
+    finally:
+        remote.close()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    executable = shutil.which("chromium") or shutil.which("chromium-browser")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        executable = None
+    if executable is None:
+        if os.environ.get(REQUIRE_BROWSER) == "1":
+            pytest.fail(BROWSER_HINT)
+        pytest.skip(BROWSER_HINT)
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+def test_the_page_follows_a_client_that_steps(
+    server: LocalServer, env: RemoteEnv, browser: Any
+) -> None:
+    page = browser.new_page()
+    try:
+        page.goto(f"{server.url}/v1/live/{env.session_id}")
+        page.wait_for_selector("text=Waiting for the first reset")
+        env.reset(options={"episode_index": 0})
+        page.wait_for_function("document.body.dataset.step === '0'", timeout=10_000)
+        first = page.get_attribute("#frame", "src")
+        for _ in range(3):
+            env.step(int(Action.TURN_LEFT))
+        page.wait_for_function("document.body.dataset.step === '3'", timeout=10_000)
+        assert "step 3, last action TURN_LEFT" in page.inner_text("#status")
+        assert page.get_attribute("#frame", "src") != first
+        page.wait_for_function(
+            "document.getElementById('frame').complete && "
+            "document.getElementById('frame').naturalWidth > 0"
+        )
+        assert "TURN_LEFT" in (page.get_attribute("#frame", "alt") or "")
+        metrics = page.inner_text("#metrics")
+        assert "steps" in metrics and "distance_to_goal" in metrics
+    finally:
+        page.close()
+
+
+def test_the_picture_and_state_follow_the_session(server: LocalServer, env: RemoteEnv) -> None:
+    base = f"{server.url}/v1/live/{env.session_id}"
+    assert httpx.get(f"{base}/state").json() == {"started": False}
+    assert httpx.get(f"{base}/frame.png").status_code == 409
+    env.reset(options={"episode_index": 0})
+    env.step(int(Action.MOVE_FORWARD))
+    state = httpx.get(f"{base}/state").json()
+    assert state["step"] == 1 and state["action"] == "MOVE_FORWARD"
+    assert state["sensors"] == ["compass", "depth", "gps", "rgb"]
+    answer = httpx.get(f"{base}/frame.png")
+    assert answer.status_code == 200 and answer.headers["content-type"] == "image/png"
+    with Image.open(io.BytesIO(answer.content)) as image:
+        width, height = image.size
+    assert height == 256 and width > 2 * 256  # RGB and depth scaled to 256, then the map
+
+
+def test_requests_it_must_not_answer_get_clear_errors(server: LocalServer, env: RemoteEnv) -> None:
+    base = f"{server.url}/v1/live/{env.session_id}"
+    answer = httpx.get(f"{server.url}/v1/live/0123abcd/state")
+    assert answer.status_code == 404 and "no session '0123abcd'" in answer.text
+    answer = httpx.get(f"{base}/state", params={"env": 1})
+    assert answer.status_code == 400 and "env must be in [0, 0], got 1" in answer.text
+    answer = httpx.get(f"{base}/frame.png", headers={"X-Forwarded-For": "203.0.113.9"})
+    assert answer.status_code == 403
+    assert answer.json()["error"]["code"] == "live_view_local_only"
+    assert httpx.get(base, headers={"Forwarded": "for=203.0.113.9"}).status_code == 403
+
+
+def test_off_unless_the_server_is_local_or_asked() -> None:
+    assert ServerSettings().live_view_on()  # auto on 127.0.0.1
+    assert not ServerSettings(host="0.0.0.0").live_view_on()  # auto on a public address
+    assert ServerSettings(host="0.0.0.0", live_view="local").live_view_on()
+    assert not ServerSettings(live_view="off").live_view_on()
+    with LocalServer(workers=1, options=["--live-view", "off"]) as off:
+        answer = httpx.get(f"{off.url}/v1/live/0123abcd")
+    assert answer.status_code == 403 and "--live-view local" in answer.text
