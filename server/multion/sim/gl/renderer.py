@@ -29,10 +29,12 @@ from multion.sim.gl import context
 from multion.sim.gl.scene import (
     RECT_COLUMNS,
     ShapeVertices,
+    Transform,
     body_ids,
     body_shapes,
     build_atlas,
     in_world,
+    inertial_inverse,
     link_pose,
     load_image,
 )
@@ -43,8 +45,8 @@ if TYPE_CHECKING:
 TINY_LIGHT_DIRECTION = (-50.0, 30.0, 100.0)
 """TinyRenderer's light direction when none is given and z is up
 (``TinyRendererVisualShapeConverter::render``), normalised before use."""
-BACKGROUND = (255.0 * 65536 + 255.0 * 256 + 255.0, 0.0, -1.0, 0.0)
-"""White (TinyRenderer clears to white), depth set per camera to ``far``, no body."""
+WHITE = 255.0 * 65536 + 255.0 * 256 + 255.0
+"""The packed colour of the background: TinyRenderer clears to white."""
 HIDDEN_BELOW = -50.0
 """Bodies parked lower than this (the world hides goals at z = -100) are not drawn."""
 
@@ -155,7 +157,8 @@ class GLRenderer:
         """Bodies with at least one shape in the GL scene (tests compare it with PyBullet's)."""
         self._known: set[int] = set()
         self._dynamic: list[_Dynamic] = []
-        self._inertial: dict[int, Any] = {}
+        self._base_offsets: dict[int, Transform] = {}
+        self._textures: dict[Path, moderngl.Texture] = {}
         self._targets: dict[
             tuple[int, int], tuple[moderngl.Framebuffer, moderngl.Texture, moderngl.Renderbuffer]
         ] = {}
@@ -195,29 +198,35 @@ class GLRenderer:
 
     def _add_new_bodies(self, ctx: moderngl.Context) -> None:
         """Bodies PyBullet holds that this scene has not seen: drawn at their pose."""
-        if p_num_bodies(self.client) == len(self._known):
+        if p.getNumBodies(physicsClientId=self.client) == len(self._known):
             return
         for body in body_ids(self.client):
             if body in self._known:
                 continue
             self._known.add(body)
+            self._base_offsets[body] = inertial_inverse(self.client, body)
             for shape in body_shapes(self.client, body, self.body_textures.get(body)):
                 vertices = shape.vertices
                 texture = self._empty_texture
                 if shape.texture is not None:
-                    image = load_image(shape.texture)[::-1]
-                    texture = ctx.texture(
-                        image.shape[1::-1], 3, np.ascontiguousarray(image).tobytes()
-                    )
-                    texture.filter = (ctx.NEAREST, ctx.NEAREST)
+                    texture = self._texture(ctx, shape.texture)
                     vertices = vertices.copy()
-                    vertices[:, RECT_COLUMNS] = (0, 0, image.shape[1], image.shape[0])
+                    vertices[:, RECT_COLUMNS] = (0, 0, *texture.size)
                 buffer = ctx.buffer(vertices.astype(np.float32).tobytes())
                 vao = ctx.vertex_array(self.program, [(buffer, *_ATTRIBUTES)])
                 self._dynamic.append(
                     _Dynamic(body, shape.link, vao, buffer, texture, len(vertices))
                 )
                 self.drawn_bodies.add(body)
+
+    def _texture(self, ctx: moderngl.Context, path: Path) -> moderngl.Texture:
+        """A moving body's texture, uploaded once per scene (flipped, as TinyRenderer reads)."""
+        if path not in self._textures:
+            image = np.ascontiguousarray(load_image(path)[::-1])
+            texture = ctx.texture(image.shape[1::-1], 3, image.tobytes())
+            texture.filter = (ctx.NEAREST, ctx.NEAREST)
+            self._textures[path] = texture
+        return self._textures[path]
 
     # ------------------------------------------------------------------ drawing
     def render(
@@ -237,7 +246,7 @@ class GLRenderer:
             self._add_new_bodies(ctx)
             framebuffer = self._target(ctx, width, height)
             framebuffer.use()
-            framebuffer.clear(*BACKGROUND[:1], far, BACKGROUND[2], 0.0, depth=1.0)
+            framebuffer.clear(WHITE, far, -1.0, 0.0, depth=1.0)  # white, far, no body
             ctx.enable(ctx.DEPTH_TEST | ctx.CULL_FACE)
             ctx.depth_func = "<="
             ctx.front_face = "ccw"
@@ -256,7 +265,7 @@ class GLRenderer:
                 texture.use(0)
                 vao.render(vertices=count)
             for part in self._dynamic:
-                pose = link_pose(self.client, part.body, part.link)
+                pose = link_pose(self.client, part.body, part.link, self._base_offsets[part.body])
                 if pose[2, 3] < HIDDEN_BELOW:
                     continue
                 model.write(pose.T.astype(np.float32).tobytes())
@@ -295,13 +304,13 @@ class GLRenderer:
                 objects += list(self._static[:3])
             for part in self._dynamic:
                 objects += [part.vao, part.buffer]
-                if part.texture is not self._empty_texture:
-                    objects.append(part.texture)
+            objects += list(self._textures.values())
             for target in self._targets.values():
                 objects += list(target)
             for gl_object in objects:
                 gl_object.release()
         self._dynamic.clear()
+        self._textures.clear()
         self._targets.clear()
 
 
@@ -311,10 +320,6 @@ def _uniform(program: moderngl.Program, name: str) -> moderngl.Uniform:
     member = program[name]
     assert isinstance(member, moderngl.Uniform), name
     return member
-
-
-def p_num_bodies(client: int) -> int:
-    return int(p.getNumBodies(physicsClientId=client))
 
 
 def shifted_projection(projection: tuple[float, ...], width: int, height: int) -> tuple[float, ...]:

@@ -117,17 +117,29 @@ def _rotation(quaternion: tuple[float, ...]) -> np.ndarray:
     return np.asarray(p.getMatrixFromQuaternion(quaternion), dtype=np.float64).reshape(3, 3)
 
 
-def link_pose(client: int, body: int, link: int) -> np.ndarray:
+Transform = tuple[tuple[float, float, float], tuple[float, float, float, float]]
+
+
+def inertial_inverse(client: int, body: int) -> Transform:
+    """The transform from a body's centre of mass back to its base's link frame."""
+    info = p.getDynamicsInfo(body, -1, physicsClientId=client)
+    (x, y, z), (qx, qy, qz, qw) = p.invertTransform(info[3], info[4])
+    return (x, y, z), (qx, qy, qz, qw)
+
+
+def link_pose(
+    client: int, body: int, link: int, base_offset: Transform | None = None
+) -> np.ndarray:
     """The 4 x 4 world transform of a body's link frame (the frame its visual shapes are
-    placed in): for the base, its centre of mass moved back by its inertial offset."""
+    placed in): for the base, its centre of mass moved back by ``base_offset``
+    (:func:`inertial_inverse`, looked up when not given)."""
     if link >= 0:
         state = p.getLinkState(body, link, physicsClientId=client)
         position, orientation = state[4], state[5]
     else:
         com, com_orn = p.getBasePositionAndOrientation(body, physicsClientId=client)
-        info = p.getDynamicsInfo(body, -1, physicsClientId=client)
-        inv_pos, inv_orn = p.invertTransform(info[3], info[4])
-        position, orientation = p.multiplyTransforms(com, com_orn, inv_pos, inv_orn)
+        offset = base_offset if base_offset is not None else inertial_inverse(client, body)
+        position, orientation = p.multiplyTransforms(com, com_orn, offset[0], offset[1])
     matrix = np.eye(4)
     matrix[:3, :3] = _rotation(orientation)
     matrix[:3, 3] = position
