@@ -131,3 +131,35 @@ def test_off_unless_the_server_is_local_or_asked() -> None:
     with LocalServer(workers=1, options=["--live-view", "off"]) as off:
         answer = httpx.get(f"{off.url}/v1/live/0123abcd")
     assert answer.status_code == 403 and "--live-view local" in answer.text
+
+
+def test_the_listing_links_each_environment_of_each_session(
+    server: LocalServer, env: RemoteEnv
+) -> None:
+    answer = httpx.get(f"{server.url}/v1/live")
+    assert answer.status_code == 200
+    assert f'href="/v1/live/{env.session_id}?env=0"' in answer.text
+    forwarded = httpx.get(f"{server.url}/v1/live", headers={"X-Real-IP": "203.0.113.9"})
+    assert forwarded.status_code == 403
+
+
+def test_a_leaderboard_runs_session_has_no_live_view() -> None:
+    from types import SimpleNamespace
+
+    from starlette.requests import Request
+
+    from multion.api.routers.live import Refused, _viewed
+    from multion.api.sessions import Session
+
+    run_session = Session("run-session", 1, False, [], owner=None)  # what a run's session is
+    plain = Session("plain-session", 2, False, [], owner="ip:127.0.0.1")
+    registry = SimpleNamespace(sessions={s.session_id: s for s in (run_session, plain)})
+    app = SimpleNamespace(state=SimpleNamespace(settings=ServerSettings(), registry=registry))
+    scope = {"type": "http", "app": app, "client": ("127.0.0.1", 5000), "headers": []}
+    assert _viewed(Request(scope), "plain-session", 1) is plain
+    with pytest.raises(Refused, match="leaderboard runs have no live view") as refused:
+        _viewed(Request(scope), "run-session", 0)
+    assert refused.value.status == 403
+    scope["client"] = ("192.0.2.4", 5000)  # another machine
+    with pytest.raises(Refused, match="only requests from the server's own machine"):
+        _viewed(Request(scope), "plain-session", 0)

@@ -36,8 +36,8 @@ class Refused(Exception):
         self.status, self.code, self.message = status, code, message
 
 
-def _viewed(request: Request, session_id: str, env: int) -> Session:
-    """The session to show, after checking that this request may see it."""
+def _check_viewer(request: Request) -> None:
+    """Refuse requests the live view does not answer (off, or not from this machine)."""
     settings: ServerSettings = request.app.state.settings
     if not settings.live_view_on():
         raise Refused(
@@ -53,6 +53,11 @@ def _viewed(request: Request, session_id: str, env: int) -> Session:
             "the live view answers only requests from the server's own machine"
             + (f" (this one was forwarded: {', '.join(forwarded)})" if forwarded else ""),
         )  # fmt: skip
+
+
+def _viewed(request: Request, session_id: str, env: int) -> Session:
+    """The session to show, after checking that this request may see it."""
+    _check_viewer(request)
     registry: SessionRegistry = request.app.state.registry
     session = registry.sessions.get(session_id)
     if session is None:
@@ -74,6 +79,30 @@ def _is_loopback(host: str) -> bool:
 def _json_refusal(refused: Refused) -> JSONResponse:
     body = {"error": {"code": refused.code, "message": refused.message}}
     return JSONResponse(body, status_code=refused.status)
+
+
+@router.get("")
+async def sessions(request: Request) -> Response:
+    """The sessions this server holds that the live view shows, each a link to its page."""
+    try:
+        _check_viewer(request)
+    except Refused as refused:
+        text = f"<!doctype html><title>Live view refused</title><p>{html.escape(refused.message)}"
+        return HTMLResponse(text, status_code=refused.status)
+    registry: SessionRegistry = request.app.state.registry
+    items = "".join(
+        f'<li><a href="{LIVE_PATH}/{html.escape(s.session_id)}?env={env}">'
+        f"{html.escape(s.session_id)}, environment {env}</a></li>"
+        for s in registry.sessions.values()
+        if s.owner is not None and s.failed is None
+        for env in range(s.num_envs)
+    )
+    body = f"<ul>{items}</ul>" if items else "<p>No session is open on this server now.</p>"
+    text = (
+        '<!doctype html><html lang="en"><head><meta charset="utf-8"><title>Live view: '
+        f"sessions</title></head><body><h1>Sessions</h1>{body}</body></html>"
+    )
+    return HTMLResponse(text, headers={"Cache-Control": "no-store"})
 
 
 @router.get("/{session_id}/state")
