@@ -23,6 +23,7 @@ from multion.task.goal_sites import (
     room_of,
     sample_site_episode,
 )
+from multion.task.memory import estimate_env_bytes
 from multion.task.step_reach import steps_reach_goals
 
 HOUSE = "house-00003"
@@ -197,3 +198,11 @@ def test_field_cache_put_is_what_get_returns(grid: NavGrid) -> None:
     made = distance_field(grid, target, RADIUS) + 1.0  # a field get() would not march
     cache.put(grid, target, RADIUS, made)
     assert cache.get(grid, target, RADIUS) is made
+
+
+def test_a_servers_memory_estimate_counts_the_site_cache_where_sites_are_drawn() -> None:
+    sites = EnvConfig(split="train", goal_site_cache_mib=300)
+    online = EnvConfig(split="train", goal_site_cache_mib=300, train_sampler="online")
+    assert estimate_env_bytes(sites) - estimate_env_bytes(online) == 300 * 2**20
+    val = EnvConfig(split="val", goal_site_cache_mib=300)
+    assert estimate_env_bytes(val) == estimate_env_bytes(online)

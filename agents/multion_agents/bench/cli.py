@@ -42,6 +42,7 @@ from multion_agents.bench.memory import bench_memory
 from multion_agents.bench.pages import run_pages_bench
 from multion_agents.bench.participants import run_participants_bench
 from multion_agents.bench.reset import run_reset_bench
+from multion_agents.bench.site_diversity import run_diversity_bench
 from multion_agents.evaluate import EvalSettings, evaluate
 
 SCENE = "house-00061"
@@ -52,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--only",
         choices=[
             *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
-            *("explorer", "reset", "participants", "learner"),
+            *("explorer", "reset", "diversity", "participants", "learner"),
         ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
@@ -137,6 +138,8 @@ def run(args: argparse.Namespace) -> int:
             bench_gl(args.steps)
     if "reset" in parts:
         run_reset_bench()
+    if "diversity" in parts:
+        run_diversity_bench()
     if "cache" in parts:
         bench_cache(args.eval_episodes)
     if "memory" in parts:

@@ -42,7 +42,23 @@ def estimate_env_bytes(config: EnvConfig) -> int:
     if {"oracle_map", "oracle_ego_map"} & set(config.sensors):
         maps = config.maps.ego_size**2 * BYTES_PER_MAP_CELL
     renderer = EGL_WORLD_BYTES if config.camera.renderer != "tiny" else 0
-    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + maps + renderer
+    return (
+        ENV_BASE_BYTES
+        + pixels * BYTES_PER_PIXEL
+        + grid
+        + maps
+        + renderer
+        + goal_sites_bytes(config)
+    )
+
+
+def goal_sites_bytes(config: EnvConfig) -> int:
+    """The goal sites' field cache (:mod:`multion.task.goal_sites`): its budget, where train
+    episodes are drawn from sites; nothing where episodes come from a dataset."""
+    drawn_from_sites = (
+        config.split == "train" and config.dataset is None and config.train_sampler == "sites"
+    )
+    return config.goal_site_cache_mib * MiB if drawn_from_sites else 0
 
 
 def mib(size: int) -> int:
