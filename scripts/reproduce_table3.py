@@ -100,7 +100,7 @@ def parse() -> argparse.Namespace:
     parser.add_argument("--envs", type=int, default=16, help="environments (paper: 16)")
     parser.add_argument("--image-size", type=int, default=256, help="camera side (paper: 256)")
     parser.add_argument(
-        "--renderer", default="auto", choices=["tiny", "egl", "auto"], help="camera.renderer"
+        "--renderer", default="auto", choices=["tiny", "gl", "egl", "auto"], help="camera.renderer"
     )
     parser.add_argument("--device", default="auto", help="torch device of the trainer")
     parser.add_argument("--episodes", type=int, default=None, help="test episodes (all: 1000)")
