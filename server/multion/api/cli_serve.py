@@ -4,72 +4,70 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from types import NoneType, UnionType
+from typing import Literal, Union, cast, get_args, get_origin
 
 import uvicorn
 from fastapi import FastAPI
 from pydantic import ValidationError
+from pydantic_settings import BaseSettings
 
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
 
-# Options that map one-to-one onto ServerSettings fields (None: keep the MULTION_* / default).
-_OPTIONS: tuple[tuple[str, type, str], ...] = (
-    ("host", str, "address to listen on (default 127.0.0.1; 0.0.0.0 for every interface)"),
-    ("port", int, "TCP port (default 8000)"),
-    ("workers", int, "simulator worker processes; sessions are spread over them (default 1)"),
-    ("max_sessions", int, "most open sessions (default 64)"),
-    ("max_envs_per_session", int, "most environments in one session (default 64)"),
-    ("max_envs_total", int, "most environments over all sessions (default 256)"),
-    ("idle_timeout_s", float, "close sessions unused for this many seconds (default 900)"),
-    ("max_request_bytes", int, "largest request body accepted (default 32 MiB)"),
-    ("worker_timeout_s", float, "kill and replace a worker silent this long (default 300)"),
-    (
-        "worker_memory_mb",
-        int,
-        "address-space limit of each simulator worker, and the room its sessions' memory "
-        "estimates share (default 8192, or this process's address-space limit if lower: ulimit -v)",
-    ),
-    (
-        "sessions",
-        str,
-        "who may open plain sessions: open (anyone, default), token (a team token; needs "
-        "--challenge), off (leaderboard runs only)",
-    ),
-    (
-        "sessions_per_client",
-        int,
-        "plain sessions one client (team token, else IP address) may hold at once (default 16)",
-    ),
-    (
-        "run_reserve",
-        float,
-        "with --challenge: share of each worker's memory and of --max-sessions that plain "
-        "sessions cannot take, kept for leaderboard runs (default 0.5, at most 0.9)",
-    ),
-    (
-        "live_view",
-        str,
-        "a page per plain session at /v1/live/SESSION_ID (RGB-D, map, metrics as it steps) for "
-        "requests from this machine: local, off, or auto (default: local when --host is a "
-        "loopback address, else off)",
-    ),
-    (
-        "replica",
-        str,
-        "this replica's name (1-8 of a-z 0-9) behind a reverse proxy: session and run ids "
-        "start with NAME- so the proxy can send them to this replica (default: none)",
-    ),
-)
+DATASET_DIRS = "allowed_dataset_dirs"
+"""The one setting whose option is not its name: ``--dataset-dir DIR``, repeatable."""
+
+
+def settings_options(
+    parser: argparse.ArgumentParser,
+    settings: type[BaseSettings],
+    skip: tuple[str, ...] = (),
+    metavars: Mapping[str, str] | None = None,
+) -> None:
+    """One option per field of ``settings`` (but ``skip``), generated from the field (name,
+    type, allowed values, description, default), so that a setting is declared once. An option
+    not given is None: the environment variable or the field's default applies."""
+    prefix = str(settings.model_config.get("env_prefix", ""))
+    for name, field in settings.model_fields.items():
+        if name in skip:
+            continue
+        default = field.get_default(call_default_factory=True)
+        shown = "none" if default is None else default
+        where = f"env {prefix}{name.upper()}"
+        text = f"{field.description} ({where})" if field.is_required() else (
+            f"{field.description} (default {shown}; {where})"
+        )  # fmt: skip
+        flag = f"--{name.replace('_', '-')}"
+        metavar = (metavars or {}).get(name)
+        if field.annotation is bool:
+            action = argparse.BooleanOptionalAction
+            parser.add_argument(flag, dest=name, action=action, default=None, help=text)
+            continue
+        kind, choices = _option_type(field.annotation)
+        parser.add_argument(flag, dest=name, type=kind, choices=choices, metavar=metavar, help=text)
+
+
+def _option_type(annotation: object) -> tuple[Callable[[str], object], tuple[str, ...] | None]:
+    """The argparse type and choices of a settings field: int, float, str, Path (or an
+    optional one), or a Literal of strings."""
+    if get_origin(annotation) is Literal:
+        return str, get_args(annotation)
+    if get_origin(annotation) in (Union, UnionType):
+        (annotation,) = (arg for arg in get_args(annotation) if arg is not NoneType)
+    if annotation in (int, float, str, Path):
+        return cast(Callable[[str], object], annotation), None
+    raise TypeError(f"no command-line form for a setting of type {annotation!r}")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``serve`` options; each also reads ``MULTION_<NAME>`` from the environment."""
-    for name, kind, text in _OPTIONS:
-        parser.add_argument(f"--{name.replace('_', '-')}", dest=name, type=kind, help=text)
+    settings_options(parser, ServerSettings, skip=(DATASET_DIRS,))
     parser.add_argument(
         "--dataset-dir",
-        dest="allowed_dataset_dirs",
+        dest=DATASET_DIRS,
         action="append",
         type=Path,
         metavar="DIR",
@@ -110,8 +108,7 @@ def add_http_stack_arguments(parser: argparse.ArgumentParser, whose: str = "") -
 
 def settings_from_args(args: argparse.Namespace) -> ServerSettings:
     """Settings from the options given; the others come from ``MULTION_*`` or the defaults."""
-    given = {name: getattr(args, name) for name, _, _ in _OPTIONS}
-    given["allowed_dataset_dirs"] = getattr(args, "allowed_dataset_dirs", None)
+    given = {name: getattr(args, name, None) for name in ServerSettings.model_fields}
     return ServerSettings(**{k: v for k, v in given.items() if v is not None})
 
 

@@ -26,24 +26,32 @@ class ServerSettings(BaseSettings):
 
     model_config = SettingsConfigDict(env_prefix="MULTION_", frozen=True)
 
-    host: str = "127.0.0.1"
-    port: int = Field(8000, ge=0, le=65535)
-    workers: int = Field(1, ge=1, description="simulator worker processes")
-    max_sessions: int = Field(64, ge=1)
-    max_envs_per_session: int = Field(64, ge=1)
-    max_envs_total: int = Field(256, ge=1)
-    idle_timeout_s: float = Field(900.0, gt=0, description="sessions unused this long are closed")
-    max_request_bytes: int = Field(32 * 1024 * 1024, ge=1024)
-    worker_timeout_s: float = Field(
-        300.0, gt=0, description="a worker that takes longer to answer is killed and replaced"
+    host: str = Field("127.0.0.1", description="address to listen on (0.0.0.0 for every interface)")
+    port: int = Field(8000, ge=0, le=65535, description="TCP port")
+    workers: int = Field(
+        1, ge=1, description="simulator worker processes; sessions are spread over them"
     )
-    worker_start_timeout_s: float = Field(120.0, gt=0)
+    max_sessions: int = Field(64, ge=1, description="most open sessions")
+    max_envs_per_session: int = Field(64, ge=1, description="most environments in one session")
+    max_envs_total: int = Field(256, ge=1, description="most environments over all sessions")
+    idle_timeout_s: float = Field(
+        900.0, gt=0, description="close sessions unused for this many seconds"
+    )
+    max_request_bytes: int = Field(
+        32 * 1024 * 1024, ge=1024, description="largest request body accepted, in bytes"
+    )
+    worker_timeout_s: float = Field(
+        300.0, gt=0, description="kill and replace a worker silent this many seconds"
+    )
+    worker_start_timeout_s: float = Field(
+        120.0, gt=0, description="give up on a simulator worker not ready after this many seconds"
+    )
     worker_memory_mb: int = Field(
         8192,
         ge=MIN_WORKER_MEMORY_MB,
-        description="address-space limit of each simulator worker (RLIMIT_AS); the memory "
-        "estimates of the sessions a worker holds must fit in it, less what the process itself "
-        "needs",
+        description="address-space limit of each simulator worker (RLIMIT_AS), and the room its "
+        "sessions' memory estimates share, less what the process itself needs; lowered to this "
+        "process's own limit (ulimit -v) when that is lower and this is not given",
     )
     sessions: Literal["open", "token", "off"] = Field(
         "open",

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import os
-from pathlib import Path
 
 from pydantic import ValidationError
 
@@ -27,21 +26,8 @@ SERVE_MODULE = __name__
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The session server's options, then the leaderboard's."""
     cli_serve.add_arguments(parser)
-    parser.add_argument(
-        "--challenge",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="turn the leaderboard on: a challenge file (tracks, phases, secret); see "
-        "docs/leaderboard.md",
-    )
-    parser.add_argument(
-        "--database",
-        default=None,
-        metavar="URL",
-        help="the leaderboard's results database (default sqlite:///leaderboard.db; "
-        "postgresql+psycopg://… for several replicas)",
-    )
+    metavars = {"challenge": "FILE", "database": "URL"}
+    cli_serve.settings_options(parser, LeaderboardSettings, metavars=metavars)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -56,9 +42,10 @@ def run(args: argparse.Namespace) -> int:
     if not challenge_file:
         print("multion serve: --database needs --challenge FILE")
         return 2
-    given = {"challenge": challenge_file, "database": args.database}
+    given = {name: getattr(args, name, None) for name in LeaderboardSettings.model_fields}
+    given["challenge"] = challenge_file
     try:
-        leaderboard = LeaderboardSettings(**{k: v for k, v in given.items() if v})
+        leaderboard = LeaderboardSettings(**{k: v for k, v in given.items() if v is not None})
         app = create_app(settings, [LeaderboardExtension(leaderboard)])
     except (ValidationError, ChallengeError, StorageError) as error:
         print(f"multion serve: {error}")

@@ -26,8 +26,8 @@ class LeaderboardSettings(BaseSettings):
     )
     docs_url: str | None = Field(
         None,
-        description="where the rules page links the participants' guide (default: the server's "
-        "own /leaderboard/guide, docs/leaderboard.md of the source tree it runs from)",
+        description="where the rules page links the participants' guide; none: the server's "
+        "own /leaderboard/guide (docs/leaderboard.md of the source tree it runs from)",
     )
     draw_pictures: bool = Field(
         True, description="draw the pictures of ended minival runs in the background"
