@@ -65,7 +65,7 @@ def body_shapes(client: int, body: int, texture: Path | None = None) -> list[Sha
         _, link, geometry, dims, mesh_file, frame_pos, frame_orn, rgba = data[:8]
         if rgba[3] == 0:  # TinyRenderer skips invisible shapes
             continue
-        mesh = _tessellate(int(geometry), tuple(dims), mesh_file.decode(errors="replace"))
+        mesh = tessellate(int(geometry), tuple(dims), mesh_file.decode(errors="replace"))
         if mesh is None:
             continue
         rotation = _rotation(frame_orn)
@@ -96,7 +96,7 @@ def _vertex_rows(
 
 
 @functools.lru_cache(maxsize=4096)
-def _tessellate(geometry: int, dims: tuple[float, ...], mesh_file: str) -> ShapeMesh | None:
+def tessellate(geometry: int, dims: tuple[float, ...], mesh_file: str) -> ShapeMesh | None:
     if geometry == GEOM_BOX:
         return box_mesh((dims[0], dims[1], dims[2]))
     if geometry in (GEOM_CYLINDER, GEOM_CAPSULE):
