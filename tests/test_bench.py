@@ -3,6 +3,7 @@ machines are shared and noisy; here only that every part runs and reports a rate
 
 from multion_agents.bench.cli import bench_sim
 from multion_agents.bench.reset import run_reset_bench
+from multion_agents.bench.site_diversity import room_pair_homogeneity, run_diversity_bench
 
 
 def test_the_simulator_bench_runs_every_part(capsys):
@@ -50,3 +51,22 @@ def test_the_reset_bench_times_both_samplers_and_splits_out_the_fast_marching(ca
         assert 0 <= results[f"1on_{sampler}_marching_median_ms"] < median * 1.0001
         assert results[f"1on_{sampler}_rest_median_ms"] > 0
     assert "fast marching" in capsys.readouterr().out
+
+
+def test_the_diversity_bench_compares_each_sampler_with_the_online_one(capsys):
+    results = run_diversity_bench(houses=1, episodes_per_house=4, site_counts=(16,))
+    assert results["online_ks_d"] == 0.0 and results["online_room_pairs_tvd"] == 0.0
+    assert results["online-again_ks_d"] > 0.0  # another seed: other legs
+    assert results["sites-16_goal_cells_per_house"] <= 16
+    assert 0.0 < results["sites-16_room_pairs_tvd"] <= 1.0
+    assert "sites-16" in capsys.readouterr().out
+
+
+def test_room_pairroom_pair_homogeneity_is_zero_for_one_sample_and_one_for_disjoint_ones():
+    same = ["kitchen → bedroom"] * 30 + ["bedroom → bedroom"] * 20
+    assert (
+        room_pair_homogeneity(same, same)[0] == 0.0 and room_pair_homogeneity(same, same)[3] == 0.0
+    )
+    other = ["hall → hall"] * 50
+    chi2, dof, p_value, tvd = room_pair_homogeneity(same, other)
+    assert tvd == 1.0 and p_value < 1e-6 and dof >= 1
