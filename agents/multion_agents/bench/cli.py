@@ -134,8 +134,9 @@ def run(args: argparse.Namespace) -> int:
             return 2
         if args.renderer != "gl":
             bench_sim(args.steps, args.episodes, args.renderer)
-        if args.renderer in ("all", "gl"):
-            bench_gl(args.steps)
+        if args.renderer in ("all", "gl") and bench_gl(args.steps):
+            # on a GPU machine: frames/s per process and per GPU, one process per core
+            bench_processes("gl", 256, args.steps)
     if "reset" in parts:
         run_reset_bench()
     if "diversity" in parts:
@@ -270,7 +271,7 @@ def bench_processes(renderer: str, size: int, steps: int) -> dict[str, float]:
     )
     results: dict[str, float] = {}
     # Mesa's EGL renders on the CPU: only on a GPU machine is the total the GPU's
-    where = "in all (per GPU on a one-GPU machine)" if renderer == "egl" else "in all"
+    where = "in all (per GPU on a one-GPU machine)" if renderer in ("egl", "gl") else "in all"
     for count in counts:
         vector = gym.vector.AsyncVectorEnv(
             [functools.partial(MultiONEnv, config) for _ in range(count)], context="spawn"
