@@ -2,9 +2,9 @@
 
 EGL gives a context without a display: NVIDIA's driver on a GPU machine, Mesa's llvmpipe on a
 CPU. Mesa rasterises with ``LP_NUM_THREADS`` threads; here it defaults to 0 (draw in the
-calling thread), so a simulator process keeps to one core, as TinyRenderer does, and the
-probe of ``/work``'s 2-core machines found it the fastest at 36² and 128² (set
-``LP_NUM_THREADS`` before the first context to change it). A machine without EGL gets one line
+calling thread), so a simulator process keeps to one core, as TinyRenderer does; on the
+project's 2-core machines it was also the fastest setting at 36² and 128² (set
+``LP_NUM_THREADS`` before the first context to change it; docs/rendering.md). A machine without EGL gets one line
 saying what to install, never a crash (:func:`gl_unavailable_reason`).
 """
 
