@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multion.config.codec import env_config_from_dict
 from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
 from multion.sim.geodesic import FieldCache, distance_field
@@ -138,7 +139,7 @@ def test_a_reset_reads_the_sites_fields_and_measures_what_the_episode_says() -> 
     config = EnvConfig(
         task=TaskConfig(num_goals=3), split="train", sensors=("goal",), episodes_per_scene=4
     )
-    assert config.train_sampler == "sites"  # the default since issue 44
+    assert config.task.train_sampler == "sites"  # the default since issue 44
     env = MultiONEnv(config)
     try:
         env.reset(seed=2)
@@ -165,11 +166,10 @@ def test_the_online_sampler_still_draws_the_episodes_it_drew_before_issue_44(key
     golden = json.loads(GOLDEN.read_text())["episodes"][key]
     num_goals, seed = int(key[0]), int(key.rsplit(" ", 1)[1])
     config = EnvConfig(
-        task=TaskConfig(num_goals=num_goals),
+        task=TaskConfig(num_goals=num_goals, train_sampler="online"),
         split="train",
         sensors=("goal",),
         episodes_per_scene=2,
-        train_sampler="online",
     )
     env = MultiONEnv(config)
     try:
@@ -184,12 +184,19 @@ def test_the_online_sampler_still_draws_the_episodes_it_drew_before_issue_44(key
 
 
 def test_the_sampler_and_the_site_count_are_checked_and_named() -> None:
-    with pytest.raises(ConfigError, match=r"train_sampler = 'fixed' is not allowed: allowed one "):
-        EnvConfig(train_sampler="fixed")
-    with pytest.raises(ConfigError, match=r"goal_sites = 8 is out of range: allowed an integer"):
-        EnvConfig(goal_sites=8)
-    with pytest.raises(ConfigError, match=r"goal_site_cache_mib = 0 is out of range"):
-        EnvConfig(goal_site_cache_mib=0)
+    with pytest.raises(
+        ConfigError, match=r"task.train_sampler = 'fixed' is not allowed: allowed one of 'sites'"
+    ):
+        TaskConfig(train_sampler="fixed")
+    with pytest.raises(
+        ConfigError, match=r"task.goal_sites = 8 is out of range: allowed an integer in \[16,"
+    ):
+        TaskConfig(goal_sites=8)
+    with pytest.raises(ConfigError, match=r"task.goal_site_cache_mib = 0 is out of range"):
+        TaskConfig(goal_site_cache_mib=0)
+    # what `multion train --set task.train_sampler=online` passes
+    config = env_config_from_dict({"split": "train", "task": {"train_sampler": "online"}})
+    assert config.task.train_sampler == "online"
 
 
 def test_field_cache_put_is_what_get_returns(grid: NavGrid) -> None:
@@ -201,8 +208,10 @@ def test_field_cache_put_is_what_get_returns(grid: NavGrid) -> None:
 
 
 def test_a_servers_memory_estimate_counts_the_site_cache_where_sites_are_drawn() -> None:
-    sites = EnvConfig(split="train", goal_site_cache_mib=300)
-    online = EnvConfig(split="train", goal_site_cache_mib=300, train_sampler="online")
+    sites = EnvConfig(split="train", task=TaskConfig(goal_site_cache_mib=300))
+    online = EnvConfig(
+        split="train", task=TaskConfig(goal_site_cache_mib=300, train_sampler="online")
+    )
     assert estimate_env_bytes(sites) - estimate_env_bytes(online) == 300 * 2**20
-    val = EnvConfig(split="val", goal_site_cache_mib=300)
+    val = EnvConfig(split="val", task=TaskConfig(goal_site_cache_mib=300))
     assert estimate_env_bytes(val) == estimate_env_bytes(online)

@@ -118,13 +118,12 @@ class MarchingClock:
 def _env(num_goals: int, sampler: str) -> MultiONEnv:
     config = env_config_from_dict(
         {
-            "task": {"num_goals": num_goals},
+            "task": {"num_goals": num_goals, "train_sampler": sampler},
             "split": "train",
             "sensors": ["rgb", "depth", "goal", "oracle_map"],
             "camera": {"width": 36, "height": 36},
             "maps": {"ego_size": 25},
             "episodes_per_scene": 5,
-            "train_sampler": sampler,
         }
     )
     return MultiONEnv(config)

@@ -82,12 +82,13 @@ def restore_random_states(payload: dict[str, Any]) -> None:
 
 LEGACY_FIELDS: dict[str, dict[str, Any]] = {
     "maps": {"goal_cells": 1},
-    "task": {"goal_set": "colours"},
+    "task": {"goal_set": "colours", "train_sampler": "online"},
 }
 """Config fields added after checkpoints were first written, with the value those checkpoints
 were trained with (issue 31 added ``maps.goal_cells``, goals were one cell before, and
-``task.goal_set``, the cylinders were the only goals). A recorded config lacking one gets this
-value, not today's default."""
+``task.goal_set``, the cylinders were the only goals; issue 44 ``task.train_sampler``, train
+episodes were drawn online). A recorded config lacking one gets this value, not today's
+default."""
 
 
 def with_legacy_fields(env_config: dict[str, Any]) -> dict[str, Any]:

@@ -30,6 +30,7 @@ from multion_agents.learned.checkpoint import (
     load_checkpoint,
     restore_random_states,
     save_checkpoint,
+    with_legacy_fields,
 )
 from multion_agents.learned.distributed import (
     average_gradients,
@@ -225,7 +226,7 @@ def train(args: Args) -> dict[str, Any]:
     checkpoint_path = out / "checkpoint.pt"
     if args.resume:
         payload = load_checkpoint(checkpoint_path)
-        stored = env_config_from_dict(payload["env_config"])
+        stored = env_config_from_dict(with_legacy_fields(payload["env_config"]))
         if payload["agent"] != args.agent or stored != env_config_from_dict(env_config):
             raise CheckpointError(
                 f"{checkpoint_path} was trained with agent {payload['agent']!r} and env config "

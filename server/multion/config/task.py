@@ -142,6 +142,22 @@ class TaskConfig:
     in ``goal_mask`` and the oracle maps with their category + 1 like goals; a FOUND near one is a
     wrong FOUND (counted in ``distractor_founds``). Episodes come from the dataset, which must have
     this many distractors per episode (the packaged ``m-on-distractors`` sets have 3)."""
+    train_sampler: str = one_of("sites", TRAIN_SAMPLERS)
+    """How train episodes are drawn when no dataset is given. ``sites`` (the default since
+    issue 44): every goal is one of ``goal_sites`` fixed, seeded sites of the house, whose
+    distance fields are marched once and kept (:mod:`multion.task.goal_sites`), so a reset
+    marches no field once a house's sites are cached. ``online``: start and goals anywhere on
+    the floor, ``m + 1`` fields marched per episode (the sampler of every run published before
+    issue 44; ``multion train --set task.train_sampler=online`` reproduces them). Both keep the
+    same constraints."""
+    goal_sites: int = bounded(GOAL_SITES, 16, 1024)
+    """Goal sites per train house (``train_sampler = "sites"``): one in every room (a house has
+    at most 16), the rest spread over the floor."""
+    goal_site_cache_mib: int = bounded(GOAL_SITE_CACHE_MIB, 1, 65_536)
+    """Memory for the goal sites' distance fields, MiB per env; the least recently used are
+    dropped, and marched again when drawn. The default holds every field of the 61 train
+    houses at 32 sites a house (1,952 fields, 766 MiB measured); a server counts it in a train
+    session's memory estimate."""
 
     def __post_init__(self) -> None:
         check_fields(self, "task")
@@ -172,22 +188,6 @@ class EnvConfig:
     """Online (train) sampling keeps each goal within this geodesic distance, metres, of the
     start or the previous goal; below the datasets' 20 m it makes a curriculum's easy stage
     (``multion train --curriculum``). Packaged and file datasets ignore it."""
-    train_sampler: str = one_of("sites", TRAIN_SAMPLERS)
-    """How train episodes are drawn when no dataset is given. ``sites`` (the default since
-    issue 44): every goal is one of ``goal_sites`` fixed, seeded sites of the house, whose
-    distance fields are marched once and kept (:mod:`multion.task.goal_sites`), so a reset
-    marches no field once a house's sites are cached. ``online``: start and goals anywhere on
-    the floor, ``m + 1`` fields marched per episode (the sampler of every run published before
-    issue 44; choose it to reproduce them). Both keep the same constraints."""
-    goal_sites: int = bounded(GOAL_SITES, 16, 1024)
-    """Goal sites per train house (``train_sampler = "sites"``): one in every room (a house has
-    at most 16), the rest spread over the floor."""
-    goal_site_cache_mib: int = bounded(GOAL_SITE_CACHE_MIB, 1, 65_536)
-    """Memory for the goal sites' distance fields, MiB per env; the least recently used are
-    dropped, and marched again when drawn. The default holds every field of the 61 train
-    houses at 32 sites a house (1,952 fields, 766 MiB measured); a server counts it in a train
-    session's memory estimate."""
-
     def __post_init__(self) -> None:
         check_fields(self, "")
         unknown = [s for s in self.sensors if s not in SENSORS]

@@ -128,9 +128,9 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             reach=self.config.task.success_distance,
         )
         self._goal_sites = GoalSites(
-            self.config.goal_sites,
+            self.config.task.goal_sites,
             self.config.task.goal_radius,
-            self.config.goal_site_cache_mib * 2**20,
+            self.config.task.goal_site_cache_mib * 2**20,
         )
 
     # ------------------------------------------------------------------ episodes
@@ -170,7 +170,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             scene = self._online_scene
             grid = self.sim.load_scene(scene)
             self._online_count += 1
-            if self.config.train_sampler == "online":
+            if self.config.task.train_sampler == "online":
                 episode = sample_episode(
                     grid,
                     scene,

@@ -56,9 +56,9 @@ def goal_sites_bytes(config: EnvConfig) -> int:
     """The goal sites' field cache (:mod:`multion.task.goal_sites`): its budget, where train
     episodes are drawn from sites; nothing where episodes come from a dataset."""
     drawn_from_sites = (
-        config.split == "train" and config.dataset is None and config.train_sampler == "sites"
+        config.split == "train" and config.dataset is None and config.task.train_sampler == "sites"
     )
-    return config.goal_site_cache_mib * MiB if drawn_from_sites else 0
+    return config.task.goal_site_cache_mib * MiB if drawn_from_sites else 0
 
 
 def mib(size: int) -> int:
