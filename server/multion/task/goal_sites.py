@@ -103,16 +103,16 @@ def choose_sites(grid: NavGrid, rooms: Sequence[Room], count: int, scene_id: str
 
 @dataclass
 class HouseSites:
-    """One house's grid, navigable cells and goal sites."""
+    """One house's grid, navigable cells and goal sites (about 0.5 MB a house: the cells are
+    kept as int32 rows and columns, their world points made when needed)."""
 
     scene_id: str
     grid: NavGrid
     rows: np.ndarray
+    """Rows of the navigable cells, in ``np.nonzero`` order (int32)."""
     cols: np.ndarray
-    cells: np.ndarray
-    """World ``(x, y)`` of the navigable cells' centres, in ``np.nonzero`` order."""
     sites: np.ndarray
-    """Indices of the sites into ``cells``."""
+    """Indices of the sites into the navigable cells."""
     site_xy: np.ndarray
     """The sites' world ``(x, y)``, rounded as an episode stores a goal's position."""
 
@@ -123,6 +123,12 @@ class HouseSites:
         field[self.rows, self.cols] = values
         field.flags.writeable = False
         return field
+
+    def cells(self, indices: np.ndarray | None = None) -> np.ndarray:
+        """World ``(x, y)`` of the navigable cells' centres (those of ``indices``, or all)."""
+        if indices is None:
+            return self.grid.cell_to_world(self.rows, self.cols)
+        return self.grid.cell_to_world(self.rows[indices], self.cols[indices])
 
 
 class GoalSites:
@@ -152,10 +158,10 @@ class GoalSites:
             return known
         if known is not None:
             self._forget(scene_id)
-        rows, cols = np.nonzero(grid.navigable)
-        cells = grid.cell_to_world(rows, cols)
+        rows, cols = (index.astype(np.int32) for index in np.nonzero(grid.navigable))
         sites = choose_sites(grid, house_rooms(scene_id), self.count, scene_id)
-        house = HouseSites(scene_id, grid, rows, cols, cells, sites, np.round(cells[sites], 4))
+        site_xy = np.round(grid.cell_to_world(rows[sites], cols[sites]), 4)
+        house = HouseSites(scene_id, grid, rows, cols, sites, site_xy)
         self._houses[scene_id] = house
         return house
 
@@ -257,13 +263,13 @@ def sample_site_episode(
             for c, s in zip(categories, order, strict=True)
         )
         distractors = (
-            sample_distractors(rng, house.cells, goals, num_distractors, constraints, z)
+            sample_distractors(rng, house.cells(), goals, num_distractors, constraints, z)
             if num_distractors
             else ()
         )
         if distractors is None:
             continue
-        start = house.cells[start_cell]
+        start = house.cells(np.array([start_cell]))[0]
         start_xy = (round(float(start[0]), 4), round(float(start[1]), 4))
         start_yaw = round(float(rng.uniform(-np.pi, np.pi)), 6)
         if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
