@@ -9,7 +9,7 @@ normalised position and its texture coordinate spherical, ``(atan2(nx, nz) / 2π
 ny / 2 + 1/2)``. A cylinder is first a 32-sided prism, so it is drawn with the few sides
 those 42 directions pick. Meshes come from OBJ files (``Wavefront2GLInstanceGraphicsShape.cpp``):
 the file's normals where it has them, else each triangle's own; texture coordinates where it
-has them, else (0.5, 0.5). Hulls are triangulated here by Qhull, so a flat face may be split
+has them, else (0.5, 0.5); or from binary STL files (``LoadMeshFromSTL.h``). Hulls are triangulated here by Qhull, so a flat face may be split
 along the other diagonal than Bullet's: positions and depth agree, shading may differ slightly.
 """
 
