@@ -188,6 +188,7 @@ class EnvConfig:
     """Online (train) sampling keeps each goal within this geodesic distance, metres, of the
     start or the previous goal; below the datasets' 20 m it makes a curriculum's easy stage
     (``multion train --curriculum``). Packaged and file datasets ignore it."""
+
     def __post_init__(self) -> None:
         check_fields(self, "")
         unknown = [s for s in self.sensors if s not in SENSORS]
