@@ -49,7 +49,7 @@ def test_a_gap_the_grid_passes_but_no_heading_enters(yaw_deg: float, reached: bo
 
 def test_can_step_agrees_with_the_simulator() -> None:
     episodes = [v2_episode(IMMOBILE), v2_episode("val-1-on-00000")]
-    env = MultiONEnv(EnvConfig(sensors=("gps",)), episodes=episodes)
+    env = MultiONEnv(EnvConfig(task=TaskConfig(num_goals=1), sensors=("gps",)), episodes=episodes)
     try:
         for episode in episodes:
             obs, _ = env.reset(options={"episode": episode})
