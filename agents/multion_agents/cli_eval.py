@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _video_problem(count: int, out: Path | None) -> str | None:
     """Why ``--video`` cannot be done, checked before the evaluation starts."""
-    from multion_agents.video.encoder import EncoderUnavailable, check_encoder
+    from multion.video.encoder import EncoderUnavailable, check_encoder
     from multion_agents.video.film import MAX_VIDEOS
 
     if not 0 <= count <= MAX_VIDEOS:

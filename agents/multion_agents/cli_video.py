@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from multion_agents.video.encoder import EncoderUnavailable, check_encoder
+    from multion.video.encoder import EncoderUnavailable, check_encoder
     from multion_agents.video.film import film_episode, still, video_name
     from multion_agents.video.recorded import VideoError, read_run
 
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def describe(path: Path, frames: int, size: int, seconds: float) -> str:
-    from multion_agents.video.encoder import FPS
+    from multion.video.encoder import FPS
 
     return (
         f"wrote {path}: {frames} frames ({frames / FPS:.1f} s of video), "

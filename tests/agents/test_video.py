@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 
 from multion.config.episode import Episode
+from multion.video.encoder import read_frames, size_bound
+from multion.video.film import END_HOLD, FOUND_HOLD, MAX_VIDEO_FRAMES
 from multion_agents import cli_eval, cli_video
 from multion_agents.eval_settings import EvalSettings
 from multion_agents.evaluate import evaluate
-from multion_agents.video.encoder import read_frames, size_bound
-from multion_agents.video.film import END_HOLD, FOUND_HOLD, MAX_VIDEO_FRAMES, MAX_VIDEOS
+from multion_agents.video.film import MAX_VIDEOS
 from multion_agents.video.recorded import VideoError, read_run, replay, replay_env
 
 MAX_STEPS = 30

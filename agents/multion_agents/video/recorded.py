@@ -18,23 +18,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from multion.config.codec import session_config_from_dict
 from multion.config.episode import Episode
 from multion.config.ranges import ConfigError
 from multion.task.dataset import DatasetError, load_dataset, packaged_dataset_path, parse_task
 from multion.task.env import MultiONEnv
+from multion.video.replay import FILMED_SENSORS, StepView, VideoError
+from multion.video.replay import replay as replay_steps
 from multion_client.constants import NUM_ACTIONS
 
 METRICS_FILE = "metrics.json"
 EPISODES_FILE = "episodes.jsonl"
-FILMED_SENSORS = ["rgb", "depth"]
-"""What a video shows of the agent's view (metrics do not depend on the sensors)."""
-
-
-class VideoError(ValueError):
-    """A run or episode that cannot be filmed; the message says which and why."""
 
 
 @dataclass(frozen=True)
@@ -157,26 +151,6 @@ def _parse_actions(text: Any, where: str) -> tuple[int, ...] | None:
 
 
 # ---------------------------------------------------------------------- replay
-@dataclass(frozen=True)
-class StepView:
-    """What the camera and the task show after ``step`` actions (0: the start)."""
-
-    step: int
-    action: int | None
-    """The action that led here; None at the start."""
-    rgb: np.ndarray
-    depth: np.ndarray
-    position: np.ndarray
-    yaw: float
-    goals_found: int
-    distance_to_goal: float
-    """Geodesic distance to the current goal, metres (0 once every goal is found)."""
-    found_correct: bool
-    found_wrong: bool
-    collided: bool
-    metrics: dict[str, Any]
-
-
 def dataset_episode(run: RecordedRun, episode_id: str) -> Episode:
     """Episode ``episode_id`` of the run's dataset, after checking the file is the one played."""
     if run.dataset_sha256:
@@ -211,47 +185,4 @@ def replay_env(run: RecordedRun) -> MultiONEnv:
 def replay(env: MultiONEnv, episode: Episode, recorded: RecordedEpisode) -> Iterator[StepView]:
     """The start and each step of ``recorded`` played again in ``env``; a VideoError at the end
     when the replayed metrics are not the recorded ones."""
-    observation, info = env.reset(options={"episode": episode})
-    yield _view(env, observation, info, None)
-    done = False
-    for step, action in enumerate(recorded.actions, start=1):
-        if done:
-            raise VideoError(
-                f"episode {recorded.episode_id}: the replay ended after {step - 1} of "
-                f"{len(recorded.actions)} recorded actions"
-            )
-        observation, _, terminated, truncated, info = env.step(action)
-        done = terminated or truncated
-        yield _view(env, observation, info, action)
-    replayed = json.loads(json.dumps(info["metrics"]))  # compared as episodes.jsonl stores them
-    differences = [
-        f"{key} {replayed.get(key)!r} (recorded {value!r})"
-        for key, value in recorded.metrics.items()
-        if replayed.get(key) != value
-    ]
-    if differences:
-        raise VideoError(
-            f"episode {recorded.episode_id}: the replay does not reproduce the recorded metrics: "
-            f"{'; '.join(differences[:4])} (another dataset or simulator version?)"
-        )
-
-
-def _view(
-    env: MultiONEnv, observation: dict[str, np.ndarray], info: dict[str, Any], action: int | None
-) -> StepView:
-    state = env.state
-    assert state is not None
-    return StepView(
-        step=state.step,
-        action=action,
-        rgb=observation["rgb"],
-        depth=observation["depth"],
-        position=env.sim.position.copy(),
-        yaw=float(env.sim.yaw),
-        goals_found=state.goals_found,
-        distance_to_goal=float(state.distance_to_goal),
-        found_correct=state.found_correct,
-        found_wrong=state.found_wrong,
-        collided=state.collided,
-        metrics=info["metrics"],
-    )
+    return replay_steps(env, episode, recorded.actions, recorded.metrics, recorded.episode_id)

@@ -26,8 +26,8 @@ from multion.config.episode import Episode
 from multion.pictures import AGENT_PATH, OUTLINE
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim.navgrid import NavGrid
+from multion.video.replay import StepView
 from multion.viz import PictureFrame, picture_frame, scene_picture, world_to_pixel
-from multion_agents.video.recorded import StepView
 from multion_client.constants import GOAL_RGBA, Action
 
 MIN_PANEL = 256
