@@ -126,7 +126,7 @@ PROBE = """
 import gc, json, sys
 from multion.config.codec import session_config_from_dict
 from multion.task.env import MultiONEnv
-from multion.task.memory import estimate_env_bytes
+from multion.task.memory import estimate_process_bytes
 
 def rss():
     with open("/proc/self/status") as f:
@@ -138,7 +138,8 @@ gc.collect()
 before, envs = rss(), []
 for seed in range(3):
     env = MultiONEnv(config, episodes); env.reset(seed=seed); env.step(1); envs.append(env)
-print(json.dumps({"per_env": (rss() - before) / 3, "estimate": estimate_env_bytes(config)}))
+# the envs' own memory, and their process's goal-site cache once (train)
+print(json.dumps({"per_env": (rss() - before) / 3, "estimate": estimate_process_bytes(config, 3) / 3}))
 """
 
 

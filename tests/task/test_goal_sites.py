@@ -3,6 +3,8 @@ memory bound, and the online sampler kept selectable with the same episodes as b
 
 from __future__ import annotations
 
+import dataclasses
+import gc
 import json
 from pathlib import Path
 
@@ -18,13 +20,15 @@ from multion.sim.simulator import Simulator
 from multion.task.dataset import can_step
 from multion.task.env import MultiONEnv
 from multion.task.goal_sites import (
+    PROCESS_SITE_CACHE,
     GoalSites,
+    SiteFieldCache,
     choose_sites,
     house_rooms,
     room_of,
     sample_site_episode,
 )
-from multion.task.memory import estimate_env_bytes
+from multion.task.memory import estimate_env_bytes, estimate_process_bytes, goal_sites_bytes
 from multion.task.step_reach import steps_reach_goals
 
 HOUSE = "house-00003"
@@ -110,16 +114,16 @@ def test_site_episodes_keep_the_online_samplers_guarantees(
 
 
 def test_same_seed_same_episodes_whatever_the_cache_holds(grid: NavGrid) -> None:
-    roomy = GoalSites(32, RADIUS, 2**30)
+    roomy = GoalSites(32, RADIUS, 2**30, SiteFieldCache())
     _draw(roomy, grid, 99, 5, 3)  # other fields cached first
-    tight = GoalSites(32, RADIUS, 1)  # keeps one field at a time
+    tight = GoalSites(32, RADIUS, 1, SiteFieldCache())  # its own cache: one field at a time
     assert _draw(roomy, grid, 7, 8, 3) == _draw(tight, grid, 7, 8, 3)
     assert _draw(roomy, grid, 7, 8, 3) != _draw(roomy, grid, 8, 8, 3)
 
 
 def test_the_site_cache_stays_within_its_budget(grid: NavGrid) -> None:
     field_bytes = 8 * int(grid.navigable.sum())
-    sites = GoalSites(32, RADIUS, 3 * field_bytes)
+    sites = GoalSites(32, RADIUS, 3 * field_bytes, SiteFieldCache())  # its only user
     held = []
     for seed in range(6):
         _draw(sites, grid, seed, 4, 3)
@@ -207,11 +211,88 @@ def test_field_cache_put_is_what_get_returns(grid: NavGrid) -> None:
     assert cache.get(grid, target, RADIUS) is made
 
 
-def test_a_servers_memory_estimate_counts_the_site_cache_where_sites_are_drawn() -> None:
+def test_a_servers_memory_estimate_counts_the_site_cache_once_per_process() -> None:
     sites = EnvConfig(split="train", task=TaskConfig(goal_site_cache_mib=300))
     online = EnvConfig(
         split="train", task=TaskConfig(goal_site_cache_mib=300, train_sampler="online")
     )
-    assert estimate_env_bytes(sites) - estimate_env_bytes(online) == 300 * 2**20
+    assert goal_sites_bytes(sites) == 300 * 2**20
+    assert estimate_env_bytes(sites) == estimate_env_bytes(online)  # not per env
+    for envs in (1, 16):
+        extra = estimate_process_bytes(sites, envs) - estimate_process_bytes(online, envs)
+        assert extra == 300 * 2**20
     val = EnvConfig(split="val", task=TaskConfig(goal_site_cache_mib=300))
-    assert estimate_env_bytes(val) == estimate_env_bytes(online)
+    assert goal_sites_bytes(val) == goal_sites_bytes(online) == 0
+
+
+def test_the_envs_of_a_process_share_one_cache_and_draw_the_same_episodes() -> None:
+    config = EnvConfig(
+        task=TaskConfig(num_goals=3), split="train", sensors=("goal",), episodes_per_scene=4
+    )
+    users, marched = PROCESS_SITE_CACHE.users, PROCESS_SITE_CACHE.marched
+    first, second = MultiONEnv(config), MultiONEnv(config)
+    try:
+        first.reset(seed=5)
+        second.reset(seed=5)
+        assert first._goal_sites.cache is second._goal_sites.cache is PROCESS_SITE_CACHE
+        assert PROCESS_SITE_CACHE.users == users + 2
+        assert second.episode == first.episode  # drawn from a warm cache, the same episode
+        assert first._goal_sites.marched == PROCESS_SITE_CACHE.marched - marched
+        assert second._goal_sites.marched == 0  # it read the fields the first env marched
+        for mine, theirs in zip(first._fields, second._fields, strict=True):
+            assert np.array_equal(mine, theirs)
+    finally:
+        first.close()
+        second.close()
+    assert PROCESS_SITE_CACHE.users == users
+    online = MultiONEnv(dataclasses.replace(config, task=TaskConfig(train_sampler="online")))
+    try:
+        online.reset(seed=5)
+        assert PROCESS_SITE_CACHE.users == users  # an env not drawing from sites asks nothing
+    finally:
+        online.close()
+
+
+def test_the_budget_is_the_largest_asked_and_the_last_user_frees_the_cache(
+    grid: NavGrid,
+) -> None:
+    cache = SiteFieldCache()
+    field_bytes = 8 * int(grid.navigable.sum())
+    small = GoalSites(32, RADIUS, 2 * field_bytes, cache)
+    large = GoalSites(32, RADIUS, 5 * field_bytes, cache)
+    assert small.budget_bytes == large.budget_bytes == 5 * field_bytes
+    house = small.house(HOUSE, grid)
+    assert large.house(HOUSE, grid) is house
+    for site in range(6):
+        small.values(house, site)
+    assert (cache.fields_held, cache.held_bytes) == (5, 5 * field_bytes)
+    assert large.values(house, 5) is small.values(house, 5)
+    assert large.marched == 0 and small.marched == 6
+    large.close()  # the budget shrinks to the largest left, the oldest fields go
+    assert (cache.budget_bytes, cache.fields_held, cache.held_bytes) == (
+        2 * field_bytes,
+        2,
+        2 * field_bytes,
+    )
+    large.close()  # closing twice is harmless
+    assert cache.users == 1
+    del small  # a view garbage-collected unclosed leaves too
+    gc.collect()
+    assert (cache.users, cache.fields_held, cache.held_bytes, cache.budget_bytes) == (0, 0, 0, 0)
+    with pytest.raises(ValueError, match="budget_bytes must be at least 1, got 0"):
+        cache.join(0)
+
+
+def test_a_grid_with_other_cells_gets_its_own_sites_and_fields(grid: NavGrid) -> None:
+    cache = SiteFieldCache()
+    sites = GoalSites(32, RADIUS, 2**30, cache)
+    house = sites.house(HOUSE, grid)
+    walled = grid.navigable.copy()
+    walled[:, walled.shape[1] // 2] = False  # a wall through the middle of the house
+    other_grid = dataclasses.replace(grid, navigable=walled)
+    other = sites.house(HOUSE, other_grid)
+    assert other is not house and other.grid is other_grid
+    assert sites.house(HOUSE, grid) is house
+    for site in range(3):
+        fresh = distance_field(other_grid, other.site_xy[site], RADIUS)
+        assert np.array_equal(other.full_field(sites.values(other, site)), fresh)

@@ -23,7 +23,7 @@ from multion.config.codec import ConfigError, session_config_from_dict
 from multion.task.env import check_reset_options
 from multion.task.episode_checks import check_caller_episodes
 from multion.task.errors import BadEpisodeError, BadResetOptionError
-from multion.task.memory import estimate_env_bytes, mib
+from multion.task.memory import estimate_env_bytes, goal_sites_bytes, mib
 from multion_client import errors
 from multion_client.constants import ACTIONS_TEXT, action_id
 from multion_client.protocol import (
@@ -48,8 +48,8 @@ class Shard:
     shard_id: str
     start: int
     count: int
-    reserved_bytes: int
-    """The memory estimate of its environments, reserved on its worker."""
+    env_bytes: int
+    """The memory estimate of each of its environments, reserved on its worker."""
     plain: bool = True
     """A plain session's (not a leaderboard run's): counts against the plain share."""
     closed: bool = False
@@ -109,13 +109,16 @@ class SessionRegistry:
             config, episodes = session_config_from_dict(message.config)
         except ConfigError as error:
             raise errors.InvalidConfig(str(error)) from None
-        env_bytes = estimate_env_bytes(config)
-        if env_bytes > self.pool.capacity_bytes:
+        env_bytes, cache_bytes = estimate_env_bytes(config), goal_sites_bytes(config)
+        if env_bytes + cache_bytes > self.pool.capacity_bytes:
+            need, smaller = f"{mib(env_bytes)} MiB", " or a smaller maps.ego_size"
+            if cache_bytes:  # one cache per worker process, shared by its envs
+                need += f" plus {mib(cache_bytes)} MiB for its worker's goal-site field cache"
+                smaller = ", a smaller maps.ego_size or a smaller task.goal_site_cache_mib"
             raise errors.InvalidConfig(
-                f"one environment of this config may need up to {mib(env_bytes)} MiB, more than "
-                f"a simulator worker of this server may hold ({mib(self.pool.capacity_bytes)} "
-                "MiB); use smaller camera images, a coarser navgrid.cell_size or a smaller "
-                "maps.ego_size"
+                f"one environment of this config may need up to {need}, more than a simulator "
+                f"worker of this server may hold ({mib(self.pool.capacity_bytes)} MiB); use "
+                f"smaller camera images, a coarser navgrid.cell_size{smaller}"
             )
         # Files the config names are on this server's disk: only allowed directories (403).
         message = dataclasses.replace(message, config=checked_config(message.config, self.roots))
@@ -145,7 +148,7 @@ class SessionRegistry:
         if owner is not None:
             self._pending_owners[owner] = self._pending_owners.get(owner, 0) + 1
         try:
-            return await _shielded(self._create(message, env_bytes, owner, for_run))
+            return await _shielded(self._create(message, env_bytes, cache_bytes, owner, for_run))
         finally:
             self._pending_sessions -= 1
             self._pending_envs -= n
@@ -314,21 +317,23 @@ class SessionRegistry:
         return f"no session {session_id!r} (never created, closed, or closed after being idle)"
 
     async def _create(
-        self, message: CreateSession, env_bytes: int, owner: str | None, for_run: bool
+        self,
+        message: CreateSession,
+        env_bytes: int,
+        cache_bytes: int,
+        owner: str | None,
+        for_run: bool,
     ) -> bytes:
         session_id = self.settings.new_id()  # NAME-<hex> on a named replica
         shards, start = [], 0
         plain_cap = None
         if not for_run and self.run_reserve > 0:
             plain_cap = int(self.pool.capacity_bytes * (1 - self.run_reserve))
-        chosen = self.pool.choose(message.num_envs, env_bytes, plain_cap)
+        chosen = self.pool.choose(message.num_envs, env_bytes, cache_bytes, plain_cap)
         for k, (worker, count) in enumerate(chosen):
-            shard = Shard(worker, f"{session_id}/{k}", start, count, count * env_bytes, not for_run)
+            shard = Shard(worker, f"{session_id}/{k}", start, count, env_bytes, not for_run)
             shards.append(shard)
-            worker.env_count += count
-            worker.reserved_bytes += shard.reserved_bytes
-            if shard.plain:
-                worker.plain_bytes += shard.reserved_bytes
+            worker.hold(shard.shard_id, count, env_bytes, cache_bytes, shard.plain)
             start += count
         payload = {"config": message.config, "auto_reset": message.auto_reset}
         payloads = [{**payload, "num_envs": sh.count} for sh in shards]
@@ -403,10 +408,7 @@ class SessionRegistry:
             if shard.closed:
                 continue
             shard.closed = True
-            shard.worker.env_count -= shard.count
-            shard.worker.reserved_bytes -= shard.reserved_bytes
-            if shard.plain:
-                shard.worker.plain_bytes -= shard.reserved_bytes
+            shard.worker.release(shard.shard_id, shard.count, shard.env_bytes, shard.plain)
             if shard.worker.alive:
                 try:
                     await shard.worker.request(

@@ -52,10 +52,13 @@ class Worker:
         self.generation = generation
         self.memory_limit_bytes = memory_limit_bytes
         self.env_count = 0
-        self.reserved_bytes = 0
-        """The memory estimates of the environments this worker holds."""
-        self.plain_bytes = 0
+        self.env_bytes = 0
+        """The memory estimates of the environments this worker holds, each its own."""
+        self.plain_env_bytes = 0
         """… of which those of plain sessions (not leaderboard runs)."""
+        self.site_cache_claims: dict[str, tuple[int, bool]] = {}
+        """Per shard drawing train episodes from goal sites: the goal-site cache budget it asks
+        for and whether it is a plain session's. The process has one cache for all its envs."""
         self.alive = True
         self.failure = ""
         self._loop = asyncio.get_running_loop()
@@ -82,6 +85,44 @@ class Worker:
     @property
     def pid(self) -> int | None:
         return self.process.pid
+
+    def site_cache_bytes(self, plain_only: bool = False) -> int:
+        """This process's goal-site cache: the largest budget its shards ask for (the cache
+        takes the largest of its users', :class:`multion.task.goal_sites.SiteFieldCache`);
+        ``plain_only``: of plain sessions' shards."""
+        claims = self.site_cache_claims.values()
+        return max((size for size, plain in claims if plain or not plain_only), default=0)
+
+    @property
+    def reserved_bytes(self) -> int:
+        """The memory estimates of what this worker holds: its environments and, once, the
+        goal-site cache they share."""
+        return self.env_bytes + self.site_cache_bytes()
+
+    @property
+    def plain_bytes(self) -> int:
+        """… of which plain sessions' (the cache counts where a plain session uses it)."""
+        return self.plain_env_bytes + self.site_cache_bytes(plain_only=True)
+
+    def hold(
+        self, shard_id: str, count: int, env_bytes: int, cache_bytes: int, plain: bool
+    ) -> None:
+        """Reserve a shard of ``count`` environments of ``env_bytes`` each, drawing from a
+        goal-site cache of ``cache_bytes`` (0: none)."""
+        self.env_count += count
+        self.env_bytes += count * env_bytes
+        if plain:
+            self.plain_env_bytes += count * env_bytes
+        if cache_bytes:
+            self.site_cache_claims[shard_id] = (cache_bytes, plain)
+
+    def release(self, shard_id: str, count: int, env_bytes: int, plain: bool) -> None:
+        """Undo :meth:`hold` (the cache is freed with the last shard using it)."""
+        self.env_count -= count
+        self.env_bytes -= count * env_bytes
+        if plain:
+            self.plain_env_bytes -= count * env_bytes
+        self.site_cache_claims.pop(shard_id, None)
 
     @property
     def free_bytes(self) -> int:
@@ -209,11 +250,17 @@ class WorkerPool:
         return self.memory_limit_bytes - WORKER_RESERVED_BYTES
 
     def choose(
-        self, num_envs: int, env_bytes: int, plain_cap_bytes: int | None = None
+        self,
+        num_envs: int,
+        env_bytes: int,
+        cache_bytes: int = 0,
+        plain_cap_bytes: int | None = None,
     ) -> list[tuple[Worker, int]]:
         """Spread ``num_envs`` environments of ``env_bytes`` each over the least loaded live
         workers with memory to spare: [(worker, count), ...]; raises
-        :class:`MemoryBudgetExceeded` when they do not fit now. With ``plain_cap_bytes`` (a
+        :class:`MemoryBudgetExceeded` when they do not fit now. ``cache_bytes``: the goal-site
+        cache they draw from, one per worker process, so a worker reserves it (or what it
+        lacks of it) with its first environment of this session. With ``plain_cap_bytes`` (a
         plain session on a server that keeps room for runs) a worker's plain sessions may
         reserve no more than that in all."""
         live = [w for w in self.workers if w.alive]
@@ -221,24 +268,49 @@ class WorkerPool:
             raise WorkerFailed("no simulator worker is running")
         load = {id(w): w.env_count for w in live}
         free = {id(w): w.free_bytes for w in live}
+        cache_lacking = {id(w): max(0, cache_bytes - w.site_cache_bytes()) for w in live}
         if plain_cap_bytes is not None:
-            free = {id(w): min(free[id(w)], plain_cap_bytes - w.plain_bytes) for w in live}
-        initial = ", ".join(f"{mib(max(0, free[id(w)]))} MiB" for w in live)
-        kept = "" if plain_cap_bytes is None else " for plain sessions: the rest is kept for runs"
+            plain_free = {id(w): plain_cap_bytes - w.plain_bytes for w in live}
+            plain_lacking = {
+                id(w): max(0, cache_bytes - w.site_cache_bytes(plain_only=True)) for w in live
+            }
         counts: dict[int, int] = {}
+
+        def fits(w: Worker) -> bool:
+            first = id(w) not in counts
+            if free[id(w)] < env_bytes + (cache_lacking[id(w)] if first else 0):
+                return False
+            if plain_cap_bytes is None:
+                return True
+            return plain_free[id(w)] >= env_bytes + (plain_lacking[id(w)] if first else 0)
+
+        def take(w: Worker) -> None:
+            first = id(w) not in counts
+            load[id(w)] += 1
+            free[id(w)] -= env_bytes + (cache_lacking[id(w)] if first else 0)
+            if plain_cap_bytes is not None:
+                plain_free[id(w)] -= env_bytes + (plain_lacking[id(w)] if first else 0)
+            counts[id(w)] = counts.get(id(w), 0) + 1
+
+        spare = free if plain_cap_bytes is None else {k: min(free[k], plain_free[k]) for k in free}
+        initial = ", ".join(f"{mib(max(0, spare[id(w)]))} MiB" for w in live)
+        kept = "" if plain_cap_bytes is None else " for plain sessions: the rest is kept for runs"
+        cache = (
+            f", plus {mib(cache_bytes)} MiB once per worker for the goal-site field cache they "
+            "share (task.goal_site_cache_mib)"
+            if cache_bytes
+            else ""
+        )
         for placed in range(num_envs):
-            room = [w for w in live if free[id(w)] >= env_bytes]
+            room = [w for w in live if fits(w)]
             if not room:
                 raise MemoryBudgetExceeded(
                     f"{num_envs} environment(s) of this config need up to {mib(env_bytes)} MiB "
-                    f"each; the simulator workers have room for {placed} now ({initial} free"
-                    f"{kept}). Close sessions, retry later, or use fewer environments, smaller "
-                    "images or a coarser navgrid.cell_size"
+                    f"each{cache}; the simulator workers have room for {placed} now ({initial} "
+                    f"free{kept}). Close sessions, retry later, or use fewer environments, "
+                    "smaller images or a coarser navgrid.cell_size"
                 )
-            best = min(room, key=lambda w: (load[id(w)], w.slot))
-            load[id(best)] += 1
-            free[id(best)] -= env_bytes
-            counts[id(best)] = counts.get(id(best), 0) + 1
+            take(min(room, key=lambda w: (load[id(w)], w.slot)))
         return [(w, counts[id(w)]) for w in live if id(w) in counts]
 
     def _exited(self, worker: Worker) -> None:

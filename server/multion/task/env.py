@@ -127,11 +127,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             max_geodesic=self.config.online_max_geodesic,
             reach=self.config.task.success_distance,
         )
-        self._goal_sites = GoalSites(
-            self.config.task.goal_sites,
-            self.config.task.goal_radius,
-            self.config.task.goal_site_cache_mib * 2**20,
-        )
+        self._goal_sites: GoalSites | None = None
+        """Its view of the process's goal-site cache, made at its first episode from sites."""
 
     # ------------------------------------------------------------------ episodes
     def _default_episodes(self) -> list[Episode] | None:
@@ -182,6 +179,10 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
                     fields=self._field_cache,
                 )
             else:
+                if self._goal_sites is None:
+                    task = self.config.task
+                    budget = task.goal_site_cache_mib * 2**20
+                    self._goal_sites = GoalSites(task.goal_sites, task.goal_radius, budget)
                 episode = sample_site_episode(
                     self._goal_sites,
                     grid,
@@ -350,6 +351,8 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
 
     def close(self) -> None:
         self.sim.close()
+        if self._goal_sites is not None:  # its share of the process's cache budget
+            self._goal_sites.close()
 
     # ------------------------------------------------------------------ helpers
     @property

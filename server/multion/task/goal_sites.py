@@ -4,8 +4,9 @@ Online sampling (:func:`multion.task.dataset.sample_episode`) marches ``m + 1`` 
 per episode: the start's and each goal's. Here each train house has a seeded set of goal sites
 (:func:`choose_sites`: one in every room, the rest spread over the floor), and every goal of an
 episode is a site. A site's distance field (made with the goal's footprint, as the env makes it)
-is marched the first time a goal is drawn there and kept (:class:`GoalSites`, within a byte
-budget), so once a house's sites are cached a reset marches nothing.
+is marched the first time a goal is drawn there and kept (:class:`SiteFieldCache`, one per
+process and shared by its envs, within one byte budget), so once a house's sites are cached a
+reset marches nothing, in whichever env of the process marched them.
 
 Goals are drawn backwards (:func:`sample_site_episode`): the last goal among the sites, each
 earlier one among the sites whose geodesic to the next goal (read in that goal's field) obeys
@@ -17,6 +18,9 @@ reached by the agent's own steps, distractors as before.
 
 from __future__ import annotations
 
+import hashlib
+import threading
+import weakref
 import zlib
 from collections import OrderedDict
 from collections.abc import Sequence
@@ -108,6 +112,8 @@ class HouseSites:
 
     scene_id: str
     grid: NavGrid
+    grid_key: bytes
+    """A digest of the grid (:func:`grid_digest`): what, with the scene id, decides the sites."""
     rows: np.ndarray
     """Rows of the navigable cells, in ``np.nonzero`` order (int32)."""
     cols: np.ndarray
@@ -131,76 +137,175 @@ class HouseSites:
         return self.grid.cell_to_world(self.rows[indices], self.cols[indices])
 
 
-class GoalSites:
-    """The goal sites of the houses an env visits and the distance fields of their sites.
+def grid_digest(grid: NavGrid) -> bytes:
+    """What of a grid decides a house's sites and a site's field: its origin, cell size and
+    navigable cells (0.1 ms for a train house's grid)."""
+    digest = hashlib.blake2b(digest_size=16)
+    digest.update(repr((grid.origin, grid.cell_size, grid.shape)).encode("ascii"))
+    digest.update(np.ascontiguousarray(grid.navigable).tobytes())
+    return digest.digest()
 
-    A site's field is marched when a goal is first drawn there and kept as its values on the
-    navigable cells (8 bytes a cell: 0.5 MB in a median train house). The least recently used
-    fields are dropped to keep them within ``budget_bytes``; ``held_bytes`` says what is held.
+
+FieldKey = tuple[str, bytes, float, float, float]
+"""A site field's key: scene id, grid digest, the site's rounded ``(x, y)``, goal radius."""
+
+
+class SiteFieldCache:
+    """The goal sites of the houses visited in one process and their distance fields, shared by
+    every :class:`GoalSites` (one per env) of the process.
+
+    A field is kept as its values on the navigable cells (float64, 8 bytes a cell: 0.5 MB in a
+    median train house), keyed by what decides it (:data:`FieldKey`), so an env reads the
+    fields another env marched. The least recently used fields are dropped to keep them within
+    ``budget_bytes``: the largest budget of the users present (each env's
+    ``task.goal_site_cache_mib``), so one process holds one budget whatever its env count. When
+    the last user leaves, every field and house is dropped (a server worker whose sessions
+    drawing from sites are closed gives their memory back). Thread-safe.
     """
 
-    def __init__(self, count: int, goal_radius: float, budget_bytes: int) -> None:
-        self.count = count
-        self.goal_radius = goal_radius
-        self.budget_bytes = budget_bytes
+    def __init__(self) -> None:
         self.held_bytes = 0
         self.marched = 0
-        """Fields marched so far (a cache miss each)."""
-        self._houses: dict[str, HouseSites] = {}
-        self._fields: OrderedDict[tuple[str, int], np.ndarray] = OrderedDict()
+        """Fields marched so far (a cache miss each), by every user."""
+        self._budgets: dict[int, int] = {}
+        self._next_user = 0
+        self._houses: dict[tuple[str, bytes, int], HouseSites] = {}
+        self._fields: OrderedDict[FieldKey, np.ndarray] = OrderedDict()
+        self._lock = threading.RLock()
 
-    def house(self, scene_id: str, grid: NavGrid) -> HouseSites:
-        """The sites of ``scene_id``, chosen on the first visit. A grid built again for the same
-        scene (the simulator keeps only some in memory) keeps them when its cells are the same."""
-        known = self._houses.get(scene_id)
-        if known is not None and (known.grid is grid or _same_grid(known.grid, grid)):
-            known.grid = grid
-            return known
-        if known is not None:
-            self._forget(scene_id)
-        rows, cols = (index.astype(np.int32) for index in np.nonzero(grid.navigable))
-        sites = choose_sites(grid, house_rooms(scene_id), self.count, scene_id)
-        site_xy = np.round(grid.cell_to_world(rows[sites], cols[sites]), 4)
-        house = HouseSites(scene_id, grid, rows, cols, sites, site_xy)
-        self._houses[scene_id] = house
-        return house
+    @property
+    def budget_bytes(self) -> int:
+        """The largest budget of the users present (0 with none)."""
+        return max(self._budgets.values(), default=0)
 
-    def values(self, house: HouseSites, site: int) -> np.ndarray:
-        """Site ``site``'s distance field on the house's navigable cells (``np.nonzero``
-        order): the geodesic from each cell to the goal's footprint, as the env measures it."""
-        key = (house.scene_id, site)
-        values = self._fields.get(key)
-        if values is not None:
-            self._fields.move_to_end(key)
-            return values
-        field = distance_field(house.grid, house.site_xy[site], self.goal_radius)
-        self.marched += 1
-        values = field[house.rows, house.cols]
-        values.flags.writeable = False
-        self._fields[key] = values
-        self.held_bytes += values.nbytes
-        while self.held_bytes > self.budget_bytes and len(self._fields) > 1:
-            _, dropped = self._fields.popitem(last=False)
-            self.held_bytes -= dropped.nbytes
-        return values
+    @property
+    def users(self) -> int:
+        return len(self._budgets)
 
     @property
     def fields_held(self) -> int:
         return len(self._fields)
 
-    def _forget(self, scene_id: str) -> None:
-        for key in [k for k in self._fields if k[0] == scene_id]:
-            self.held_bytes -= self._fields.pop(key).nbytes
-        del self._houses[scene_id]
+    def join(self, budget_bytes: int) -> int:
+        """Count a new user asking for ``budget_bytes``; returns its ticket for :meth:`leave`."""
+        if budget_bytes < 1:
+            raise ValueError(f"budget_bytes must be at least 1, got {budget_bytes}")
+        with self._lock:
+            self._next_user += 1
+            self._budgets[self._next_user] = budget_bytes
+            return self._next_user
+
+    def leave(self, ticket: int) -> None:
+        """A user is gone: the budget shrinks to the largest left, or everything is dropped."""
+        with self._lock:
+            if self._budgets.pop(ticket, None) is None:
+                return
+            if not self._budgets:
+                self._fields.clear()
+                self._houses.clear()
+                self.held_bytes = 0
+            else:
+                self._shrink()
+
+    def house(self, scene_id: str, grid: NavGrid, count: int) -> HouseSites:
+        """The ``count`` sites of ``scene_id`` on ``grid``, chosen on the first visit."""
+        key = (scene_id, grid_digest(grid), count)
+        with self._lock:
+            house = self._houses.get(key)
+            if house is None:
+                rows, cols = (index.astype(np.int32) for index in np.nonzero(grid.navigable))
+                sites = choose_sites(grid, house_rooms(scene_id), count, scene_id)
+                site_xy = np.round(grid.cell_to_world(rows[sites], cols[sites]), 4)
+                house = HouseSites(scene_id, grid, key[1], rows, cols, sites, site_xy)
+                self._houses[key] = house
+            return house
+
+    def values(self, house: HouseSites, site: int, goal_radius: float) -> tuple[np.ndarray, bool]:
+        """Site ``site``'s distance field on the house's navigable cells (``np.nonzero``
+        order), and whether it was marched now (a miss)."""
+        x, y = (float(v) for v in house.site_xy[site])
+        key = (house.scene_id, house.grid_key, x, y, float(goal_radius))
+        with self._lock:
+            values = self._fields.get(key)
+            if values is not None:
+                self._fields.move_to_end(key)
+                return values, False
+            field = distance_field(house.grid, house.site_xy[site], goal_radius)
+            self.marched += 1
+            values = field[house.rows, house.cols]
+            values.flags.writeable = False
+            self._fields[key] = values
+            self.held_bytes += values.nbytes
+            self._shrink()
+            return values, True
+
+    def _shrink(self) -> None:
+        # the newest field stays even above the budget: the caller is about to read it
+        while self.held_bytes > self.budget_bytes and len(self._fields) > 1:
+            _, dropped = self._fields.popitem(last=False)
+            self.held_bytes -= dropped.nbytes
 
 
-def _same_grid(a: NavGrid, b: NavGrid) -> bool:
-    return (
-        a.origin == b.origin
-        and a.cell_size == b.cell_size
-        and a.shape == b.shape
-        and bool(np.array_equal(a.navigable, b.navigable))
-    )
+PROCESS_SITE_CACHE = SiteFieldCache()
+"""The one cache of this process: every env's :class:`GoalSites` uses it."""
+
+
+class GoalSites:
+    """One env's view of the goal sites: ``count`` sites a house, fields for goals of
+    ``goal_radius``, read from ``cache`` (the process's, :data:`PROCESS_SITE_CACHE`, unless
+    one is given), which this view asks to hold ``budget_bytes``. :meth:`close` (or the view's
+    garbage collection) withdraws the request."""
+
+    def __init__(
+        self,
+        count: int,
+        goal_radius: float,
+        budget_bytes: int,
+        cache: SiteFieldCache = PROCESS_SITE_CACHE,
+    ) -> None:
+        self.count = count
+        self.goal_radius = goal_radius
+        self.cache = cache
+        self.marched = 0
+        """Fields this view marched (its cache misses)."""
+        self._last: HouseSites | None = None
+        self._last_grid: NavGrid | None = None
+        self._ticket = cache.join(budget_bytes)
+        self._leave = weakref.finalize(self, cache.leave, self._ticket)
+
+    def close(self) -> None:
+        self._leave()
+
+    @property
+    def budget_bytes(self) -> int:
+        """The shared cache's budget (the largest its users ask for)."""
+        return self.cache.budget_bytes
+
+    @property
+    def held_bytes(self) -> int:
+        return self.cache.held_bytes
+
+    @property
+    def fields_held(self) -> int:
+        return self.cache.fields_held
+
+    def house(self, scene_id: str, grid: NavGrid) -> HouseSites:
+        """The sites of ``scene_id``, chosen on the first visit in this process. A grid built
+        again for the same scene (the simulator keeps only some in memory) keeps them when its
+        cells are the same."""
+        last = self._last
+        if last is not None and last.scene_id == scene_id and self._last_grid is grid:
+            return last  # the usual case, episodes in one house: no digest
+        self._last = self.cache.house(scene_id, grid, self.count)
+        self._last_grid = grid
+        return self._last
+
+    def values(self, house: HouseSites, site: int) -> np.ndarray:
+        """Site ``site``'s distance field on the house's navigable cells (``np.nonzero``
+        order): the geodesic from each cell to the goal's footprint, as the env measures it."""
+        values, marched = self.cache.values(house, site, self.goal_radius)
+        self.marched += marched
+        return values
 
 
 def sample_site_episode(

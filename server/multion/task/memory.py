@@ -33,7 +33,8 @@ MAX_SCENE_SIDE_M = MAX_ROOM_SIDE_M
 
 
 def estimate_env_bytes(config: EnvConfig) -> int:
-    """An upper bound on the memory one environment of ``config`` holds at its peak."""
+    """An upper bound on the memory one environment of ``config`` holds at its peak, besides
+    its process's goal-site cache (:func:`goal_sites_bytes`, counted once per process)."""
     pixels = config.camera.width * config.camera.height
     side_cells = MAX_SCENE_SIDE_M / config.navgrid.cell_size + 1
     fields = config.task.num_goals + config.task.num_distractors + SCRATCH_FIELDS
@@ -42,23 +43,23 @@ def estimate_env_bytes(config: EnvConfig) -> int:
     if {"oracle_map", "oracle_ego_map"} & set(config.sensors):
         maps = config.maps.ego_size**2 * BYTES_PER_MAP_CELL
     renderer = EGL_WORLD_BYTES if config.camera.renderer != "tiny" else 0
-    return (
-        ENV_BASE_BYTES
-        + pixels * BYTES_PER_PIXEL
-        + grid
-        + maps
-        + renderer
-        + goal_sites_bytes(config)
-    )
+    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + maps + renderer
 
 
 def goal_sites_bytes(config: EnvConfig) -> int:
     """The goal sites' field cache (:mod:`multion.task.goal_sites`): its budget, where train
-    episodes are drawn from sites; nothing where episodes come from a dataset."""
+    episodes are drawn from sites; nothing where episodes come from a dataset. One cache serves
+    every env of a process, so it is counted once per process, not per env."""
     drawn_from_sites = (
         config.split == "train" and config.dataset is None and config.task.train_sampler == "sites"
     )
     return config.task.goal_site_cache_mib * MiB if drawn_from_sites else 0
+
+
+def estimate_process_bytes(config: EnvConfig, num_envs: int) -> int:
+    """An upper bound on what ``num_envs`` environments of ``config`` in one process hold:
+    each env's own memory and, once, the process's goal-site cache."""
+    return num_envs * estimate_env_bytes(config) + goal_sites_bytes(config)
 
 
 def mib(size: int) -> int:
