@@ -154,10 +154,12 @@ class TaskConfig:
     """Goal sites per train house (``train_sampler = "sites"``): one in every room (a house has
     at most 16), the rest spread over the floor."""
     goal_site_cache_mib: int = bounded(GOAL_SITE_CACHE_MIB, 1, 65_536)
-    """Memory for the goal sites' distance fields, MiB per env; the least recently used are
-    dropped, and marched again when drawn. The default holds every field of the 61 train
-    houses at 32 sites a house (1,952 fields, 766 MiB measured); a server counts it in a train
-    session's memory estimate."""
+    """Memory for the goal sites' distance fields, MiB per process: every env of a process
+    reads one cache (:class:`multion.task.goal_sites.SiteFieldCache`), bounded by the largest
+    value its envs give; the least recently used fields are dropped, and marched again when
+    drawn (the same episodes either way). The default holds every field of the 61 train houses
+    at 32 sites a house (1,952 fields, 766 MiB measured); a server reserves it once per worker
+    process holding train sessions that draw from sites."""
 
     def __post_init__(self) -> None:
         check_fields(self, "task")
