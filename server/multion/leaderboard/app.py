@@ -27,6 +27,7 @@ from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database, check_secret
 from multion.leaderboard.web.pages import install_pages
 from multion.leaderboard.web.pictures import PictureDrawer
+from multion.leaderboard.web.videos import VideoCache, VideoFilmer, default_video_dir
 
 log = logging.getLogger("multion.leaderboard")
 
@@ -71,6 +72,11 @@ async def leaderboard_lifespan(
     tasks = [asyncio.create_task(service.expire_forever(settings.expire_interval_s))]
     if settings.draw_pictures:
         tasks.append(asyncio.create_task(pictures.draw_forever(settings.picture_interval_s)))
+    app.state.videos = None
+    if settings.videos:
+        app.state.videos = videos = _filmer(settings, challenge, db, service, pictures)
+        if settings.draw_pictures:  # films of the pictured episodes, in the background
+            tasks.append(asyncio.create_task(videos.film_forever(settings.picture_interval_s)))
     if settings.warm_up:
         tasks.append(asyncio.create_task(_warm_up(service)))
     try:
@@ -105,6 +111,19 @@ class LeaderboardExtension:
     ) -> contextlib.AbstractAsyncContextManager[None]:
         assert self.challenge is not None, "install() runs first, when the app is built"
         return leaderboard_lifespan(app, self.settings, self.challenge, registry, self.clock)
+
+
+def _filmer(
+    settings: LeaderboardSettings, challenge: Challenge, db: Database, service: RunService,
+    pictures: PictureDrawer,
+) -> VideoFilmer:  # fmt: skip
+    directory = settings.video_dir or default_video_dir(settings.database)
+    cache = VideoCache(directory, settings.video_cache_mib * 2**20)
+    return VideoFilmer(
+        challenge, db, cache,
+        lambda t, p, run, r: service.hidden.episode(t, p, draw_of(run), r.position),
+        pictures.in_helper,
+    )  # fmt: skip
 
 
 async def _warm_up(service: RunService) -> None:

@@ -11,6 +11,7 @@
     multion leaderboard runs [--team T] [--track 3-on] [--phase minival]
     multion leaderboard export --out results.csv [--best]   # or results.json (with episodes)
     multion leaderboard replay RUN_ID [--write]          # re-score from the stored actions
+    multion leaderboard replay RUN_ID --video DIR [--episode N ...]   # film any run's episodes
     multion leaderboard baselines --server URL           # random, explorer, … as baselines
 
 ``--database`` defaults to ``$MULTION_LEADERBOARD_DATABASE`` or ``sqlite:///leaderboard.db``,
@@ -106,6 +107,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = command("replay", "replay a stored run and compare (or re-score) it", challenge=True)
     p.add_argument("run_id")
     p.add_argument("--write", action="store_true", help="store the replayed metrics")
+    p.add_argument(
+        "--video", type=Path, default=None, metavar="DIR",
+        help="instead, film the run's episodes into DIR (MP4 and WebVTT captions; any phase)",
+    )  # fmt: skip
+    p.add_argument(
+        "--episode", type=int, action="append", default=None, metavar="N",
+        help="with --video: episode N as the run page numbers them (1: the first; repeat it); "
+        "default: the first 3 played",
+    )  # fmt: skip
     p = command("baselines", "play the baseline agents through the run protocol")
     p.add_argument(
         "--server", required=True, help="the challenge server's URL (its tracks are played)"
@@ -429,6 +439,10 @@ def _export(args: argparse.Namespace) -> int:
 
 def _replay(args: argparse.Namespace) -> int:
     challenge = _challenge(args)
+    if args.video is not None:
+        return _film(args, challenge)
+    if args.episode is not None:
+        raise ValueError("--episode goes with --video DIR (which episodes to film)")
     db = existing_database(args)
     try:
         with db.sessions.begin() as session:
@@ -446,6 +460,17 @@ def _replay(args: argparse.Namespace) -> int:
               + (" (stored records updated)" if args.write else " (use --write to re-score)"))  # fmt: skip
         return 0 if args.write else 1
     print("  identical to the stored records")
+    return 0
+
+
+def _film(args: argparse.Namespace, challenge: Challenge) -> int:
+    from multion.leaderboard.cli_film import film
+
+    db = existing_database(args)
+    try:
+        film(db, challenge, args.run_id, args.episode, args.video)
+    finally:
+        db.close()
     return 0
 
 

@@ -35,6 +35,22 @@ class LeaderboardSettings(BaseSettings):
     picture_interval_s: float = Field(
         5.0, gt=0, description="how often ended minival runs are looked for to draw their pictures"
     )
+    videos: bool = Field(
+        True,
+        description="film the episodes of ended minival runs for their run pages (needs the "
+        "video extra: pip install -e '.[video]')",
+    )
+    video_dir: Path | None = Field(
+        None,
+        description="where the run pages' films are kept; none: a temporary folder named after "
+        "the database",
+    )
+    video_cache_mib: int = Field(
+        2048,
+        ge=64,
+        le=1_000_000,
+        description="MiB of films kept at most (the least recently watched removed)",
+    )
     warm_up: bool = Field(
         True, description="generate the hidden episodes at start-up rather than at the first run"
     )

@@ -113,7 +113,7 @@ def film_episode(
         view, frame, lines = next(steps)
         with Mp4Writer(partial, frame.shape[1], frame.shape[0]) as writer:
             writer.write(frame)
-            track.add(0, 1, lines)
+            track.add(0, 1, (stored.title, *lines))  # the first cue says what is shown
             for view, frame, lines in steps:
                 hold = FOUND_HOLD if view.action == Action.FOUND else 1
                 track.add(writer.frames, hold, lines)

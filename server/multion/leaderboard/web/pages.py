@@ -31,6 +31,8 @@ from multion.leaderboard.web.pictures import (
     pictured,
     stored_pictures,
 )
+from multion.leaderboard.web.video_routes import router as video_router
+from multion.leaderboard.web.videos import VideoState, episode_summary
 from multion_client.constants import GOAL_SETS
 
 HERE = Path(__file__).resolve().parent
@@ -39,7 +41,7 @@ GUIDE = HERE.parents[3] / "docs" / "leaderboard.md"
 STATIC_PATH = "/leaderboard/static"
 SECURITY_HEADERS = {
     "Content-Security-Policy": "default-src 'none'; style-src 'self'; script-src 'self'; "
-    "img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'",
+    "img-src 'self'; media-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'",
     "X-Content-Type-Options": "nosniff",
     "Referrer-Policy": "no-referrer",
 }
@@ -53,6 +55,7 @@ PAGE_METHODS = ["GET", "HEAD"]
 def install_pages(app: FastAPI) -> None:
     """Add the pages and their static files to ``app``."""
     app.include_router(router)
+    app.include_router(video_router)
     app.mount(STATIC_PATH, StaticFiles(directory=HERE / "static"), name="leaderboard-static")
 
 
@@ -195,8 +198,18 @@ async def run_page(run_id: str, request: Request) -> HTMLResponse:
         houses = queries.breakdown(page.records, labels)
         pictures = [(r, drawn.get(r.position)) for r in pictured(page.records)]
     return _page(
-        request, "run.html", page=page, houses=houses, pictures=pictures, scale=DISPLAY_SCALE
-    )
+        request, "run.html", page=page, houses=houses, pictures=pictures, scale=DISPLAY_SCALE,
+        videos=_videos(request, page), summary=episode_summary,
+    )  # fmt: skip
+
+
+def _videos(request: Request, page: queries.RunPage) -> list[VideoState]:
+    """The videos the run page shows: of the pictured episodes, where the phase gives
+    per-episode feedback (nothing is filmed here: the background films them)."""
+    filmer = getattr(request.app.state, "videos", None)
+    if filmer is None or not page.per_episode:
+        return []
+    return [filmer.state(page.run.id, record) for record in pictured(page.records)]
 
 
 @router.api_route("/leaderboard/runs/{run_id}/episodes/{position}.png", methods=PAGE_METHODS)

@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any, TypeVar, cast
 
 import numpy as np
 from sqlalchemy import CursorResult, Insert, Select, delete, exists, or_, select, update
@@ -42,6 +42,7 @@ from multion.processes import ignore_stop_signals, limit_address_space
 from multion.task.env import MultiONEnv
 
 log = logging.getLogger("multion.leaderboard.pictures")
+Drawn = TypeVar("Drawn")
 
 PICTURES_PER_RUN = 3
 PIXELS_PER_METRE = 80
@@ -310,12 +311,16 @@ class PictureDrawer:
                 _insert_new(session, [_row(run_id, NOTHING, now)])  # nothing played
 
     async def _draw(self, replay: EpisodeReplay) -> bytes:
-        """Draw in the helper process; a helper that died (a broken pool stays broken) is
-        replaced by a new one, which tries once more."""
+        return await self.in_helper(replay.draw)
+
+    async def in_helper(self, work: Callable[[], Drawn]) -> Drawn:
+        """Run ``work`` (picklable) in the helper process (pictures, and the run pages'
+        videos); a helper that died (a broken pool stays broken) is replaced by a new one,
+        which tries once more."""
         for attempt in range(2):
             pool = self._executor()
             try:
-                return await asyncio.wrap_future(pool.submit(replay.draw))
+                return await asyncio.wrap_future(pool.submit(work))
             except BrokenProcessPool:
                 log.warning("the picture drawer died; starting a new one")
                 if self._pool is pool:
