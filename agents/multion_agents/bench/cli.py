@@ -43,6 +43,7 @@ from multion_agents.bench.pages import run_pages_bench
 from multion_agents.bench.participants import run_participants_bench
 from multion_agents.bench.reset import run_reset_bench
 from multion_agents.bench.site_diversity import run_diversity_bench
+from multion_agents.bench.site_memory import run_site_memory_bench
 from multion_agents.evaluate import EvalSettings, evaluate
 
 SCENE = "house-00061"
@@ -53,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--only",
         choices=[
             *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
-            *("explorer", "reset", "diversity", "participants", "learner"),
+            *("explorer", "reset", "diversity", "site-memory", "participants", "learner"),
         ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
@@ -141,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         run_reset_bench()
     if "diversity" in parts:
         run_diversity_bench()
+    if "site-memory" in parts:
+        run_site_memory_bench()
     if "cache" in parts:
         bench_cache(args.eval_episodes)
     if "memory" in parts:

@@ -116,7 +116,8 @@ class MarchingClock:
             yield
 
 
-def _config(num_goals: int, sampler: str) -> EnvConfig:
+def bench_config(num_goals: int, sampler: str) -> EnvConfig:
+    """The bench's train env: 36² RGB-D + goal + oracle map, 5 episodes per house (v3)."""
     return env_config_from_dict(
         {
             "task": {"num_goals": num_goals, "train_sampler": sampler},
@@ -130,7 +131,7 @@ def _config(num_goals: int, sampler: str) -> EnvConfig:
 
 
 def _env(num_goals: int, sampler: str) -> MultiONEnv:
-    return MultiONEnv(_config(num_goals, sampler))
+    return MultiONEnv(bench_config(num_goals, sampler))
 
 
 def march_every_site(sites: GoalSites, env: MultiONEnv) -> float:
@@ -155,7 +156,7 @@ def run_reset_bench(
         f"train episodes: {resets} resets per task, the online and the sites env in turn "
         "(same seed)"
     )
-    task = _config(1, "sites").task
+    task = bench_config(1, "sites").task
     # a view of the process's site cache held through both tasks: the cache is dropped when
     # its last user closes, and a site's field ignores m, so the 3-ON env reads the 1-ON's
     keeper = GoalSites(task.goal_sites, task.goal_radius, task.goal_site_cache_mib * 2**20)
