@@ -245,7 +245,7 @@ def test_the_organiser_films_any_run(
     assert f"--episode 3: run {sealed} has episodes 1 to 2" in error(
         "--video", str(tmp_path), "--episode", "3"
     )
-    assert "the folder does not exist" in error("--video", str(tmp_path / "gone"))
+    assert "a file, not a folder" in error("--video", str(film))
     assert "--episode goes with --video DIR" in error("--episode", "1")
     assert main(["leaderboard", "replay", "nope", *flags, "--video", str(tmp_path)]) == 2
     assert "no run 'nope'" in capsys.readouterr().err

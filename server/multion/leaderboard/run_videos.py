@@ -134,8 +134,8 @@ def film_run(
         raise StorageError(f"run {run.id}: the challenge has no phase {run.track}/{run.phase}")
     if run.state == "running":
         raise StorageError(f"run {run.id} is still running; film it once it is over")
-    if not out_dir.is_dir():
-        raise StorageError(f"--video {out_dir}: the folder does not exist")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise StorageError(f"--video {out_dir}: a file, not a folder")
     records = {r.position + 1: r for r in run.episodes}
     if numbers is None:
         chosen = [r for _, r in sorted(records.items()) if r.actions][:ORGANISER_DEFAULT_FILMS]
@@ -152,6 +152,7 @@ def film_run(
                 f"--episode {record.position + 1}: that episode of run {run.id} was not played"
             )
         check_length([int(a) for a in record.actions], f"{record.position + 1} of run {run.id}")
+    out_dir.mkdir(parents=True, exist_ok=True)
     hidden, draw, films = HiddenEpisodes(challenge, in_subprocess=False), draw_of(run), []
     for record in chosen:
         episode = hidden.episode(track, phase, draw, record.position)
