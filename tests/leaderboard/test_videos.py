@@ -249,3 +249,21 @@ def test_the_organiser_films_any_run(
     assert "--episode goes with --video DIR" in error("--episode", "1")
     assert main(["leaderboard", "replay", "nope", *flags, "--video", str(tmp_path)]) == 2
     assert "no run 'nope'" in capsys.readouterr().err
+
+
+def test_the_cache_removes_the_least_recently_watched_films_first(tmp_path: Path) -> None:
+    from multion.leaderboard.web.videos import VideoCache
+
+    cache = VideoCache(tmp_path, max_bytes=2500)
+    for position in range(3):  # 3 films of 1,000 bytes (with captions): one too many
+        video, captions = cache.paths("run1", position)
+        video.parent.mkdir(exist_ok=True)
+        video.write_bytes(b"v" * 900)
+        captions.write_bytes(b"c" * 100)
+        os.utime(video, (1000 + position, 1000 + position))
+    cache.watched("run1", 0)  # watched now: the last to go
+    assert cache.evict() == 1
+    assert [cache.ready("run1", p) for p in range(3)] == [True, False, True]
+    assert cache.evict() == 0
+    with pytest.raises(ValueError, match="not a run id"):
+        cache.paths("../etc", 0)
