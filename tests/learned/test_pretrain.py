@@ -72,9 +72,10 @@ def _goal_cell(crop: np.ndarray, category: int) -> tuple[float, float] | None:
 
 
 def test_crops_show_the_goal_where_the_labels_say() -> None:
-    settings = MapPretraining(max_distance=5.0, poses_per_scene=150)  # two houses
-    crops = sample_map_crops(_config(), 300, 3, settings)
-    assert crops.maps.shape == (300, EGO_SIZE, EGO_SIZE, 2)
+    # three houses: about a third of the crops have a goal far enough and off the edges to check
+    settings = MapPretraining(max_distance=5.0, poses_per_scene=150)
+    crops = sample_map_crops(_config(), 450, 3, settings)
+    assert crops.maps.shape == (450, EGO_SIZE, EGO_SIZE, 2)
     assert set(np.unique(crops.labels)) == {int(a) for a in Action}
     checked = agreed = 0
     for crop, category, label in zip(crops.maps, crops.goals, crops.labels, strict=True):
