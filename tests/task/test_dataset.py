@@ -87,7 +87,10 @@ def good_payload(episodes):
         ),
         (lambda p: p.pop("scene_generator_version"), "scene generator version None"),
         (lambda p: p.update(episodes=[]), "non-empty list"),
-        (lambda p: p["episodes"][1].pop("goals"), "episode 1: malformed (missing field 'episode.goals')"),
+        (
+            lambda p: p["episodes"][1].pop("goals"),
+            "episode 1: malformed (missing field 'episode.goals')",
+        ),
         (lambda p: p["episodes"][0]["goals"][0].update(category=9), "category 9 is not in 0..7"),
         (
             lambda p: p["episodes"][0]["goals"][1].update(
