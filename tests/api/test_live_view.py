@@ -7,8 +7,6 @@ Without Chromium or Playwright the browser test skips; ``MULTION_REQUIRE_BROWSER
 from __future__ import annotations
 
 import io
-import os
-import shutil
 from collections.abc import Iterator
 from typing import Any
 
@@ -16,18 +14,12 @@ import httpx
 import pytest
 from PIL import Image
 
+from chromium import chromium
 from multion.api.local_server import LocalServer
 from multion.api.settings import ServerSettings
 from multion_client.constants import Action
 from multion_client.env import RemoteEnv
 
-REQUIRE_BROWSER = "MULTION_REQUIRE_BROWSER"
-BROWSER_HINT = (
-    "needs Chromium and Playwright: `apt-get install chromium` (Debian) and "
-    f"`pip install playwright` (in the dev extra); {REQUIRE_BROWSER}=1 makes this test required"
-)
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update"]  # fmt: skip
 CONFIG = {
     "task": {"num_goals": 2},
     "sensors": ["rgb", "depth", "gps", "compass"],
@@ -52,21 +44,8 @@ def env(server: LocalServer) -> Iterator[RemoteEnv]:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    executable = shutil.which("chromium") or shutil.which("chromium-browser")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        executable = None
-    if executable is None:
-        if os.environ.get(REQUIRE_BROWSER) == "1":
-            pytest.fail(BROWSER_HINT)
-        pytest.skip(BROWSER_HINT)
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        try:
-            yield launched
-        finally:
-            launched.close()
+    with chromium() as launched:
+        yield launched
 
 
 def test_the_page_follows_a_client_that_steps(

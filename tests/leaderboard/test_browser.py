@@ -7,8 +7,6 @@ them required.
 
 from __future__ import annotations
 
-import os
-import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -16,44 +14,13 @@ from typing import Any
 import pytest
 from played_runs import PlayedRun, percent
 
-REQUIRE_BROWSER = "MULTION_REQUIRE_BROWSER"
-BROWSER_HINT = (
-    "needs Chromium and Playwright: `apt-get install chromium` (Debian) and "
-    f"`pip install playwright` (in the dev extra); {REQUIRE_BROWSER}=1 (set by .ci/run) makes "
-    "these tests required"
-)
-# No sandbox as root (CI); no background connections to Google's hosts (the network is closed).
-CHROMIUM_ARGS = [
-    "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--disable-quic",
-]  # fmt: skip
-
-
-def _chromium() -> str | None:
-    for name in ("chromium", "chromium-browser"):
-        found = shutil.which(name)
-        if found:
-            return found
-    return None
+from chromium import chromium
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    executable = _chromium()
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        executable = None
-    if executable is None:
-        if os.environ.get(REQUIRE_BROWSER) == "1":
-            pytest.fail(BROWSER_HINT)
-        pytest.skip(BROWSER_HINT)
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        try:
-            yield browser
-        finally:
-            browser.close()
+    with chromium() as launched:
+        yield launched
 
 
 class Visit:
