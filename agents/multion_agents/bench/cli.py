@@ -44,6 +44,7 @@ from multion_agents.bench.participants import run_participants_bench
 from multion_agents.bench.reset import run_reset_bench
 from multion_agents.bench.site_diversity import run_diversity_bench
 from multion_agents.bench.site_memory import run_site_memory_bench
+from multion_agents.bench.stepping import timed_steps
 from multion_agents.evaluate import EvalSettings, evaluate
 
 SCENE = "house-00061"
@@ -212,7 +213,7 @@ def bench_sim(steps: int = 300, episodes: int = 1000, renderer: str = "all") -> 
                 sensors=("rgb", "depth", "goal"),
             )
             env = MultiONEnv(config, episodes=episode_list)
-            env_rate, walked = _env_rate(env, steps)
+            env_rate, walked = timed_steps(env, steps)
             assert env.sim.world is not None
             results[f"draws_{renderer}"] = env.sim.world.scene_draws()
             raw_rate = _raw_render_rate(env, walked)
@@ -296,24 +297,6 @@ def bench_processes(renderer: str, size: int, steps: int) -> dict[str, float]:
             f"{total / count:7.1f} frames/s per process, {total:7.1f} {where}"
         )
     return results
-
-
-def _env_rate(env: MultiONEnv, steps: int) -> tuple[float, list[tuple[float, float, float]]]:
-    """Steps per second of the full task step (motion, render, depth, measures), and its poses.
-    The actions are seeded, so every renderer walks the same poses."""
-    rng = np.random.default_rng(0)
-    env.reset(seed=0)
-    done_steps, elapsed, poses = 0, 0.0, []
-    while done_steps < steps:
-        action = int(rng.choice([1, 1, 2, 3]))  # never FOUND: keep episodes running
-        begin = time.perf_counter()
-        _, _, terminated, truncated, _ = env.step(action)
-        elapsed += time.perf_counter() - begin
-        poses.append((float(env.sim.position[0]), float(env.sim.position[1]), env.sim.yaw))
-        done_steps += 1
-        if terminated or truncated:
-            env.reset()
-    return done_steps / elapsed, poses
 
 
 def _appearance_rates(

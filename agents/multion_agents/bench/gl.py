@@ -28,6 +28,7 @@ from multion.sim.gl.agreement import agreement
 from multion.sim.simulator import Simulator
 from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
+from multion_agents.bench.stepping import timed_steps
 from multion_client.constants import GOAL_SETS
 
 SIZES = (36, 128, 256)
@@ -69,7 +70,7 @@ def bench_gl_speed(steps: int) -> dict[str, float]:
             )
             env = MultiONEnv(config, episodes=episodes)
             try:
-                env_rate, poses = _env_rate(env, steps)
+                env_rate, poses = timed_steps(env, steps, warm_up=3)
                 image_rate = _image_rate(env, poses)
                 assert env.sim.renderer == renderer
             finally:
@@ -92,25 +93,6 @@ def bench_gl_speed(steps: int) -> dict[str, float]:
         )
     print(f"(after: {_load()})")
     return results
-
-
-def _env_rate(env: MultiONEnv, steps: int) -> tuple[float, list[tuple[float, float, float]]]:
-    """Env steps per second over seeded actions (never FOUND), and the poses walked."""
-    rng = np.random.default_rng(0)
-    env.reset(seed=0)
-    for _ in range(3):  # warm-up: shaders compiled, buffers made
-        env.step(int(rng.choice([2, 3])))
-    done, elapsed, poses = 0, 0.0, []
-    while done < steps:
-        action = int(rng.choice([1, 1, 2, 3]))
-        begin = time.perf_counter()
-        _, _, terminated, truncated, _ = env.step(action)
-        elapsed += time.perf_counter() - begin
-        poses.append((float(env.sim.position[0]), float(env.sim.position[1]), env.sim.yaw))
-        done += 1
-        if terminated or truncated:
-            env.reset()
-    return done / elapsed, poses
 
 
 def _image_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -> float:
