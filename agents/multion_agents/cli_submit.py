@@ -190,7 +190,8 @@ def play_run(
 def _track(challenge: dict[str, Any], name: str) -> dict[str, Any]:
     for track in challenge["tracks"]:
         if track["name"] == name:
-            return track
+            found: dict[str, Any] = track
+            return found
     raise ValueError(
         f"the server has no track {name!r}; tracks: {[t['name'] for t in challenge['tracks']]}"
     )

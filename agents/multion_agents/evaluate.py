@@ -405,4 +405,5 @@ def _served_renderer(config: dict[str, Any], spec: dict[str, Any]) -> str | None
     requested = _requested_renderer(config)
     if requested != "auto":
         return requested
-    return spec.get("renderer", {}).get("auto")  # None from servers older than the field
+    served: str | None = spec.get("renderer", {}).get("auto")  # None: a server older than the field
+    return served

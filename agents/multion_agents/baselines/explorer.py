@@ -449,7 +449,8 @@ class ExplorerAgent(Agent):
         """Points from ``start`` towards ``end``, stopping a cell short of ``end``."""
         gap = float(np.hypot(*(end - start)))
         t = np.linspace(0.0, max(0.0, 1.0 - self.settings.cell_size / max(gap, 1e-9)), 12)[:, None]
-        return (1 - t) * start[None, :] + t * end[None, :]
+        points: np.ndarray = (1 - t) * start[None, :] + t * end[None, :]
+        return points
 
     def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
         mask = np.zeros((self.settings.map_size, self.settings.map_size), dtype=bool)

@@ -258,7 +258,8 @@ class SemanticMap:
         """The remembered position of a goal colour, or None if it was never seen."""
         if self._goal_count[category] == 0:
             return None
-        return self._goal_sum[category] / self._goal_count[category]
+        mean: np.ndarray = self._goal_sum[category] / self._goal_count[category]
+        return mean
 
     def known_goals(self) -> dict[int, np.ndarray]:
         return {c: self._goal_sum[c] / n for c, n in enumerate(self._goal_count) if n > 0}

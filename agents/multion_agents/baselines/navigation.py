@@ -176,9 +176,10 @@ def nearest_free(free: np.ndarray, sources: np.ndarray, radius_cells: int) -> np
     """``sources`` grown by up to ``radius_cells`` and kept on free cells: where to aim when the
     target itself stands on a cell the map marks as blocked (a goal next to a wall)."""
     if (sources & free).any() or radius_cells <= 0:
-        return sources & free
-    grown = ndimage.binary_dilation(sources, iterations=radius_cells)
-    return grown & free
+        on_free: np.ndarray = sources & free
+        return on_free
+    grown_on_free: np.ndarray = ndimage.binary_dilation(sources, iterations=radius_cells) & free
+    return grown_on_free
 
 
 @dataclass(frozen=True)
@@ -388,7 +389,8 @@ def steps_ahead(
     best = int(np.argmin(values))
     if values[best] >= interpolate(grid, field, position) - 1e-6:
         return None
-    return sequences[chosen[best]].tolist()
+    turns_taken: list[int] = sequences[chosen[best]].tolist()
+    return turns_taken
 
 
 @functools.cache

@@ -280,7 +280,8 @@ class OraclePlannerAgent(Agent):
         near_unknown[:-1] |= unknown[1:]
         near_unknown[:, 1:] |= unknown[:, :-1]
         near_unknown[:, :-1] |= unknown[:, 1:]
-        return passable & near_unknown
+        frontier: np.ndarray = passable & near_unknown
+        return frontier
 
     def _paste(self, ego: np.ndarray, position: np.ndarray, heading: float) -> None:
         """Write the known cells of an egocentric map taken at ``position``/``heading``."""

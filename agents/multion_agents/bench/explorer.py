@@ -109,7 +109,9 @@ def _report(
 
 
 def _ms(times: StepTimes, part: str) -> float:
-    seconds = sum(getattr(times, p) for p in PARTS) if part == "total" else getattr(times, part)
+    seconds: float = (
+        sum(getattr(times, p) for p in PARTS) if part == "total" else getattr(times, part)
+    )
     return 1000.0 * seconds / max(1, times.steps)
 
 

@@ -304,7 +304,7 @@ class ReferenceExplorerAgent(ExplorerAgent):
     def _frontier(self, passable: np.ndarray) -> np.ndarray:
         free = self.map.free & passable
         unknown = ~self.map.explored()
-        frontier = free & ndimage.binary_dilation(unknown, structure=_CROSS)
+        frontier: np.ndarray = free & ndimage.binary_dilation(unknown, structure=_CROSS)
         # unknown cells right next to the path stay unknown (the camera cannot see the floor at
         # its feet, nor surfaces nearer than 0.5 m): going there again would show nothing new
         frontier &= ~self._given_up & ~self._around_path
@@ -313,7 +313,8 @@ class ReferenceExplorerAgent(ExplorerAgent):
             return frontier
         sizes = np.bincount(labels.ravel())
         sizes[0] = 0
-        return sizes[labels] >= self.settings.min_frontier_cells
+        large: np.ndarray = sizes[labels] >= self.settings.min_frontier_cells
+        return large
 
     def _step(self, position: np.ndarray, heading: float) -> int:
         assert self._field is not None

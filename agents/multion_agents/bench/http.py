@@ -222,7 +222,7 @@ def _parallel_headroom(res: int, steps: int) -> float:
                 if proc.is_alive():
                     proc.kill()
         rates.append(count * steps / seconds)
-    return rates[1] / rates[0]
+    return float(rates[1] / rates[0])
 
 
 def _render_steps(res: int, steps: int, barrier: Any, results: Any) -> None:

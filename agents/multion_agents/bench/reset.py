@@ -59,7 +59,8 @@ def breadth_first_reach(
     def keys(points: np.ndarray) -> np.ndarray:
         index = np.floor((points - origin) / quantum).astype(np.int64) + 1
         index = np.clip(index, 0, np.array(seen.shape[::-1]) - 1)
-        return index[..., 1] * seen.shape[1] + index[..., 0]
+        flat: np.ndarray = index[..., 1] * seen.shape[1] + index[..., 0]
+        return flat
 
     frontier = np.asarray(xy, dtype=np.float64)[None, :2]
     seen.flat[keys(frontier)] = True

@@ -42,14 +42,16 @@ class PaperResults:
         if f"{num_goals}-on" != self.seen_not_seen["task"]:
             return None
         row = self.seen_not_seen["rows"].get(self.counterpart(agent) or "", {})
-        return row.get(str(goal))
+        found: dict[str, float] | None = row.get(str(goal))
+        return found
 
     def budget_row(self, agent: str, num_goals: int, budget: int) -> dict[str, float] | None:
         """The paper's found-budget row (percent) for ``agent`` on its task, if any."""
         table = self.found_budget
         if self.counterpart(agent) != table["agent"] or f"{num_goals}-on" != table["task"]:
             return None
-        return table["rows"].get(str(budget))
+        found: dict[str, float] | None = table["rows"].get(str(budget))
+        return found
 
     def goal_set_row(self, agent: str, num_goals: int, goal_set: str) -> dict[str, float] | None:
         """The paper's Success, Progress, SPL, PPL (percent) of ``agent`` on m-ON with the goal

@@ -153,8 +153,9 @@ def _secret(head: Mapping[str, Any], environ: Mapping[str, str]) -> str:
     if ("secret" in head) == ("secret_env" in head):
         raise ChallengeError("[challenge] needs exactly one of 'secret' or 'secret_env'")
     if "secret" in head:
-        return _typed(head["secret"], str, "challenge.secret")
-    name = _typed(head["secret_env"], str, "challenge.secret_env")
+        secret: str = _typed(head["secret"], str, "challenge.secret")
+        return secret
+    name: str = _typed(head["secret_env"], str, "challenge.secret_env")
     if not environ.get(name):
         raise ChallengeError(f"the environment variable {name} (challenge.secret_env) is not set")
     return environ[name]

@@ -91,7 +91,8 @@ class LaneSessions:
                     "does not count against your quota, and shows no results"
                 )
             ) from None
-        return decode(reply)
+        answer: dict[str, Any] = decode(reply)
+        return answer
 
     async def replay(self, live: LiveRun, lane: Lane) -> tuple[Any, bool] | None:
         """A new session in the lane's state: its episode reset and its actions replayed.

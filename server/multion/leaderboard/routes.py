@@ -49,7 +49,7 @@ async def unabandoned(operation: Coroutine[Any, Any, T]) -> T:
 
 
 def _service(request: Request) -> RunService:
-    service = getattr(request.app.state, "runs", None)
+    service: RunService | None = getattr(request.app.state, "runs", None)
     if service is None:
         raise errors.UnknownTrack(
             "this server runs no challenge (start it with `multion serve --challenge FILE`)"

@@ -25,9 +25,11 @@ import datetime as dt
 import logging
 import time
 from collections import OrderedDict
-from typing import Any, NoReturn
+from collections.abc import Callable
+from typing import Any, NoReturn, TypeVar
 
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from multion.api.sessions import SessionRegistry
 from multion.config.episode import Episode
@@ -53,6 +55,8 @@ from multion.leaderboard.storage import Database
 from multion_client import errors
 from multion_client.protocol import encode
 from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunStatus, StartEpisode
+
+Answer = TypeVar("Answer")
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
@@ -479,10 +483,10 @@ class RunService(RunExpiry):
     def _deadline(self) -> dt.datetime:
         return self.clock.now() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
 
-    async def _db(self, work: Any) -> Any:
+    async def _db(self, work: Callable[[Session], Answer]) -> Answer:
         """Run ``work(session)`` in a thread, in one transaction."""
 
-        def run() -> Any:
+        def run() -> Answer:
             with self.db.sessions.begin() as session:
                 return work(session)
 

@@ -11,6 +11,8 @@ so furniture can never cut a room in two or wall off a door.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy import ndimage
 
@@ -18,8 +20,12 @@ from multion.config.scenes import PlacementConfig
 from multion.scenes.furniture_items import AGENT_HEIGHT, ROOM_CLUTTER, ROOM_FURNITURE, Item, Rect
 from multion.scenes.layout import Box
 
+Point = tuple[float, float]
+Frame = tuple[Point, Point, Point]
+"""An item's origin and its unit axes (eu, ev) in the world."""
 
-def _frame(rng: np.random.Generator, item: Item, room: Rect, cfg: PlacementConfig):
+
+def _frame(rng: np.random.Generator, item: Item, room: Rect, cfg: PlacementConfig) -> Frame | None:
     """A random origin and unit axes (eu, ev) for ``item`` in ``room``, or None if it can't fit."""
     x0, y0, x1, y1 = room
     w, d, g = item.width, item.depth, cfg.wall_gap
@@ -54,7 +60,9 @@ def _frame(rng: np.random.Generator, item: Item, room: Rect, cfg: PlacementConfi
     ][side]
 
 
-def _to_world(lo, hi, origin, eu, ev) -> tuple[tuple[float, float], tuple[float, float]]:
+def _to_world(
+    lo: Sequence[float], hi: Sequence[float], origin: Point, eu: Point, ev: Point
+) -> tuple[tuple[float, float], tuple[float, float]]:
     """Rotate the rectangle [lo, hi] (in u, v) into world x, y; returns (min corner, max corner)."""
     xs = [origin[0] + u * eu[0] + v * ev[0] for u in (lo[0], hi[0]) for v in (lo[1], hi[1])]
     ys = [origin[1] + u * eu[1] + v * ev[1] for u in (lo[0], hi[0]) for v in (lo[1], hi[1])]

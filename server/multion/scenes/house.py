@@ -26,7 +26,7 @@ import numpy as np
 from multion.config.scenes import HouseConfig
 from multion.scenes.floorplan import make_plan
 from multion.scenes.furniture import furnish_room
-from multion.scenes.layout import Box, Door, Room, SceneLayout
+from multion.scenes.layout import Box, Door, Rgba, Room, SceneLayout
 from multion.scenes.palette import CEILING, ROOM_COLOURS, ROOM_TEXTURES, muted, varied
 
 Rect = tuple[float, float, float, float]  # (x0, y0, x1, y1)
@@ -64,7 +64,7 @@ def _box(
     x1: float,
     y1: float,
     z1: float,
-    rgba,
+    rgba: Rgba,
     kind: str,
     texture: str = "",
 ) -> Box:
@@ -80,7 +80,12 @@ def _box(
 
 
 def _room_walls(
-    cell: Rect, outer: dict[str, bool], doors: list[Door], cfg: HouseConfig, rgba, texture: str = ""
+    cell: Rect,
+    outer: dict[str, bool],
+    doors: list[Door],
+    cfg: HouseConfig,
+    rgba: Rgba,
+    texture: str = "",
 ) -> list[Box]:
     """The wall boxes one room owns, with gaps where its doors are.
 

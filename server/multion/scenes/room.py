@@ -6,7 +6,7 @@ that rectangle, and the floor slab (top at ``z = 0``) reaches under them.
 
 from __future__ import annotations
 
-from multion.scenes.layout import Box, Room, SceneLayout
+from multion.scenes.layout import Box, Rgba, Room, SceneLayout
 from multion.scenes.palette import CEILING, ROOM_COLOURS, muted
 
 WALL_THICKNESS = 0.15
@@ -14,7 +14,9 @@ WALL_HEIGHT = 2.6
 SLAB_THICKNESS = 0.05
 
 
-def _box(x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgba, kind: str) -> Box:
+def _box(
+    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgba: Rgba, kind: str
+) -> Box:
     return Box(
         ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2),
         ((x1 - x0) / 2, (y1 - y0) / 2, (z1 - z0) / 2),

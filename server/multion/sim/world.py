@@ -129,13 +129,14 @@ class PyBulletWorld:
                 rgbaColor=box.rgba,
                 physicsClientId=self.client,
             )
-        return p.createMultiBody(
+        body: int = p.createMultiBody(
             baseMass=0,
             baseCollisionShapeIndex=col,
             baseVisualShapeIndex=vis,
             basePosition=box.center,
             physicsClientId=self.client,
         )
+        return body
 
     def _add_merged_visual(self, boxes: Sequence[Box]) -> None:
         """One visual-only body drawing every box, its colours and textures in one atlas."""
@@ -335,9 +336,10 @@ class PyBulletWorld:
     def _visual_body(self, visual: int) -> int:
         """A static body showing ``visual`` (no collision shape: it blocks neither agent nor
         rays), parked out of sight."""
-        return p.createMultiBody(
+        body: int = p.createMultiBody(
             0, -1, visual, basePosition=HIDDEN_POSITION, physicsClientId=self.client
         )
+        return body
 
     def _load_object(self, name: str) -> int:
         """A new body of object ``name``, scaled and without collisions, parked out of sight;
@@ -346,7 +348,7 @@ class PyBulletWorld:
         model = MODELS[name]
         upright = p.getQuaternionFromEuler(model.upright)
         with c_output_silenced():  # URDFs without inertia make PyBullet complain
-            body = p.loadURDF(str(scaled_urdf(model)), HIDDEN_POSITION, upright,
+            body: int = p.loadURDF(str(scaled_urdf(model)), HIDDEN_POSITION, upright,
                               useFixedBase=True, physicsClientId=self.client)  # fmt: skip
         for link in range(-1, p.getNumJoints(body, physicsClientId=self.client)):
             p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)

@@ -204,7 +204,8 @@ def visible_points(
     blocked = grid.lookup(grid.view_blocked, points, outside=True)
     blocked_before = np.zeros_like(blocked)
     blocked_before[:, 1:] = np.logical_or.accumulate(blocked, axis=1)[:, :-1]
-    return points[~blocked_before]
+    visible: np.ndarray = points[~blocked_before]
+    return visible
 
 
 def can_see(

@@ -26,7 +26,8 @@ layers (a goal walled off from the start would otherwise be proven so one positi
 def step_headings(yaw: float, agent: AgentConfig = AgentConfig()) -> np.ndarray:
     """The headings (radians) the agent reaches by turning from ``yaw``."""
     turns = max(1, round(360.0 / agent.turn_angle_deg))
-    return yaw + np.deg2rad(agent.turn_angle_deg) * np.arange(turns)
+    headings: np.ndarray = yaw + np.deg2rad(agent.turn_angle_deg) * np.arange(turns)
+    return headings
 
 
 class StepLattice:

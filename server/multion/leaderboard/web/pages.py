@@ -125,7 +125,8 @@ templates.env.globals["static"] = STATIC_PATH
 
 
 def _service(request: Request) -> RunService:
-    return request.app.state.runs
+    service: RunService = request.app.state.runs
+    return service
 
 
 def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTMLResponse:

@@ -148,7 +148,7 @@ def link_pose(
 
 def in_world(shape: ShapeVertices, pose: np.ndarray) -> np.ndarray:
     """The shape's vertices moved into the world by its link's ``pose``."""
-    rows = shape.vertices.copy()
+    rows: np.ndarray = shape.vertices.copy()
     rows[:, 0:3] = shape.vertices[:, 0:3] @ pose[:3, :3].T + pose[:3, 3]
     rows[:, 3:6] = shape.vertices[:, 3:6] @ pose[:3, :3].T
     return rows

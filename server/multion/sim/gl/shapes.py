@@ -165,12 +165,14 @@ def sphere_mesh(radius: float) -> ShapeMesh:
 def _supporting(vertices: np.ndarray) -> np.ndarray:
     dots = UNIT_SPHERE_POINTS.astype(np.float32) @ vertices.astype(np.float32).T
     first_best = np.argmax(dots, axis=1)  # argmax keeps the first of equals, like Bullet
-    return vertices[first_best] + CONVEX_MARGIN * UNIT_SPHERE_POINTS
+    supported: np.ndarray = vertices[first_best] + CONVEX_MARGIN * UNIT_SPHERE_POINTS
+    return supported
 
 
 def _normalised(vectors: np.ndarray) -> np.ndarray:
     length = np.linalg.norm(vectors, axis=1, keepdims=True)
-    return np.divide(vectors, length, out=np.zeros_like(vectors), where=length > 1e-12)
+    unit: np.ndarray = np.divide(vectors, length, out=np.zeros_like(vectors), where=length > 1e-12)
+    return unit
 
 
 def obj_mesh(path: Path, scale: tuple[float, float, float]) -> ShapeMesh:
