@@ -69,9 +69,7 @@ def setting(
     if low is not None or high is not None or choices is not None:
         integer = integer or (isinstance(default, int) and not isinstance(default, bool))
         metadata["range"] = Range(low, high, low_open, high_open, integer, choices)
-    return dataclasses.field(  # type: ignore[call-overload]
-        default=default, default_factory=default_factory, metadata=metadata
-    )
+    return dataclasses.field(default=default, default_factory=default_factory, metadata=metadata)
 
 
 def flag_of(field: dataclasses.Field[Any]) -> str:

@@ -8,9 +8,17 @@ draw it from above.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 Rgba = tuple[float, float, float, float]
+Vec3 = tuple[float, float, float]
+
+
+def vec3(values: Iterable[float]) -> Vec3:
+    """Three numbers as a point (a ``ValueError`` if there are not three)."""
+    x, y, z = values
+    return (float(x), float(y), float(z))
 
 
 @dataclass(frozen=True)
@@ -30,11 +38,11 @@ class Box:
 
     @property
     def min_corner(self) -> tuple[float, float, float]:
-        return tuple(c - h for c, h in zip(self.center, self.half_extents, strict=True))  # type: ignore[return-value]
+        return vec3(c - h for c, h in zip(self.center, self.half_extents, strict=True))
 
     @property
     def max_corner(self) -> tuple[float, float, float]:
-        return tuple(c + h for c, h in zip(self.center, self.half_extents, strict=True))  # type: ignore[return-value]
+        return vec3(c + h for c, h in zip(self.center, self.half_extents, strict=True))
 
 
 @dataclass(frozen=True)
@@ -73,6 +81,6 @@ class SceneLayout:
         lows = [b.min_corner for b in self.boxes]
         highs = [b.max_corner for b in self.boxes]
         return (
-            tuple(min(v[i] for v in lows) for i in range(3)),  # type: ignore[return-value]
-            tuple(max(v[i] for v in highs) for i in range(3)),  # type: ignore[return-value]
+            vec3(min(v[i] for v in lows) for i in range(3)),
+            vec3(max(v[i] for v in highs) for i in range(3)),
         )

@@ -12,7 +12,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from multion.scenes.layout import Box, Rgba, SceneLayout
+from multion.scenes.layout import Box, Rgba, SceneLayout, vec3
 
 # Corner k of a box: bit 0 picks x, bit 1 picks y (through _CORNERS), z from the second half.
 _CORNERS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
@@ -30,7 +30,7 @@ _TRIANGLES = [
 def box_vertices(box: Box) -> list[tuple[float, float, float]]:
     """The 8 corners of ``box`` in the order the triangles above refer to."""
     lo, hi = box.min_corner, box.max_corner
-    return [tuple(hi[a] if bit else lo[a] for a, bit in enumerate(c)) for c in _CORNERS]  # type: ignore[misc]
+    return [vec3(hi[a] if bit else lo[a] for a, bit in enumerate(c)) for c in _CORNERS]
 
 
 def _write_atomic(path: Path, text: str) -> None:

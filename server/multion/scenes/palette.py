@@ -97,7 +97,8 @@ def muted(rgb: tuple[float, float, float], alpha: float = 1.0) -> Rgba:
 def varied(rgb: tuple[float, float, float], rng: np.random.Generator, amount: float = 0.04) -> Rgba:
     """A slightly different shade of ``rgb`` (per-channel noise of ±amount), still safe."""
     noise = rng.uniform(-amount, amount, size=3)
-    return muted(tuple(float(c) for c in np.clip(np.asarray(rgb) + noise, 0.0, 1.0)))  # type: ignore[arg-type]
+    r, g, b = (float(c) for c in np.clip(np.asarray(rgb) + noise, 0.0, 1.0))
+    return muted((r, g, b))
 
 
 def bright(rgb: tuple[float, float, float], rng: np.random.Generator, amount: float = 0.03) -> Rgba:

@@ -104,7 +104,7 @@ def load(path: Path, key: str) -> NavGrid:
         with np.load(path, allow_pickle=False) as data:
             stored_key = str(data["key"])
             arrays = {name: np.asarray(data[name]) for name in _ARRAYS}
-            origin = tuple(float(v) for v in data["origin"])
+            origin = [float(v) for v in data["origin"]]
             cell_size, floor_z = float(data["cell_size"]), float(data["floor_z"])
     except Exception as error:  # zip, pickle, key and value errors: all mean "rebuild"
         raise NavGridCacheError(f"{path}: unreadable navgrid cache file ({error})") from None
@@ -113,7 +113,7 @@ def load(path: Path, key: str) -> NavGrid:
     shapes = {a.shape for a in arrays.values()}
     if len(shapes) != 1 or len(origin) != 2 or any(a.dtype != bool for a in arrays.values()):
         raise NavGridCacheError(f"{path}: inconsistent navgrid arrays")
-    return NavGrid(origin=origin, cell_size=cell_size, floor_z=floor_z, **arrays)  # type: ignore[arg-type]
+    return NavGrid((origin[0], origin[1]), cell_size, floor_z, **arrays)
 
 
 def cached_grid(scene_id: str, config: NavGridConfig) -> tuple[NavGrid | None, Path | None, str]:

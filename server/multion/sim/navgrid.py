@@ -46,7 +46,8 @@ class NavGrid:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.navigable.shape  # type: ignore[return-value]
+        rows, cols = self.navigable.shape
+        return rows, cols
 
     def world_to_cell(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cell indices ``(rows, cols)`` of world points ``xy`` (shape ``(..., 2)``); may be out of range."""

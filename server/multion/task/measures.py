@@ -58,6 +58,22 @@ class Measure(ABC):
     def value(self) -> MetricValue: ...
 
 
+def number(measures: Mapping[str, Measure], name: str) -> float:
+    """The value of a declared dependency that is a number (a ``TypeError`` names it if not)."""
+    value = measures[name].value
+    if not isinstance(value, int | float):
+        raise TypeError(f"measure {name!r} is {type(value).__name__}, not a number")
+    return float(value)
+
+
+def series(measures: Mapping[str, Measure], name: str) -> list[float]:
+    """The value of a declared dependency that is a list of numbers."""
+    value = measures[name].value
+    if not isinstance(value, list) or not all(isinstance(v, int | float) for v in value):
+        raise TypeError(f"measure {name!r} is {type(value).__name__}, not a list of numbers")
+    return [float(v) for v in value]
+
+
 class Steps(Measure):
     name = "steps"
 
@@ -175,7 +191,7 @@ class Progress(Measure):
         self._value = 0.0
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
-        self._value = float(measures["goals_found"].value) / self._m  # type: ignore[arg-type]
+        self._value = number(measures, "goals_found") / self._m
 
     @property
     def value(self) -> float:
@@ -211,8 +227,8 @@ class SPL(Measure):
         self._value = 0.0
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
-        s = float(measures["success"].value)  # type: ignore[arg-type]
-        p = float(measures["path_length"].value)  # type: ignore[arg-type]
+        s = number(measures, "success")
+        p = number(measures, "path_length")
         self._value = s * self._d / max(p, self._d)
 
     @property
@@ -231,13 +247,13 @@ class PPL(Measure):
         self._value = 0.0
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
-        found = int(measures["goals_found"].value)  # type: ignore[arg-type]
+        found = int(number(measures, "goals_found"))
         if found == 0:
             self._value = 0.0
             return
         d_bar = float(sum(self._optimal[:found]))
-        p = float(measures["path_length"].value)  # type: ignore[arg-type]
-        self._value = float(measures["progress"].value) * d_bar / max(p, d_bar)  # type: ignore[arg-type]
+        p = number(measures, "path_length")
+        self._value = number(measures, "progress") * d_bar / max(p, d_bar)
 
     @property
     def value(self) -> float:
@@ -255,7 +271,7 @@ class PathLengthAtFound(Measure):
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
         if state.found_correct:
-            self._value.append(float(measures["path_length"].value))  # type: ignore[arg-type]
+            self._value.append(number(measures, "path_length"))
 
     @property
     def value(self) -> list[float]:
@@ -273,12 +289,12 @@ class ReferencePPL(Measure):
         self._value = 0.0
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
-        at_found: list[float] = measures["path_length_at_found"].value  # type: ignore[assignment]
+        at_found = series(measures, "path_length_at_found")
         if not at_found:
             self._value = 0.0
             return
         d_bar = float(sum(self._optimal[: len(at_found)]))
-        self._value = float(measures["progress"].value) * d_bar / max(at_found[-1], d_bar)  # type: ignore[arg-type]
+        self._value = number(measures, "progress") * d_bar / max(at_found[-1], d_bar)
 
     @property
     def value(self) -> float:

@@ -54,7 +54,7 @@ def _open() -> moderngl.Context:
         try:
             import moderngl
 
-            context = moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]
+            context = moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]  # stub lacks backend
             if context.version_code < GL_VERSION:
                 version = context.version_code
                 context.release()
