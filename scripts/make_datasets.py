@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from multion.task.dataset import DISTRACTOR_VARIANT, packaged_dataset_path, variant_name
+from multion.config.datasets import DISTRACTOR_VARIANT, packaged_dataset_path, variant_name
 from multion.task.generate import generate_dataset
 
 SEEDS = {"val": 1, "test": 2}  # one seed per split; tasks differ through the per-scene streams

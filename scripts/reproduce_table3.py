@@ -222,7 +222,7 @@ def run_training(options: argparse.Namespace, agent: str, task: str, out: Path) 
 def run_evaluation(
     options: argparse.Namespace, agent: str, task: str, checkpoint: Path, out: Path
 ) -> dict[str, Any]:
-    from multion.task.dataset import parse_task
+    from multion.config.datasets import parse_task
     from multion_agents.evaluate import EvalSettings, evaluate
     from multion_agents.report.run_summary import write_report
 

@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from multion.task.dataset import DatasetError, task_name
+    from multion.config.datasets import DatasetError, task_name
     from multion_agents.agent import AgentError
     from multion_agents.cli_fields import from_options
     from multion_agents.eval_settings import EvalSettings

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from multion.config.datasets import save_dataset
 from multion.config.episode import Episode
-from multion.task.dataset import save_dataset
 
 
 @pytest.fixture(scope="session")

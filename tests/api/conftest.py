@@ -9,7 +9,7 @@ import pytest
 
 from multion.config.episode import Episode
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode
+from multion.task.sampling import sample_episode
 
 SCENE = "room-6x4"
 NUM_GOALS = 2

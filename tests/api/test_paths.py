@@ -13,8 +13,8 @@ from fastapi.testclient import TestClient
 from multion.api.app import create_app
 from multion.api.cli_serve import add_arguments, settings_from_args
 from multion.api.settings import ServerSettings
+from multion.config.datasets import DATA_DIR, packaged_dataset_path, save_dataset
 from multion.config.episode import Episode
-from multion.task.dataset import DATA_DIR, packaged_dataset_path, save_dataset
 from multion_client import errors
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
 

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multion.config.datasets import save_dataset
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.challenge_file import load_challenge, write_challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
 from multion.scenes.registry import layout_for
-from multion.task.dataset import save_dataset
 from multion_agents.evaluate import EvalSettings, evaluate
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -18,7 +18,7 @@ import pytest
 from multion.api.local_server import LocalServer, free_port
 from multion.leaderboard.storage import Database, add_team
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode
+from multion.task.sampling import sample_episode
 from multion_agents.cli_submit import play_run
 from multion_agents.registry import agent_class
 from multion_client import errors

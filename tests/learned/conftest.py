@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("torch")
 
+from multion.config.datasets import save_dataset  # noqa: E402
 from multion.config.episode import Episode
-from multion.task.dataset import save_dataset  # noqa: E402
 
 
 @pytest.fixture(scope="session")

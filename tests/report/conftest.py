@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multion.config.datasets import save_dataset
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode, save_dataset
+from multion.task.sampling import sample_episode
 from multion_agents import cli_eval
 
 ROOM = "room-6x4"

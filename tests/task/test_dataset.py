@@ -6,10 +6,10 @@ import json
 import numpy as np
 import pytest
 
+from multion.config.datasets import DatasetError, load_dataset, parse_task, save_dataset
 from multion.scenes.registry import GENERATOR_VERSION
 from multion.sim.geodesic import distance_field
 from multion.sim.simulator import Simulator
-from multion.task.dataset import DatasetError, load_dataset, parse_task, save_dataset
 from multion.task.generate import generate_episodes
 
 SCENES = ["house-00061", "house-00062"]
@@ -134,8 +134,8 @@ def test_parse_task():
 
 
 def test_files_record_their_versions_and_rooms_need_no_generator_version(episodes, tmp_path):
+    from multion.config.datasets import VERSION, read_header
     from multion.config.episode import Episode, Goal
-    from multion.task.dataset import VERSION, read_header
 
     header = read_header(save_dataset(tmp_path / "d.json.gz", episodes, 3, "val"))
     assert header["version"] == VERSION == 3

@@ -7,17 +7,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from multion.config.datasets import DatasetError, check_episode, load_dataset, save_dataset
 from multion.config.episode import Episode, Goal
 from multion.config.task import EnvConfig, EpisodeConstraints, MapConfig, TaskConfig
 from multion.sim.simulator import Simulator
-from multion.task.dataset import (
-    DatasetError,
-    check_episode,
-    load_dataset,
-    sample_episode,
-    save_dataset,
-)
 from multion.task.env import MultiONEnv
+from multion.task.sampling import sample_episode
 from multion_client.constants import NUM_CATEGORIES, Action
 
 SCENE = "room-10x4"

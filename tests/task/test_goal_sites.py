@@ -17,7 +17,6 @@ from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import can_step
 from multion.task.env import MultiONEnv
 from multion.task.goal_sites import (
     PROCESS_SITE_CACHE,
@@ -29,6 +28,7 @@ from multion.task.goal_sites import (
     sample_site_episode,
 )
 from multion.task.memory import estimate_env_bytes, estimate_process_bytes, goal_sites_bytes
+from multion.task.sampling import can_step
 from multion.task.step_reach import steps_reach_goals
 
 HOUSE = "house-00003"

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 import trimesh
 
+from multion.config.datasets import DatasetError, load_dataset, packaged_dataset_path
 from multion.config.task import EnvConfig, TaskConfig
 from multion.scenes.obj_export import export_obj
 from multion.scenes.registry import layout_for
-from multion.task.dataset import DatasetError, load_dataset, packaged_dataset_path
 from multion.task.env import MultiONEnv
 from multion.task.multion_import import (
     Y_UP_TO_Z_UP,

@@ -2,14 +2,14 @@
 
 import pytest
 
-from multion.config.task import EnvConfig, TaskConfig
-from multion.scenes.registry import GENERATOR_VERSION, scene_ids
-from multion.task.dataset import (
+from multion.config.datasets import (
     DISTRACTOR_VARIANT,
     load_dataset,
     packaged_dataset_path,
     read_header,
 )
+from multion.config.task import EnvConfig, TaskConfig
+from multion.scenes.registry import GENERATOR_VERSION, scene_ids
 from multion.task.env import MultiONEnv
 
 

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from multion.config.datasets import load_dataset, packaged_dataset_path
 from multion.config.episode import Episode
 from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig, MapConfig, TaskConfig
-from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
 from multion.task.multion_import import rotation_from_yaw, world_to_habitat

@@ -13,8 +13,8 @@ from multion.scenes.registry import scene_ids
 from multion.sim.geodesic import distance_field
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import can_step, iter_chunks, sample_episode
 from multion.task.env import MultiONEnv
+from multion.task.sampling import can_step, iter_chunks, sample_episode
 from multion.task.step_reach import steps_reach_goals
 from v2_episodes import v2_episode
 
@@ -166,8 +166,8 @@ def test_the_best_first_search_agrees_with_the_breadth_first_reference() -> None
 def test_online_sampling_draws_the_packaged_episodes_again() -> None:
     """The faster sampler (best-first search, fields kept for the reset) draws exactly the
     episodes of the packaged dataset from its stream."""
+    from multion.config.datasets import load_dataset, packaged_dataset_path
     from multion.sim.geodesic import FieldCache
-    from multion.task.dataset import load_dataset, packaged_dataset_path
 
     packaged = load_dataset(packaged_dataset_path(3, "val"), 3)
     scenes = scene_ids("val")

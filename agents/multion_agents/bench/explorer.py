@@ -15,10 +15,10 @@ from __future__ import annotations
 import os
 import time
 
+from multion.config.datasets import load_dataset, packaged_dataset_path
 from multion.config.episode import Episode
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, TaskConfig
-from multion.task.dataset import load_dataset, packaged_dataset_path
 from multion.task.env import MultiONEnv
 from multion_agents.baselines.explorer import ExplorerAgent, ExplorerSettings, StepTimes
 from multion_agents.bench.explorer_reference import ReferenceExplorerAgent

@@ -26,8 +26,8 @@ from multion.api.local_server import LocalServer
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode
 from multion.task.env import MultiONEnv
+from multion.task.sampling import sample_episode
 from multion_client import RemoteEnv, RemoteVectorEnv
 
 BLOCK_STEPS = 20

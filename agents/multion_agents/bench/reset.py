@@ -90,7 +90,7 @@ class MarchingClock:
 
     CALLERS = (
         "multion.sim.geodesic",
-        "multion.task.dataset",
+        "multion.task.sampling",
         "multion.task.env",
         "multion.task.goal_sites",
     )

@@ -1,7 +1,7 @@
 """``multion bench --only diversity``: what drawing goals from goal sites costs in diversity.
 
 The same train houses, the same number of seeded episodes per house, drawn by the online sampler
-(:func:`multion.task.dataset.sample_episode`, goals anywhere) and by the goal-site sampler
+(:func:`multion.task.sampling.sample_episode`, goals anywhere) and by the goal-site sampler
 (:func:`multion.task.goal_sites.sample_site_episode`) for several site counts, and by the online
 sampler again from another seed (what the statistics read between two samples of one
 distribution). Per sampler:
@@ -25,8 +25,8 @@ from multion.scenes.registry import scene_ids
 from multion.sim.geodesic import FieldCache
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode
 from multion.task.goal_sites import GoalSites, house_rooms, room_of, sample_site_episode
+from multion.task.sampling import sample_episode
 
 RADIUS = 0.05
 """The default goal radius (``task.goal_radius``): the goals' fields are made with it."""

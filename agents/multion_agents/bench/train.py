@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from multion.task.dataset import packaged_dataset_path
+from multion.config.datasets import packaged_dataset_path
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.ppo import Args, train

@@ -191,7 +191,7 @@ def ppo_loss(
 def train(args: Args) -> dict[str, Any]:
     """Run (or resume) a training run; returns a summary of the last update."""
     from multion.config.codec import env_config_from_dict, env_config_to_dict
-    from multion.task.dataset import parse_task
+    from multion.config.datasets import parse_task
 
     spec = model_spec(args.agent)
     num_goals = parse_task(args.task)

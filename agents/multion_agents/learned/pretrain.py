@@ -28,9 +28,9 @@ import torch
 from tqdm import tqdm
 
 from multion.config.codec import env_config_from_dict
+from multion.config.datasets import packaged_dataset_path
 from multion.config.ranges import bounded, check_fields, one_of
 from multion.sim.geodesic import distance_field
-from multion.task.dataset import packaged_dataset_path
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
 from multion.task.spaces import build_observation_space

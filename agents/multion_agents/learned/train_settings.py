@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from multion.task.dataset import parse_task
+from multion.config.datasets import parse_task
 from multion_agents.agent import ConfigOverrides
 from multion_agents.cli_fields import Option, check_settings, setting
 from multion_agents.config_overrides import parse_env_overrides

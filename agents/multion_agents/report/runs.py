@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from multion.config.datasets import parse_task
 from multion.config.task import TaskConfig
-from multion.task.dataset import parse_task
 from multion_agents.report.stats import HEADLINE
 from multion_client.constants import DEFAULT_GOAL_SET
 

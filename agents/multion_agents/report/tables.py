@@ -15,8 +15,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from multion.config.datasets import task_name
 from multion.task import measures
-from multion.task.dataset import task_name
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.stats import (

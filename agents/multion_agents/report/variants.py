@@ -8,7 +8,7 @@ from collections import defaultdict
 from collections.abc import Sequence
 from typing import Any
 
-from multion.task.dataset import task_name
+from multion.config.datasets import task_name
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap

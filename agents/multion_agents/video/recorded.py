@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from multion.config.codec import session_config_from_dict
+from multion.config.datasets import DatasetError, load_dataset, packaged_dataset_path, parse_task
 from multion.config.episode import Episode
 from multion.config.ranges import ConfigError
-from multion.task.dataset import DatasetError, load_dataset, packaged_dataset_path, parse_task
 from multion.task.env import MultiONEnv
 from multion.video.replay import FILMED_SENSORS, StepView, VideoError
 from multion.video.replay import replay as replay_steps

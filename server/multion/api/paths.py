@@ -12,8 +12,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from multion.config.datasets import DATA_DIR
 from multion.scenes.registry import is_mesh_scene
-from multion.task.dataset import DATA_DIR
 from multion_client.errors import PathNotAllowed
 
 

@@ -9,6 +9,13 @@ SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
 
 SPLITS: tuple[str, ...] = tuple(SPLIT_SIZES)
 
+GENERATOR_VERSION = 2
+"""Version of the procedural scenes: bump it whenever ``house-N`` (or ``room-WxD``) changes, so
+datasets made for other houses are refused and navigable grids cached on disk are rebuilt
+(``multion.sim.grid_cache``). 1: the small 3–8 room houses;
+2: Matterport3D-calibrated houses (issue 12). Here, below the scenes, so that reading a dataset
+file (:mod:`multion.config.datasets`) builds no house."""
+
 
 @dataclass(frozen=True)
 class PlanConfig:

@@ -33,14 +33,15 @@ from typing import TypeVar
 
 import numpy as np
 
+from multion.config.datasets import variant_name
 from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.processes import ignore_stop_signals
 from multion.scenes.registry import house_id, sized_house_id
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode, variant_name
 from multion.task.generate import generate_episodes
+from multion.task.sampling import sample_episode
 
 HIDDEN_HOUSE_BASE = 10**9
 """Hidden house numbers start here, far from the packaged splits' 0–89."""

@@ -18,6 +18,7 @@ import dataclasses
 import functools
 import re
 
+from multion.config.scenes import GENERATOR_VERSION as GENERATOR_VERSION  # re-exported
 from multion.config.scenes import SPLIT_SIZES, HouseConfig
 from multion.scenes.house import generate_house
 from multion.scenes.layout import SceneLayout
@@ -25,11 +26,6 @@ from multion.scenes.room import make_room
 
 MAX_ROOM_SIDE_M = 50.0
 """A ``room-WxD`` side is at most this (the grid, and so memory, grows with the room's area)."""
-GENERATOR_VERSION = 2
-"""Version of the procedural scenes: bump it whenever ``house-N`` (or ``room-WxD``) changes, so
-datasets made for other houses are refused and navigable grids cached on disk are rebuilt
-(``multion.sim.grid_cache``). 1: the small 3–8 room houses;
-2: Matterport3D-calibrated houses (issue 12)."""
 SIZED_HOUSE_REVISION = 1
 """Revision of the ``house-N-rK`` houses alone, in the grid cache's key: they can change while
 the default houses (and ``GENERATOR_VERSION``) stay. 1: corner cuts keep 60 % of the footprint,

@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from multion.config.datasets import load_dataset, packaged_dataset_path, variant_name
 from multion.config.episode import Episode
 from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
 from multion.scenes.registry import SceneIdError, scene_ids
@@ -18,12 +19,6 @@ from multion.sim.goal_objects import OBJECT_GOAL_SETS, goal_yaw
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
 from multion.sim.world import MeshSceneError
-from multion.task.dataset import (
-    load_dataset,
-    packaged_dataset_path,
-    sample_episode,
-    variant_name,
-)
 from multion.task.episode_checks import check_caller_episode, check_caller_episodes, check_on_grid
 from multion.task.errors import (
     BadEpisodeError,
@@ -36,6 +31,7 @@ from multion.task.errors import (
 from multion.task.goal_sites import GoalSites, sample_site_episode
 from multion.task.maps import EgoMapReveal, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
+from multion.task.sampling import sample_episode
 from multion.task.spaces import build_observation_space
 from multion_client.constants import (
     ACTIONS_TEXT,

@@ -8,13 +8,11 @@ that catches those keeps working.
 
 from __future__ import annotations
 
+from multion.config.datasets import DatasetError
+
 
 class TaskError(Exception):
     """Input the task cannot use; the message says what and why (safe to show to a client)."""
-
-
-class DatasetError(TaskError, ValueError):
-    """A dataset file that cannot be used; the message names the file and the problem."""
 
 
 class BadResetOptionError(TaskError, ValueError):
@@ -25,7 +23,7 @@ class EpisodeNotFoundError(TaskError, ValueError):
     """``reset`` asked for an ``episode_index`` or ``episode_id`` the dataset does not hold."""
 
 
-class BadEpisodeError(DatasetError):
+class BadEpisodeError(DatasetError, TaskError):
     """An episode (inline, or from a dataset) that cannot be played: malformed, an unknown
     scene, a start that is not navigable, an unreachable goal."""
 

@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from multion.config.datasets import save_dataset, variant_name
 from multion.config.episode import Episode
 from multion.config.task import EpisodeConstraints
 from multion.scenes.registry import scene_ids
 from multion.sim.simulator import Simulator
-from multion.task.dataset import iter_chunks, sample_episode, save_dataset, variant_name
+from multion.task.sampling import iter_chunks, sample_episode
 
 
 def generate_episodes(

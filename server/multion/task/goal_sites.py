@@ -1,6 +1,6 @@
 """Train episodes drawn from a fixed set of goal sites per house (issue 44).
 
-Online sampling (:func:`multion.task.dataset.sample_episode`) marches ``m + 1`` distance fields
+Online sampling (:func:`multion.task.sampling.sample_episode`) marches ``m + 1`` distance fields
 per episode: the start's and each goal's. Here each train house has a seeded set of goal sites
 (:func:`choose_sites`: one in every room, the rest spread over the floor), and every goal of an
 episode is a site. A site's distance field (made with the goal's footprint, as the env makes it)
@@ -34,7 +34,7 @@ from multion.scenes.layout import Room
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
-from multion.task.dataset import can_step, sample_distractors
+from multion.task.sampling import can_step, sample_distractors
 from multion.task.step_reach import steps_reach_goals
 from multion_client.constants import NUM_CATEGORIES
 
@@ -321,7 +321,7 @@ def sample_site_episode(
 ) -> Episode | None:
     """Sample one episode whose goals are goal sites, or None when ``max_tries`` draws fail.
 
-    The same guarantees as :func:`multion.task.dataset.sample_episode`: every leg's geodesic
+    The same guarantees as :func:`multion.task.sampling.sample_episode`: every leg's geodesic
     (start to goal 1, goal i to goal i + 1, each read in the goal's field as the env reads it)
     in ``[min_geodesic, max_geodesic]``, goals ``min_goal_separation`` apart, categories without
     replacement, distractors away from the goals, a start that can step, every goal reached by

@@ -36,13 +36,13 @@ from typing import Any
 
 import numpy as np
 
+from multion.config.datasets import DatasetError, check_episode, save_dataset
 from multion.config.episode import Episode, Goal
 from multion.config.sim import NavGridConfig
 from multion.sim.geodesic import FieldCache, geodesic_distance
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import load_world, navgrid_for
 from multion.sim.world import convert_mesh
-from multion.task.dataset import DatasetError, check_episode, save_dataset
 from multion_client.constants import REFERENCE_CATEGORY_NAMES, REFERENCE_TO_CATEGORY
 
 HABITAT_SCENE_PREFIX = "data/scene_datasets/"
