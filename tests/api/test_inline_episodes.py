@@ -21,8 +21,8 @@ from multion.api.settings import ServerSettings
 from multion.config.datasets import load_dataset, packaged_dataset_path
 from multion.config.episode import Episode
 from multion.sim.simulator import Simulator
-from multion.task.episode_checks import check_on_grid
 from multion.task.errors import BadEpisodeError
+from multion.task.sampling import check_on_grid
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
 
 SETTINGS = ServerSettings(

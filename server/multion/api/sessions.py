@@ -20,8 +20,7 @@ from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
 from multion.config.codec import ConfigError, session_config_from_dict
-from multion.task.env import check_reset_options
-from multion.task.episode_checks import check_caller_episodes
+from multion.task.episode_checks import check_caller_episodes, check_reset_options
 from multion.task.errors import BadEpisodeError, BadResetOptionError
 from multion.task.memory import estimate_env_bytes, goal_sites_bytes, mib
 from multion_client import errors

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, cast
 
 import gymnasium as gym
@@ -19,7 +19,11 @@ from multion.sim.goal_objects import OBJECT_GOAL_SETS, goal_yaw
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator
 from multion.sim.world import MeshSceneError
-from multion.task.episode_checks import check_caller_episode, check_caller_episodes, check_on_grid
+from multion.task.episode_checks import (
+    check_caller_episode,
+    check_caller_episodes,
+    check_reset_options,
+)
 from multion.task.errors import (
     BadEpisodeError,
     BadResetOptionError,
@@ -31,7 +35,7 @@ from multion.task.errors import (
 from multion.task.goal_sites import GoalSites, sample_site_episode
 from multion.task.maps import EgoMapReveal, OracleMap, can_see
 from multion.task.measures import EpisodeState, Measures
-from multion.task.sampling import sample_episode
+from multion.task.sampling import check_on_grid, sample_episode
 from multion.task.spaces import build_observation_space
 from multion_client.constants import (
     ACTIONS_TEXT,
@@ -44,14 +48,6 @@ from multion_client.constants import (
     goal_categories,
 )
 from multion_client.protocol import MAX_SEED
-
-RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
-    "episode_index": (int, "an int"),
-    "episode_id": (str, "a string"),
-    "episode": ((Mapping, Episode), "an Episode map"),
-}
-"""What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
-its id, or inline; with their types."""
 
 
 class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
@@ -467,24 +463,6 @@ def _check_action(action: Any) -> int:
             f"illegal action {action!r:.80}; actions are integers: {ACTIONS_TEXT}"
         )
     return value
-
-
-def check_reset_options(options: Mapping[str, Any]) -> None:
-    """Raise :class:`BadResetOptionError` unless ``options`` holds at most one known reset option
-    of the right type."""
-    unknown = sorted(set(options) - set(RESET_OPTIONS))
-    if unknown:
-        raise BadResetOptionError(
-            f"unknown reset option(s) {unknown}; reset options are {', '.join(RESET_OPTIONS)}"
-        )
-    if len(options) > 1:
-        raise BadResetOptionError(
-            f"give at most one of the reset options {', '.join(RESET_OPTIONS)}"
-        )
-    for name, value in options.items():
-        kind, text = RESET_OPTIONS[name]
-        if isinstance(value, bool) or not isinstance(value, kind):
-            raise BadResetOptionError(f"reset option {name!r} must be {text}, got {value!r:.80}")
 
 
 def make_env(

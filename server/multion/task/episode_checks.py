@@ -4,22 +4,22 @@
 Everything here is cheap (no scene is built), so the server runs it when a session is created
 and refuses a bad episode before any simulator work, with a message that names the field
 (``episodes[0].goals[1].category``) and what is allowed. What needs the scene itself (a goal
-off the navigable grid, an unreachable goal) is checked by the env's ``reset``.
+off the navigable grid, an unreachable goal) is checked by the env's ``reset``
+(:func:`multion.task.sampling.check_on_grid`). No simulator is imported here: the server process
+runs these checks.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 from multion.config.episode import Episode, Goal
 from multion.config.task import TaskConfig
 from multion.scenes.registry import SceneIdError, check_scene_id, is_mesh_scene, room_extent
-from multion.sim.navgrid import NavGrid
-from multion.task.errors import BadEpisodeError
+from multion.task.errors import BadEpisodeError, BadResetOptionError
 from multion_client.constants import NUM_CATEGORIES
 
 MAX_COORDINATE_M = 1000.0
@@ -117,24 +117,28 @@ def _check_point(
             )
 
 
-def check_on_grid(episode: Episode, grid: NavGrid) -> None:
-    """Raise :class:`BadEpisodeError` for a start off the navigable cells, or a goal or
-    distractor off the scene's grid (it would be drawn and mapped nowhere)."""
-    start = np.asarray(episode.start_position[:2], dtype=np.float64)
-    if not bool(grid.is_navigable(start)):
-        raise BadEpisodeError(
-            f"episode {episode.episode_id}: start_position {episode.start_position} is not "
-            f"navigable in {episode.scene_id}"
+RESET_OPTIONS: dict[str, tuple[type | tuple[type, ...], str]] = {
+    "episode_index": (int, "an int"),
+    "episode_id": (str, "a string"),
+    "episode": ((Mapping, Episode), "an Episode map"),
+}
+"""What ``reset(options=...)`` accepts (at most one): an episode by its index in the dataset, by
+its id, or inline; with their types."""
+
+
+def check_reset_options(options: Mapping[str, Any]) -> None:
+    """Raise :class:`BadResetOptionError` unless ``options`` holds at most one known reset option
+    of the right type."""
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise BadResetOptionError(
+            f"unknown reset option(s) {unknown}; reset options are {', '.join(RESET_OPTIONS)}"
         )
-    rows, cols = grid.shape
-    low_x, low_y = grid.origin
-    high_x, high_y = low_x + cols * grid.cell_size, low_y + rows * grid.cell_size
-    for kind, goals in (("goals", episode.goals), ("distractors", episode.distractors)):
-        for index, goal in enumerate(goals):
-            if not bool(grid.lookup(grid.inside, np.asarray(goal.position[:2]), outside=False)):
-                raise BadEpisodeError(
-                    f"episode {episode.episode_id}: {kind}[{index}].position "
-                    f"({goal.position[0]:g}, {goal.position[1]:g}) is off the floor of "
-                    f"{episode.scene_id}: allowed points of its floor, within x in "
-                    f"[{low_x:.2f}, {high_x:.2f}], y in [{low_y:.2f}, {high_y:.2f}] metres"
-                )
+    if len(options) > 1:
+        raise BadResetOptionError(
+            f"give at most one of the reset options {', '.join(RESET_OPTIONS)}"
+        )
+    for name, value in options.items():
+        kind, text = RESET_OPTIONS[name]
+        if isinstance(value, bool) or not isinstance(value, kind):
+            raise BadResetOptionError(f"reset option {name!r} must be {text}, got {value!r:.80}")

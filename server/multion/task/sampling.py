@@ -1,6 +1,6 @@
-"""The online episode sampler: start, goals and distractors drawn on a scene's navigable grid
-(SPEC §5). It marches distance fields, so it needs the simulator's grid; the files it fills are
-read and written by the light :mod:`multion.config.datasets`.
+"""Episodes on a scene's navigable grid: the online sampler (start, goals and distractors, SPEC
+§5) and the check that a given episode stands on the grid (:func:`check_on_grid`). It marches distance fields, so it needs the simulator's grid; the
+files it fills are read and written by the light :mod:`multion.config.datasets`.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from multion.config.sim import AgentConfig
 from multion.config.task import EpisodeConstraints
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
+from multion.task.errors import BadEpisodeError
 from multion.task.step_reach import step_headings, steps_reach_goals
 from multion_client.constants import NUM_CATEGORIES
 
@@ -154,3 +155,26 @@ def iter_chunks(items: Sequence[Any], count: int) -> Iterator[tuple[int, int]]:
     base, extra = divmod(count, len(items))
     for index in range(len(items)):
         yield index, base + (1 if index < extra else 0)
+
+
+def check_on_grid(episode: Episode, grid: NavGrid) -> None:
+    """Raise :class:`BadEpisodeError` for a start off the navigable cells, or a goal or
+    distractor off the scene's grid (it would be drawn and mapped nowhere)."""
+    start = np.asarray(episode.start_position[:2], dtype=np.float64)
+    if not bool(grid.is_navigable(start)):
+        raise BadEpisodeError(
+            f"episode {episode.episode_id}: start_position {episode.start_position} is not "
+            f"navigable in {episode.scene_id}"
+        )
+    rows, cols = grid.shape
+    low_x, low_y = grid.origin
+    high_x, high_y = low_x + cols * grid.cell_size, low_y + rows * grid.cell_size
+    for kind, goals in (("goals", episode.goals), ("distractors", episode.distractors)):
+        for index, goal in enumerate(goals):
+            if not bool(grid.lookup(grid.inside, np.asarray(goal.position[:2]), outside=False)):
+                raise BadEpisodeError(
+                    f"episode {episode.episode_id}: {kind}[{index}].position "
+                    f"({goal.position[0]:g}, {goal.position[1]:g}) is off the floor of "
+                    f"{episode.scene_id}: allowed points of its floor, within x in "
+                    f"[{low_x:.2f}, {high_x:.2f}], y in [{low_y:.2f}, {high_y:.2f}] metres"
+                )
