@@ -138,26 +138,38 @@ class SessionInfo:
     auto_reset: bool
     observation_space: spaces.Space[Any] = field(metadata=schema("of one environment"))
     action_space: spaces.Space[Any] = field(metadata=schema("of one environment"))
+    renderer: str | None = field(
+        default=None,
+        metadata=schema(
+            "what the environments render with: `camera.renderer`, with `auto` resolved by the "
+            "simulator worker (`gl` or `tiny`); nil from servers before it was reported"
+        ),
+    )
 
     def to_wire(self) -> dict[str, Any]:
-        return {
+        wire = {
             "session_id": self.session_id,
             "num_envs": self.num_envs,
             "auto_reset": self.auto_reset,
             "observation_space": space_to_wire(self.observation_space),
             "action_space": space_to_wire(self.action_space),
         }
+        if self.renderer is not None:
+            wire["renderer"] = self.renderer
+        return wire
 
     @classmethod
     def from_wire(cls, data: Any) -> SessionInfo:
         names = ("session_id", "num_envs", "auto_reset", "observation_space", "action_space")
-        d = _fields(data, "SessionInfo", names)
+        d = _fields(data, "SessionInfo", names, optional=("renderer",))
+        renderer = d.get("renderer")
         return cls(
             session_id=str(d["session_id"]),
             num_envs=int(d["num_envs"]),
             auto_reset=bool(d["auto_reset"]),
             observation_space=space_from_wire(d["observation_space"]),
             action_space=space_from_wire(d["action_space"]),
+            renderer=None if renderer is None else str(renderer),
         )
 
 
@@ -374,8 +386,9 @@ class ServerSpec:
     autoreset_mode: str = field(metadata=schema(enum=["same_step"]))
     renderer: dict[str, Any] = field(
         metadata=schema(
-            "`camera.renderer`: its `choices`, the `default`, and what `auto` renders with on "
-            "this server (`egl` or `tiny`)"
+            "`camera.renderer`: its `choices`, the `default`, what `auto` renders with on "
+            "this server's simulator workers (`gl` or `tiny`; nil while none runs) and, where "
+            "it falls back to `tiny`, why not `gl` (`gl_unavailable`)"
         )
     )
     limits: dict[str, Any] = field(metadata=schema("this server's limits (sessions, envs, bytes)"))

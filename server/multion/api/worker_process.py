@@ -17,6 +17,7 @@ from typing import Any
 
 from multion.config.codec import ConfigError, session_config_from_dict
 from multion.processes import give_back_memory, ignore_stop_signals, limit_address_space
+from multion.sim.camera import resolve_renderer, why_not_gl
 from multion.task.env import MultiONEnv
 from multion.task.errors import (
     BadEpisodeError,
@@ -54,7 +55,7 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
     # lowered the limit to any outer one; the clamp is for apps built without that check.)
     memory_limit_bytes = limit_address_space(memory_limit_bytes)
     shards: dict[str, Shard] = {}
-    conn.send_bytes(encode({"ready": True, "pid": os.getpid()}))
+    conn.send_bytes(encode(ready_message()))
     while True:
         try:
             command, shard_id, payload = conn.recv()
@@ -74,6 +75,21 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
             break
     for shard in shards.values():
         _close(shard)
+
+
+def ready_message() -> dict[str, Any]:
+    """What this worker tells the server once it has imported the simulator: its pid, what
+    ``camera.renderer = "auto"`` renders with here (opening a GL context once, as its envs
+    would), and the env's metadata (read by ``GET /v1/spec``, so the server needs no simulator)."""
+    renderer = {"auto": resolve_renderer("auto"), "gl_unavailable": why_not_gl()}
+    return {"ready": True, "pid": os.getpid(), "renderer": renderer, "env_metadata": env_metadata()}
+
+
+def env_metadata() -> dict[str, Any]:
+    """The env class's metadata, as declared. Gymnasium's vector envs before 1.4 write their
+    ``autoreset_mode`` (an enum msgpack cannot encode) into the class's shared ``metadata`` dict
+    when one is built in this process; the spec states the server's own autoreset mode apart."""
+    return {key: value for key, value in MultiONEnv.metadata.items() if key != "autoreset_mode"}
 
 
 def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) -> Reply:
@@ -120,6 +136,7 @@ def _create(shards: dict[str, Shard], shard_id: str, payload: dict[str, Any]) ->
     spaces = {
         "observation_space": space_to_wire(envs[0].observation_space),
         "action_space": space_to_wire(envs[0].action_space),
+        "renderer": resolve_renderer(config.camera.renderer),
     }
     return {"ok": True}, [encode(spaces)]
 

@@ -21,10 +21,11 @@ import multiprocessing
 import os
 import socket
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
-from multion.api.worker_process import worker_main
+from multion.api.worker_entry import run_worker
 from multion.task.memory import mib
 from multion_client.errors import MemoryBudgetExceeded, WorkerFailed
 from multion_client.protocol import decode
@@ -35,6 +36,30 @@ RESTART_DELAY_S = 5.0
 WORKER_RESERVED_BYTES = 1024 * 2**20
 """Address space a worker needs besides its sessions' estimates: the interpreter, PyBullet and
 numpy (about 330 MiB of address space when idle), the navigable-grid cache, allocator slack."""
+
+
+@dataclass(frozen=True)
+class WorkerReport:
+    """What a worker says in its ready message, learnt in the worker so that the server process
+    never loads the simulator to find it out."""
+
+    pid: int
+    renderer_auto: str | None = None
+    """What ``camera.renderer = "auto"`` renders with in the worker (``gl`` or ``tiny``)."""
+    gl_unavailable: str | None = None
+    """Why ``auto`` falls back to TinyRenderer there (None where ``gl`` runs)."""
+    env_metadata: dict[str, Any] = field(default_factory=dict)
+    """The env class's Gymnasium metadata (render modes, fps)."""
+
+    @classmethod
+    def from_ready(cls, header: dict[str, Any]) -> WorkerReport:
+        renderer = header.get("renderer") or {}
+        return cls(
+            pid=int(header["pid"]),
+            renderer_auto=renderer.get("auto"),
+            gl_unavailable=renderer.get("gl_unavailable"),
+            env_metadata=dict(header.get("env_metadata") or {}),
+        )
 
 
 class Worker:
@@ -65,11 +90,11 @@ class Worker:
         self._on_exit = on_exit
         self._lock = asyncio.Lock()
         self._waiter: asyncio.Future[Reply] | None = None
-        self.ready: asyncio.Future[int] = self._loop.create_future()
+        self.ready: asyncio.Future[WorkerReport] = self._loop.create_future()
         self.conn, child = ctx.Pipe(duplex=True)
         _widen(self.conn, child)
         self.process = ctx.Process(
-            target=worker_main,
+            target=run_worker,
             args=(child, memory_limit_bytes),
             name=f"multion-worker-{slot}",
             daemon=True,
@@ -177,7 +202,7 @@ class Worker:
             return
         if header.get("ready"):
             if not self.ready.done():
-                self.ready.set_result(int(header["pid"]))
+                self.ready.set_result(WorkerReport.from_ready(header))
             return
         if self._waiter is not None and not self._waiter.done():
             self._waiter.set_result((header, parts))
@@ -243,6 +268,18 @@ class WorkerPool:
     async def stop(self) -> None:
         self._stopping = True
         await asyncio.gather(*(worker.stop() for worker in self.workers))
+
+    async def report(self) -> WorkerReport | None:
+        """The ready message of the first worker that starts (each describes the same machine);
+        None when no worker is running."""
+        for worker in self.workers:
+            if not worker.alive:
+                continue
+            try:
+                return await asyncio.wait_for(asyncio.shield(worker.ready), self.start_timeout_s)
+            except (WorkerFailed, asyncio.TimeoutError):
+                continue
+        return None
 
     @property
     def capacity_bytes(self) -> int:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 from gymnasium import spaces
-from starlette.concurrency import run_in_threadpool
 
 from multion.api.deps import MsgpackResponse, Registry, Settings
 from multion.api.openapi import answers
@@ -12,8 +11,6 @@ from multion.config.codec import config_ranges, env_config_to_dict
 from multion.config.sim import RENDERERS
 from multion.config.task import SENSORS, EnvConfig
 from multion.reference import DEFAULT_SOURCES
-from multion.sim.camera import resolve_renderer, why_not_gl
-from multion.task.env import MultiONEnv
 from multion.task.memory import mib
 from multion.task.spaces import build_observation_space
 from multion_client.constants import GOAL_CATEGORIES, GOAL_SETS, NUM_ACTIONS, Action
@@ -63,13 +60,6 @@ async def health(registry: Registry) -> MsgpackResponse:
     return MsgpackResponse(report.to_wire())
 
 
-def env_metadata() -> dict[str, object]:
-    """The env class's metadata, as declared. Gymnasium's vector envs before 1.4 write their
-    ``autoreset_mode`` (an enum msgpack cannot encode) into the class's shared ``metadata`` dict
-    when one is built in this process; the spec states the server's own autoreset mode apart."""
-    return {key: value for key, value in MultiONEnv.metadata.items() if key != "autoreset_mode"}
-
-
 @router.get(
     SPEC_PATH,
     summary="Task and API description",
@@ -79,8 +69,11 @@ def env_metadata() -> dict[str, object]:
     "observation and action spaces of the default config, and this server's limits.",
     responses=answers(200, ServerSpec),
 )
-async def spec(settings: Settings) -> MsgpackResponse:
+async def spec(settings: Settings, registry: Registry) -> MsgpackResponse:
     default = EnvConfig()
+    # What "auto" resolves to, and the env's metadata, come from a worker's ready message: the
+    # server process itself never loads the simulator (nor opens a GL context) to find out.
+    report = await registry.pool.report()
     body = ServerSpec(
         api_version=API_VERSION,
         actions={a.name: a.value for a in Action},
@@ -90,15 +83,13 @@ async def spec(settings: Settings) -> MsgpackResponse:
         ranges=config_ranges(),
         observation_space=build_observation_space(default),
         action_space=spaces.Discrete(NUM_ACTIONS),
-        metadata=env_metadata(),
+        metadata=report.env_metadata if report else {},
         autoreset_mode="same_step",
-        # what camera.renderer "auto" renders with here (probed once in this process), and
-        # why not "gl" where it falls back to "tiny" (None where gl runs)
         renderer={
             "choices": list(RENDERERS),
             "default": default.camera.renderer,
-            "auto": await run_in_threadpool(resolve_renderer, "auto"),
-            "gl_unavailable": await run_in_threadpool(why_not_gl),
+            "auto": report.renderer_auto if report else None,
+            "gl_unavailable": report.gl_unavailable if report else None,
         },
         limits={
             "max_sessions": settings.max_sessions,
