@@ -7,7 +7,7 @@ import pytest
 from PIL import ImageDraw
 
 from multion.scenes.room import make_room
-from multion.viz import (
+from multion.scenes.viz import (
     BLOCKED,
     FOOTER_MARGIN,
     NAVIGABLE,

@@ -16,7 +16,7 @@ import importlib
 import sys
 from dataclasses import dataclass
 
-from multion.processes import exit_on_sigterm
+from multion.common.processes import exit_on_sigterm
 from multion_agents.registry import SETUP_TORCH
 
 
@@ -51,8 +51,8 @@ COMMANDS: dict[str, Command] = {
         "multion_agents.cli_leaderboard",
         "organisers: database, teams and tokens, runs, export, replay, baselines",
     ),
-    "dataset": Command("multion.cli_data", "generate or check episode datasets"),
-    "scene": Command("multion.cli_data", "draw or export scenes"),
+    "dataset": Command("multion.task.cli_data", "generate or check episode datasets"),
+    "scene": Command("multion.task.cli_data", "draw or export scenes"),
     "bench": Command("multion_agents.bench.cli", "measure simulator, server and training speed"),
 }
 

@@ -33,7 +33,7 @@ from multion.config.codec import env_config_from_dict, env_config_to_dict, sessi
 from multion.config.datasets import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.config.episode import Episode
 from multion.config.task import EnvConfig
-from multion.pictures import gps_to_world
+from multion.scenes.viz import gps_to_world
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
 from multion_agents.eval_settings import EvalSettings
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed

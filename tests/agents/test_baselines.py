@@ -10,7 +10,7 @@ import pytest
 from multion.config.episode import Episode, Goal
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, MapConfig, TaskConfig
-from multion.pictures import gps_to_world
+from multion.scenes.viz import gps_to_world
 from multion.task.env import MultiONEnv
 from multion_agents.agent import Agent, AgentError
 from multion_agents.baselines.mapping import CameraModel, detect_goals, goal_shaped

@@ -8,11 +8,11 @@ import re
 
 import numpy as np
 
+from multion.common.stats import Estimate
 from multion.leaderboard.web.charts import best_over_time
 from multion.leaderboard.web.guide import participant_markdown, render_guide
 from multion.leaderboard.web.pages import GUIDE
 from multion.leaderboard.web.queries import TeamRun
-from multion.stats import Estimate
 
 T0 = dt.datetime(2026, 11, 25, 9, 29, tzinfo=dt.timezone.utc)
 
@@ -69,7 +69,7 @@ def test_room_labels_keep_clear_of_markers_and_no_floor_is_drawn_white():
     from PIL import Image, ImageDraw
 
     from multion.scenes.registry import layout_for
-    from multion.viz import OUTSIDE, label_font, picture_frame, room_labels, scene_picture
+    from multion.scenes.viz import OUTSIDE, label_font, picture_frame, room_labels, scene_picture
 
     layout = layout_for("house-00064")
     (x0, y0, _), (x1, y1, _) = layout.bounds

@@ -25,6 +25,7 @@ from sqlalchemy import select
 from multion.api.app import create_app
 from multion.api.local_server import LocalServer
 from multion.api.settings import ServerSettings
+from multion.common.processes import die_with_parent
 from multion.leaderboard.app import LeaderboardExtension
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.challenge_file import replace_phase, write_challenge
@@ -33,7 +34,6 @@ from multion.leaderboard.models import EpisodePicture, Run, utcnow
 from multion.leaderboard.run_expiry import RESTART_GRACE
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database, add_team, runs_counted
-from multion.processes import die_with_parent
 from multion_client import errors
 from multion_client.client import Client
 from multion_client.protocol import CONTENT_TYPE, decode, encode

@@ -22,15 +22,15 @@ from multion.leaderboard.live_run import draw_of
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.pictures import DISPLAY_SCALE, PictureDrawer
 from multion.scenes.registry import layout_for
-from multion.viz import _overlap, label_font, picture_frame, room_labels
+from multion.scenes.viz import _overlap, label_font, picture_frame, room_labels
 
 
 @pytest.mark.parametrize("scene", ["house-00007", "house-00042", "house-00003", "house-00061"])
 def test_room_labels_are_clear_of_each_other_and_of_furniture_where_room_allows(
     scene: str,
 ) -> None:
+    from multion.scenes.viz import furniture_pixels
     from multion.sim.simulator import Simulator
-    from multion.viz import furniture_pixels
 
     layout = layout_for(scene)
     sim = Simulator()

@@ -10,7 +10,7 @@ Files written to the output directory:
   filled in, the dataset file's SHA-256, package versions);
 * ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings, the
   actions played: what ``multion video`` replays);
-* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion.pictures`).
+* ``episode-<id>.png``: top-down pictures of the first few episodes (see :mod:`multion.sim.pictures`).
 """
 
 from __future__ import annotations
@@ -134,7 +134,7 @@ def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]
     write_atomically(metrics_path, json.dumps(payload, indent=2) + "\n")
     written = [metrics_path, episodes_path]
     if pictures > 0:
-        from multion.pictures import episode_picture
+        from multion.sim.pictures import episode_picture
         from multion.sim.simulator import Simulator
 
         by_id = {e.episode_id: e for e in result.episodes}

@@ -1,4 +1,4 @@
-"""Means with 95% bootstrap intervals: one sample (:mod:`multion.stats`, shared with the
+"""Means with 95% bootstrap intervals: one sample (:mod:`multion.common.stats`, shared with the
 leaderboard), two independent samples, and paired samples.
 
 All intervals are percentile bootstrap intervals (2,000 resamples, fixed seed): no normality
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 # the one-sample estimate is the leaderboard's too; the report's modules import it from here
-from multion.stats import (  # noqa: F401
+from multion.common.stats import (  # noqa: F401
     CI_METHOD,
     NAN,
     RESAMPLES,

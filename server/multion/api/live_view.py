@@ -24,9 +24,8 @@ from multion.config.codec import session_config_from_dict
 from multion.config.datasets import DatasetError, load_dataset, packaged_dataset_path
 from multion.config.episode import Episode
 from multion.config.ranges import ConfigError
-from multion.pictures import gps_to_world
 from multion.scenes.registry import is_mesh_scene, layout_for
-from multion.viz import NAVIGABLE, PictureFrame, draw_layout, world_to_pixel
+from multion.scenes.viz import NAVIGABLE, PictureFrame, draw_layout, gps_to_world, world_to_pixel
 from multion_client.constants import GOAL_RGBA, Action
 from multion_client.protocol import decode
 

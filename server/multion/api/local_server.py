@@ -12,7 +12,7 @@ from types import TracebackType
 
 import httpx
 
-from multion.processes import die_with_parent
+from multion.common.processes import die_with_parent
 from multion_client.protocol import HEALTH_PATH
 
 

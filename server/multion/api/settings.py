@@ -10,7 +10,7 @@ from typing import Literal
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from multion.processes import address_space_limit
+from multion.common.processes import address_space_limit
 
 ID_LENGTH = 32
 """Session and run ids are at most this long (the leaderboard's ``runs.id`` is String(32))."""

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
+from multion.common.processes import give_back_memory, ignore_stop_signals, limit_address_space
 from multion.config.codec import ConfigError, session_config_from_dict
-from multion.processes import give_back_memory, ignore_stop_signals, limit_address_space
 from multion.sim.camera import resolve_renderer, why_not_gl
 from multion.task.env import MultiONEnv
 from multion.task.errors import (

@@ -33,10 +33,10 @@ from typing import TypeVar
 
 import numpy as np
 
+from multion.common.processes import ignore_stop_signals
 from multion.config.datasets import variant_name
 from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge, Phase, Track
-from multion.processes import ignore_stop_signals
 from multion.scenes.registry import house_id, sized_house_id
 from multion.sim.navgrid import NavGrid
 from multion.sim.simulator import Simulator

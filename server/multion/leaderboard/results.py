@@ -8,8 +8,8 @@ from collections import Counter
 from collections.abc import Callable, Hashable, Iterable, Sequence
 from typing import Any, TypeVar
 
-from multion import stats
-from multion.stats import CI_METHOD
+from multion.common import stats
+from multion.common.stats import CI_METHOD
 
 SUMMARY_METRICS = ("ppl", "progress", "success", "spl")
 RANKED_STATES = ("finished", "ended")
@@ -86,7 +86,7 @@ def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
 
 
 def bootstrap(values: Sequence[float], seed: int = 0) -> dict[str, float]:
-    """:func:`multion.stats.bootstrap` as stored in a run's summary (zeros for no values)."""
+    """:func:`multion.common.stats.bootstrap` as stored in a run's summary (zeros for no values)."""
     if len(values) == 0:
         return {"mean": 0.0, "low": 0.0, "high": 0.0}
     # Canonical order: the same per-episode values give the same interval whatever order the
@@ -98,7 +98,7 @@ def bootstrap(values: Sequence[float], seed: int = 0) -> dict[str, float]:
 
 
 def estimate(values: Sequence[float]) -> stats.Estimate:
-    """:func:`bootstrap` as an :class:`~multion.stats.Estimate` (the pages' breakdowns)."""
+    """:func:`bootstrap` as an :class:`~multion.common.stats.Estimate` (the pages' breakdowns)."""
     value = bootstrap(values)
     return stats.Estimate(value["mean"], value["low"], value["high"])
 

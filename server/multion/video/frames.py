@@ -9,7 +9,7 @@ Layout (pixels; P = the panel height, the camera height but at least 256)::
     | step, action, current goal, distance, goals found
     | what just happened (FOUND right / wrong, a collision, the end)
 
-The map is the floor plan of :func:`multion.viz.scene_picture` with the goals numbered in the
+The map is the floor plan of :func:`multion.scenes.viz.scene_picture` with the goals numbered in the
 order they must be found (the current one ringed, found ones ticked), the path so far in orange
 and the agent as a triangle pointing where it looks. Frame sizes are even (H.264's 4:2:0).
 """
@@ -23,11 +23,11 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from multion.config.episode import Episode
-from multion.pictures import AGENT_PATH, OUTLINE
 from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.scenes.viz import PictureFrame, picture_frame, scene_picture, world_to_pixel
 from multion.sim.navgrid import NavGrid
+from multion.sim.pictures import AGENT_PATH, OUTLINE
 from multion.video.replay import StepView
-from multion.viz import PictureFrame, picture_frame, scene_picture, world_to_pixel
 from multion_client.constants import GOAL_RGBA, Action
 
 MIN_PANEL = 256

@@ -8,9 +8,9 @@ from gymnasium import spaces
 from multion.api.deps import MsgpackResponse, Registry, Settings
 from multion.api.openapi import answers
 from multion.config.codec import config_ranges, env_config_to_dict
+from multion.config.reference import DEFAULT_SOURCES
 from multion.config.sim import RENDERERS
 from multion.config.task import SENSORS, EnvConfig
-from multion.reference import DEFAULT_SOURCES
 from multion.task.memory import mib
 from multion.task.spaces import build_observation_space
 from multion_client.constants import GOAL_CATEGORIES, GOAL_SETS, NUM_ACTIONS, Action

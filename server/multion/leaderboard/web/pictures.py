@@ -31,14 +31,15 @@ import numpy as np
 from sqlalchemy import CursorResult, Insert, Select, delete, exists, or_, select, update
 from sqlalchemy.orm import Session
 
+from multion.common.processes import ignore_stop_signals, limit_address_space
 from multion.config.codec import session_config_from_dict
 from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodePicture, EpisodeRecord, Run, utcnow
 from multion.leaderboard.results import RANKED_STATES
 from multion.leaderboard.storage import Database
-from multion.pictures import episode_picture, gps_to_world
-from multion.processes import ignore_stop_signals, limit_address_space
+from multion.scenes.viz import gps_to_world
+from multion.sim.pictures import episode_picture
 from multion.task.env import MultiONEnv
 
 log = logging.getLogger("multion.leaderboard.pictures")

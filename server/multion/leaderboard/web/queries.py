@@ -18,6 +18,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from multion.common.stats import Estimate
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team
 from multion.leaderboard.results import (
@@ -30,7 +31,6 @@ from multion.leaderboard.results import (
     played_to_end,
 )
 from multion.leaderboard.results import estimate as bootstrap
-from multion.stats import Estimate
 from multion.task.measures import seen_split
 
 METRIC_NAMES = {"ppl": "PPL", "progress": "Progress", "success": "Success", "spl": "SPL"}

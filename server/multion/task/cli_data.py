@@ -9,10 +9,10 @@ from pathlib import Path
 from multion.config.datasets import DatasetError, load_dataset, parse_task
 from multion.scenes.obj_export import export_obj
 from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.scenes.viz import scene_picture
 from multion.sim.simulator import Simulator
 from multion.task.generate import generate_dataset
 from multion.task.multion_import import import_multion
-from multion.viz import scene_picture
 from multion_client.constants import NUM_CATEGORIES
 
 

@@ -1,16 +1,16 @@
 """Top-down pictures of played episodes, in the style of the paper's Figure 3.
 
-The scene (floor plan, walls, furniture) comes from :func:`multion.viz.scene_picture`; on top:
-the shortest path through the goals in green, the agent's path in orange, the start as an orange
-square, and the goals as circles in their own colours, numbered in the order they must be found.
-The scene layout and the shortest path are recomputed from the episode (an evaluation client never
-sees the server's simulator); the agent's path is rebuilt from its GPS readings
-(:func:`gps_to_world`). Used by ``multion eval`` and by the leaderboard's run pages.
+The scene (floor plan, walls, furniture) comes from :func:`multion.scenes.viz.scene_picture`;
+on top: the shortest path through the goals in green, the agent's path in orange, the start as
+an orange square, and the goals as circles in their own colours, numbered in the order they must
+be found. The scene layout and the shortest path are recomputed from the episode (an evaluation
+client never sees the server's simulator); the agent's path is rebuilt from its GPS readings
+(:func:`multion.scenes.viz.gps_to_world`). Used by ``multion eval`` and by the leaderboard's run
+pages.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -19,22 +19,21 @@ from PIL import Image, ImageDraw, ImageFont
 
 from multion.config.episode import Episode
 from multion.scenes.registry import is_mesh_scene, layout_for
+from multion.scenes.viz import (
+    PictureFrame,
+    label_font,
+    picture_frame,
+    scene_picture,
+    world_to_pixel,
+)
 from multion.sim.geodesic import distance_field, shortest_path
 from multion.sim.simulator import Simulator
-from multion.viz import PictureFrame, label_font, picture_frame, scene_picture, world_to_pixel
 from multion_client.constants import GOAL_RGBA
 
 AGENT_PATH = (245, 130, 20)
 SHORTEST_PATH = (30, 160, 60)
 OUTLINE = (20, 20, 20)
 GOAL_RADIUS = 0.05
-
-
-def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
-    """World (x, y) of GPS readings (start frame: x ahead, y left of the start pose)."""
-    c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
-    x0, y0 = episode.start_position[:2]
-    return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
 
 
 def shortest_route(simulator: Simulator, episode: Episode) -> list[np.ndarray]:

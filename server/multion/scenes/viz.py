@@ -9,6 +9,7 @@ be added on top of :func:`scene_picture`'s result with the same numbers.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -16,6 +17,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from multion.config.episode import Episode
 from multion.scenes.layout import SceneLayout
 
 NAVIGABLE = (236, 232, 222)
@@ -256,3 +258,10 @@ def scene_picture(
         draw_layout(draw, layout, frame, keep_clear)
     scene_id = layout.scene_id if layout is not None and caption else None
     return _with_footer(image, frame, scene_id, font)
+
+
+def gps_to_world(gps: np.ndarray, episode: Episode) -> np.ndarray:
+    """World (x, y) of GPS readings (start frame: x ahead, y left of the start pose)."""
+    c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
+    x0, y0 = episode.start_position[:2]
+    return np.stack([x0 + c * gps[:, 0] - s * gps[:, 1], y0 + s * gps[:, 0] + c * gps[:, 1]], -1)
