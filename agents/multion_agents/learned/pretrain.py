@@ -29,44 +29,17 @@ from tqdm import tqdm
 
 from multion.config.codec import env_config_from_dict
 from multion.config.datasets import packaged_dataset_path
-from multion.config.ranges import bounded, check_fields, one_of
 from multion.sim.geodesic import distance_field
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
 from multion.task.spaces import build_observation_space
 from multion_agents.learned.policy import Batch, RecurrentPolicy
+from multion_agents.learned.train_options import MapPretraining
 from multion_agents.learned.training_log import TrainingLog
 from multion_client.constants import Action
 
 MAP_SENSOR = "oracle_map"
 """The observation pretraining draws: the whole-house oracle map's egocentric crop."""
-
-
-@dataclass(frozen=True)
-class MapPretraining:
-    """How ``--pretrain-map`` pretrains (``steps`` = 0: not at all)."""
-
-    steps: int = bounded(0, 0, 20_000)
-    """Gradient steps (the v3 recipe: 1,200)."""
-    samples: int = bounded(12_000, 200, 100_000)
-    """Training crops, drawn once (5 kB each with the default 50-cell crops, 1.3 kB with 25)."""
-    held_out: int = bounded(1_000, 100, 10_000)
-    """Crops to report the accuracy on, drawn from ``held_out_split``."""
-    held_out_split: str = one_of("val", ("val", "train"))
-    """``val``: val houses (other train episodes for tasks without a packaged val set);
-    ``train``: other train episodes."""
-    batch_size: int = bounded(128, 1, 4_096)
-    learning_rate: float = bounded(2.5e-4, 0.0, 1.0, low_open=True)
-    max_distance: float = bounded(9.0, 1.0, 50.0)
-    """Poses keep the goal within this straight-line distance, metres."""
-    found_fraction: float = bounded(0.8, 0.0, 1.0, low_open=True)
-    """FOUND is the label within this fraction of the task's success distance (geodesic)."""
-    poses_per_scene: int = bounded(60, 1, 1_000)
-    """Poses per sampled episode before the next one (mostly in a new house)."""
-    seed: int = bounded(0, 0, 2**31 - 1)
-
-    def __post_init__(self) -> None:
-        check_fields(self, "pretrain_map")
 
 
 @dataclass

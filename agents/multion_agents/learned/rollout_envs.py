@@ -20,6 +20,7 @@ from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
+from multion_agents.learned.train_options import Curriculum
 from multion_client.vector import RemoteVectorEnv
 
 SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
@@ -48,29 +49,6 @@ def training_env_config(
     if dataset is not None:
         config["dataset"] = str(dataset)
     return merge_overrides(config, overrides or {})
-
-
-Curriculum = tuple[tuple[int, float], ...]
-"""``((until_frames, max_geodesic), ...)``: until ``until_frames`` frames of the run, online
-training episodes keep each goal within ``max_geodesic`` metres (``online_max_geodesic``) of the
-start or the previous goal; after the last stage, the task's own episodes."""
-
-
-def parse_curriculum(texts: Sequence[str]) -> Curriculum:
-    """``["240000:4", "480000:10"]`` → ``((240000, 4.0), (480000, 10.0))``; a ``ValueError``
-    naming the stage otherwise."""
-    stages = []
-    for text in texts:
-        frames, sep, metres = text.partition(":")
-        try:
-            if not sep:
-                raise ValueError
-            stages.append((int(frames), float(metres)))
-        except ValueError:
-            raise ValueError(
-                f"--curriculum stage {text!r} is not FRAMES:METRES (e.g. 240000:4)"
-            ) from None
-    return tuple(stages)
 
 
 def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None:

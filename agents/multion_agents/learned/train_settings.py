@@ -11,8 +11,7 @@ from multion_agents.agent import ConfigOverrides
 from multion_agents.cli_fields import Option, check_settings, setting
 from multion_agents.config_overrides import parse_env_overrides
 from multion_agents.learned.policy import HIDDEN_SIZE, MAX_HIDDEN_SIZE
-from multion_agents.learned.pretrain import MapPretraining
-from multion_agents.learned.rollout_envs import Curriculum, parse_curriculum
+from multion_agents.learned.train_options import Curriculum, MapPretraining, parse_curriculum
 
 PPO = "PPO schedule (defaults follow the reference code, ppo_multinav.yaml)"
 
