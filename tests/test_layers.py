@@ -1,7 +1,8 @@
-"""The import-linter contracts of ``pyproject.toml`` hold (issue 32): the layers
-``multion_agents`` > ``multion.leaderboard`` > ``multion.api`` > ``multion.task`` >
-``multion.sim`` > ``multion.scenes`` > ``multion.config``, a client that imports no server code,
-light configs, and no import cycles between sibling modules."""
+"""The import-linter contracts of ``pyproject.toml`` hold (issues 32 and 45): the layers
+``multion_agents`` > ``multion.leaderboard`` > ``multion.api`` > ``multion.video`` >
+``multion.task`` > ``multion.sim`` > ``multion.scenes`` > ``multion.config`` > ``multion.common``
+with every server module in one of them, a client that imports no server code, light configs, a
+server process and settings that load no simulator, and no import cycles between siblings."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+
+import tomllib
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -26,3 +29,24 @@ def test_import_contracts_are_kept() -> None:
     )
     assert result.returncode == 0, result.stdout + result.stderr
     assert "0 broken" in result.stdout
+
+
+def test_every_server_module_sits_in_a_layer() -> None:
+    """A module outside the layers' list is checked by no layers contract: it could import
+    anything, and anything could import it (issue 45 found seven such modules)."""
+    with open(ROOT / "pyproject.toml", "rb") as handle:
+        contracts = tomllib.load(handle)["tool"]["importlinter"]["contracts"]
+    layers = next(c["layers"] for c in contracts if c["type"] == "layers")
+    server = ROOT / "server"
+    modules = [
+        ".".join(path.relative_to(server).with_suffix("").parts).removesuffix(".__init__")
+        for path in sorted((server / "multion").rglob("*.py"))
+    ]
+    outside = [
+        name
+        for name in modules
+        if name != "multion"
+        and not any(name == layer or name.startswith(layer + ".") for layer in layers)
+    ]
+    assert len(modules) > 100
+    assert outside == [], f"modules in no layer of pyproject.toml's layers contract: {outside}"

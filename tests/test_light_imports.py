@@ -37,3 +37,34 @@ def test_multion_help_loads_no_simulator_or_torch() -> None:
     )
     assert "multion_agents" in loaded
     assert not set(HEAVY) & loaded
+
+
+def test_reading_a_dataset_builds_no_scene_and_loads_no_simulator() -> None:
+    loaded = loaded_after(
+        "from multion.config.datasets import load_dataset, packaged_dataset_path, parse_task\n"
+        "assert load_dataset(packaged_dataset_path(parse_task('1-on'), 'val'))"
+    )
+    assert "multion" in loaded
+    assert not {*HEAVY, "scipy", "skfmm"} & loaded
+    modules = loaded_modules_after("import multion.config.datasets")
+    assert not [m for m in modules if m.startswith(("multion.scenes", "multion.sim"))]
+
+
+def test_eval_and_train_settings_and_the_report_load_no_simulator() -> None:
+    loaded = loaded_after(
+        "import multion_agents.eval_settings, multion_agents.learned.train_settings\n"
+        "import multion_agents.report.tables, multion_agents.report.runs\n"
+        "import multion_agents.report.variants, multion_agents.report.run_summary"
+    )
+    assert "multion_agents" in loaded
+    assert "pybullet" not in loaded
+
+
+def loaded_modules_after(code: str) -> list[str]:
+    """Every module (dotted) loaded in a fresh interpreter after running ``code``."""
+    probe = f"{code}\nimport sys\nprint(' '.join(sorted(sys.modules)))"
+    result = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    return result.stdout.split("\n")[-2].split()
