@@ -10,7 +10,7 @@ import pytest
 
 from multion.scenes.registry import layout_for
 from multion.sim.simulator import Simulator
-from multion.task.dataset import sample_episode
+from multion.task.sampling import sample_episode
 
 HOUSES = ["house-00061", "house-00075"]
 
