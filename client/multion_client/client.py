@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from types import TracebackType
@@ -14,6 +15,7 @@ from multion_client.errors import MalformedMessage, MultiONError, ServerUnavaila
 from multion_client.protocol import (
     CONTENT_TYPE,
     HEALTH_PATH,
+    RENDERER_HEADER,
     SESSIONS_PATH,
     SPEC_PATH,
     CreateSession,
@@ -96,7 +98,9 @@ class Client:
     ) -> SessionInfo:
         """Start ``num_envs`` environments with ``config`` (EnvConfig as nested dicts)."""
         message = CreateSession(dict(config or {}), num_envs, auto_reset)
-        return SessionInfo.from_wire(self._call("POST", SESSIONS_PATH, message.to_wire()))
+        response = self._send("POST", SESSIONS_PATH, message.to_wire())
+        info = SessionInfo.from_wire(decode(response.content))
+        return dataclasses.replace(info, renderer=response.headers.get(RENDERER_HEADER))
 
     def reset(
         self,
@@ -186,6 +190,12 @@ class Client:
     def _call(
         self, method: str, path: str, body: dict[str, Any] | None = None, idempotent: bool = False
     ) -> Any:
+        return decode(self._send(method, path, body, idempotent).content)
+
+    def _send(
+        self, method: str, path: str, body: dict[str, Any] | None = None, idempotent: bool = False
+    ) -> httpx.Response:
+        """The server's successful answer, or its error raised as a typed MultiONError."""
         content = None if body is None else encode(body)
         headers = None if content is None else {"content-type": CONTENT_TYPE}
         for attempt in range(self.retries + 1):
@@ -201,7 +211,7 @@ class Client:
                     ) from error
                 time.sleep(min(self.backoff_s * 2**attempt, 2.0))
         if response.is_success:
-            return decode(response.content)
+            return response
         raise _error(response)
 
 

@@ -48,6 +48,10 @@ from multion_client.wire import space_to_wire as space_to_wire
 API_VERSION = "v1"
 PREFIX = f"/{API_VERSION}"
 CONTENT_TYPE = "application/x-msgpack"
+RENDERER_HEADER = "multion-renderer"
+"""The create answer's header naming what the session renders with (`camera.renderer`, `auto`
+resolved by the worker). A header, not a field of SessionInfo, so that clients which refuse
+unknown fields (every client before it) keep working with newer servers."""
 
 HEALTH_PATH = f"{PREFIX}/health"
 HEALTH_STATUSES = ("ok", "degraded")
@@ -138,13 +142,9 @@ class SessionInfo:
     auto_reset: bool
     observation_space: spaces.Space[Any] = field(metadata=schema("of one environment"))
     action_space: spaces.Space[Any] = field(metadata=schema("of one environment"))
-    renderer: str | None = field(
-        default=None,
-        metadata=schema(
-            "what the environments render with: `camera.renderer`, with `auto` resolved by the "
-            "simulator worker (`gl` or `tiny`); nil from servers before it was reported"
-        ),
-    )
+    renderer: str | None = field(default=None, metadata={"wire": False})
+    """What the environments render with (``gl`` or ``tiny``), from the create answer's
+    :data:`RENDERER_HEADER`; None from servers that do not send it."""
 
     def to_wire(self) -> dict[str, Any]:
         wire = {
@@ -154,22 +154,18 @@ class SessionInfo:
             "observation_space": space_to_wire(self.observation_space),
             "action_space": space_to_wire(self.action_space),
         }
-        if self.renderer is not None:
-            wire["renderer"] = self.renderer
-        return wire
+        return wire  # the renderer travels in RENDERER_HEADER
 
     @classmethod
     def from_wire(cls, data: Any) -> SessionInfo:
         names = ("session_id", "num_envs", "auto_reset", "observation_space", "action_space")
-        d = _fields(data, "SessionInfo", names, optional=("renderer",))
-        renderer = d.get("renderer")
+        d = _fields(data, "SessionInfo", names)
         return cls(
             session_id=str(d["session_id"]),
             num_envs=int(d["num_envs"]),
             auto_reset=bool(d["auto_reset"]),
             observation_space=space_from_wire(d["observation_space"]),
             action_space=space_from_wire(d["action_space"]),
-            renderer=None if renderer is None else str(renderer),
         )
 
 

@@ -19,7 +19,7 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from multion.api.local_server import LocalServer
 from multion.config.codec import session_config_from_dict
 from multion.task.env import MultiONEnv
-from multion_client import RemoteEnv, RemoteVectorEnv
+from multion_client import Client, RemoteEnv, RemoteVectorEnv
 
 MakeEnv = Callable[[], gym.Env]
 
@@ -155,3 +155,13 @@ def test_vector_env_over_two_servers_matches_sync_vector_env(
     finally:
         local.close()
         remote.close()
+
+
+def test_the_client_reads_the_sessions_renderer(
+    servers: list[LocalServer], small_config: dict[str, Any]
+) -> None:
+    """The create answer's header names the renderer; the client puts it in SessionInfo."""
+    with Client(servers[0].url) as client:
+        info = client.create_session(small_config)
+        client.close_session(info.session_id)
+    assert info.renderer == "tiny"  # the config's default renderer, which auto does not change

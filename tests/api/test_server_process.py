@@ -13,26 +13,29 @@ import json, sys
 from fastapi.testclient import TestClient
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings
-from multion_client.protocol import CONTENT_TYPE, decode, encode
+from multion_client.protocol import CONTENT_TYPE, RENDERER_HEADER, decode, encode
 
 def call(client, method, path, body=None):
     content = None if body is None else encode(body)
     answer = client.request(method, path, content=content, headers={"content-type": CONTENT_TYPE})
     assert answer.status_code < 300, (path, answer.status_code, answer.content[:300])
-    return decode(answer.content)
+    return answer
 
 configs = json.loads(sys.stdin.read())
-renderers, steps = [], []
+renderers, steps, fields = [], [], []
 with TestClient(create_app(ServerSettings(workers=1, idle_timeout_s=600))) as client:
-    spec = call(client, "GET", "/v1/spec")
+    spec = decode(call(client, "GET", "/v1/spec").content)
     for config in configs:
         create = {"config": config, "num_envs": 1, "auto_reset": False}
-        info = call(client, "POST", "/v1/sessions", create)
+        created = call(client, "POST", "/v1/sessions", create)
+        info = decode(created.content)
+        fields.append(sorted(info))
         path = "/v1/sessions/" + info["session_id"]
         call(client, "POST", path + "/reset", {"seeds": [0], "options": []})
-        steps.append(len(call(client, "POST", path + "/step", {"actions": [1]})["rewards"]))
+        stepped = call(client, "POST", path + "/step", {"actions": [1]})
+        steps.append(len(decode(stepped.content)["rewards"]))
         call(client, "DELETE", path)
-        renderers.append(info.get("renderer"))
+        renderers.append(created.headers.get(RENDERER_HEADER))
     loaded = sorted(sys.modules)
 simulator = [m for m in loaded if m.split(".")[0] == "pybullet" or m.startswith("multion.sim")]
 print(json.dumps({
@@ -40,6 +43,7 @@ print(json.dumps({
     "spec_renderer": spec["renderer"],
     "metadata": spec["metadata"],
     "session_renderers": renderers,
+    "session_fields": fields,
     "steps": steps,
 }))
 """
@@ -73,4 +77,10 @@ def test_the_server_process_loads_no_simulator_while_it_serves_sessions(
     assert renderer["auto"] in ("tiny", "gl")
     assert (renderer["auto"] == "tiny") == (renderer["gl_unavailable"] is not None)
     assert served["session_renderers"] == ["tiny", renderer["auto"]]  # tiny: the default
+    # the renderer travels in a header: the body keeps the fields every client accepts (clients
+    # refuse unknown fields, so a new field would break those installed before it)
+    old_fields = sorted(
+        ["session_id", "num_envs", "auto_reset", "observation_space", "action_space"]
+    )
+    assert served["session_fields"] == [old_fields, old_fields]
     assert served["metadata"] == {"render_modes": ["rgb_array"], "render_fps": 10}

@@ -62,6 +62,8 @@ class Session:
     shards: list[Shard]
     info: bytes = b""
     """The encoded SessionInfo, the answer to create."""
+    renderer: str | None = None
+    """What its environments render with (``auto`` resolved by the worker)."""
     last_used: float = field(default_factory=time.monotonic)
     started: bool = False
     done: list[bool] = field(default_factory=list)
@@ -99,8 +101,8 @@ class SessionRegistry:
     # ------------------------------------------------------------------ operations
     async def create(
         self, message: CreateSession, owner: str | None = None, for_run: bool = False
-    ) -> bytes:
-        """Start the environments of a new session; returns the encoded SessionInfo.
+    ) -> Session:
+        """Start the environments of a new session (its ``info`` is the encoded SessionInfo).
 
         ``owner`` names the client of a plain session (its per-client cap); ``for_run``
         marks a leaderboard run's session, which may use the share kept for runs."""
@@ -342,6 +344,7 @@ class SessionRegistry:
             await self._release(shards)
             raise
         spaces = decode(replies[0][1][0])
+        renderer = spaces.pop("renderer", None)
         info = SessionInfo.from_wire(
             {
                 "session_id": session_id,
@@ -355,9 +358,9 @@ class SessionRegistry:
             done=[True] * message.num_envs, owner=None if for_run else owner or "",
             config=message.config,
         )  # fmt: skip
-        session.info = encode(info.to_wire())
+        session.info, session.renderer = encode(info.to_wire()), renderer
         self.sessions[session_id] = session
-        return session.info
+        return session
 
     async def _run(
         self, session: Session, operation: Callable[[Session], Awaitable[bytes]]

@@ -57,7 +57,7 @@ class LaneSessions:
             lane.episode = await self.draw(live, max(lane.state.position, lane.index))
         config = {**live.config, "episodes": [lane.episode.to_dict()]}
         try:
-            answer = await self.registry.create(CreateSession(config, 1, False), for_run=True)
+            session = await self.registry.create(CreateSession(config, 1, False), for_run=True)
         except (errors.WorkerFailed, errors.LimitExceeded, errors.InternalError) as error:
             log.error("run %s lane %d: no session: %s", live.run_id, lane.index, error.message)
             why = "has no room for" if isinstance(error, errors.LimitExceeded) else "failed in"
@@ -67,7 +67,7 @@ class LaneSessions:
                     "does not count against your quota): retry later"
                 )
             ) from None
-        info = decode(answer)
+        info = decode(session.info)
         lane.session_id = info["session_id"]
         return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
 

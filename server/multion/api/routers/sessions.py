@@ -15,6 +15,7 @@ from multion.api.deps import (
 from multion.api.openapi import answers, request_body
 from multion_client import errors as e
 from multion_client.protocol import (
+    RENDERER_HEADER,
     SESSIONS_PATH,
     CreateSession,
     Observations,
@@ -45,7 +46,8 @@ SESSION_ERRORS = (e.SessionNotFound, e.WorkerFailed)
     "SAME_STEP: `infos[i].final_obs` / `final_info` hold the ended episode's last outputs). "
     "The environments may be spread over several simulator workers. A server may need a team "
     "token for this (`--sessions token`), refuse it (`--sessions off`), and caps the sessions "
-    "one client holds.",
+    "one client holds. The `multion-renderer` header names what the environments render with "
+    "(`gl` or `tiny`: `camera.renderer` with `auto` resolved).",
     openapi_extra=request_body(CreateSession),
     responses=answers(
         201,
@@ -63,8 +65,9 @@ SESSION_ERRORS = (e.SessionNotFound, e.WorkerFailed)
 )
 async def create_session(message: Message, registry: Registry, request: Request) -> MsgpackResponse:
     owner = await session_owner(request)
-    body = await registry.create(CreateSession.from_wire(message), owner=owner)
-    return MsgpackResponse(body, status_code=201)
+    session = await registry.create(CreateSession.from_wire(message), owner=owner)
+    headers = {RENDERER_HEADER: session.renderer} if session.renderer else None
+    return MsgpackResponse(session.info, status_code=201, headers=headers)
 
 
 @router.post(
