@@ -12,6 +12,13 @@
 #   OUT=runs/central FRAMES=720000 bash scripts/central_comparison.sh
 #   MULTION='python -m multion_agents.cli' ...             # another installation of the command
 #   PUBLISH=1 bash scripts/central_comparison.sh       # then docs/learned.md's tables (below)
+#   IMAGE_SIZE=128 RENDERER=gl bash scripts/central_comparison.sh   # issue 44's 128² variant
+# IMAGE_SIZE (default 36) and RENDERER (camera.renderer of training and evaluation; default the
+# config's, tiny) make a variant with its own OUT (runs/central-128-gl above) and its own
+# published runs (docs/learned/central-128-gl): the 36² runs are never restored into it. Its
+# report also reads the published 36² runs (paired intervals, 128² against 36²), and PUBLISH=1
+# keeps its runs and writes that report to docs/learned/central-128-gl/report, leaving
+# docs/learned.md's tables to the 36² runs.
 # Stages, in this order by default: core (oracle-map, no-map, oracle-ego-map,
 # random-oracle-found), shapes (NoMap with the supplement's shapes as goals), pretrain
 # (oracle-map after map pretraining), learned (proj-neural-map, obj-recog-map). The report goes
@@ -23,18 +30,29 @@
 #     OUT=$OLDPWD/runs/central bash scripts/central_comparison.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-out=${OUT:-runs/central}
+image_size=${IMAGE_SIZE:-36}
+renderer=${RENDERER:-}
+# the published 36² runs are the comparison's reference; any other size or renderer is a variant
+variant=""
+[ "$image_size" = 36 ] || variant="-$image_size"
+[ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
+published=docs/learned/central$variant
+out=${OUT:-runs/central$variant}
 frames=${FRAMES:-720000}
 episodes=${EPISODES:-100}
 stages=${STAGES:-core shapes pretrain learned}
 multion=${MULTION:-.venv/bin/multion}
-recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
-  --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard)
-evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0)
+camera=()
+[ -z "$renderer" ] || camera=(--set "camera.renderer=$renderer")
+recipe=(--task 1-on --frames "$frames" --envs 8 --image-size "$image_size" --max-steps 500
+  --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard
+  "${camera[@]}")
+# the checkpoint gives the evaluation its image size; the renderer is the machine's choice
+evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0 "${camera[@]}")
 
-# restore_published NAME: a run kept in docs/learned/central/NAME becomes $out/NAME/eval-val
+# restore_published NAME: a run kept in $published/NAME becomes $out/NAME/eval-val
 restore_published() {
-  local kept=docs/learned/central/$1 dir=$out/$1
+  local kept=$published/$1 dir=$out/$1
   [ -f "$kept/metrics.json" ] && [ ! -f "$dir/eval-val/metrics.json" ] || return 0
   mkdir -p "$dir/eval-val"
   cp "$kept/metrics.json" "$kept/episodes.jsonl" "$dir/eval-val/"
@@ -78,15 +96,23 @@ for stage in $stages; do
   esac
 done
 mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)
-$multion report "${runs[@]}" --out "$out/report"
+reference=()  # a variant is reported beside the published 36² runs
+if [ -n "$variant" ] && [ -d docs/learned/central ]; then reference=(docs/learned/central); fi
+$multion report "${runs[@]}" "${reference[@]}" --out "$out/report"
 # PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv)
-# in docs/learned/central/NAME and regenerate the tables at the head of docs/learned.md
+# in $published/NAME and regenerate the tables at the head of docs/learned.md (a variant: its
+# report beside the 36² runs in $published/report)
 if [ "${PUBLISH:-0}" = 1 ]; then
   for run in "${runs[@]}"; do
-    name=$(basename "$(dirname "$run")") kept=docs/learned/central/$name
+    name=$(basename "$(dirname "$run")") kept=$published/$name
     mkdir -p "$kept"
     cp "$run/metrics.json" "$run/episodes.jsonl" "$kept/"
-    [ -f "$run/../progress.csv" ] && cp "$run/../progress.csv" "$kept/"
+    if [ -f "$run/../progress.csv" ]; then cp "$run/../progress.csv" "$kept/"; fi
   done
-  $multion report docs/learned/central --out docs --doc learned
+  if [ -z "$variant" ]; then
+    $multion report "$published" --out docs --doc learned
+  else
+    mapfile -t kept_runs < <(find "$published" -name metrics.json -printf '%h\n' | sort)
+    $multion report "${kept_runs[@]}" "${reference[@]}" --out "$published/report"
+  fi
 fi

@@ -90,3 +90,64 @@ def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
         assert restored.read_bytes() == (kept / name / "metrics.json").read_bytes()
     assert (tmp_path / "runs" / "fresh" / "oracle-map" / "progress.csv").is_file()
     assert (tmp_path / "runs" / "fresh" / "report" / "report.md").is_file()
+
+
+# A stand-in for the `multion` command: it records each call and writes the files the script
+# looks for, so the script's choices are checked in seconds, without training anything.
+FAKE_MULTION = """#!/usr/bin/env bash
+echo "$*" >> "$CALLS"
+out=""
+while [ $# -gt 0 ]; do
+  if [ "$1" = --out ]; then out=$2; fi
+  shift
+done
+mkdir -p "$out"
+touch "$out/checkpoint.pt" "$out/metrics.json" "$out/episodes.jsonl" "$out/report.md"
+"""
+
+
+def _central_calls(tmp_path: Path, variables: dict[str, str]) -> tuple[str, list[str]]:
+    """Run scripts/central_comparison.sh's core stage with the stand-in command; its stdout
+    and the command lines it ran."""
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    calls = tmp_path / "calls.txt"
+    calls.unlink(missing_ok=True)
+    env = {**os.environ, "STAGES": "core", "FRAMES": "1024", "CALLS": str(calls),
+           "MULTION": f"bash {fake}", **variables}  # fmt: skip
+    done = subprocess.run(["bash", "scripts/central_comparison.sh"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    return done.stdout, calls.read_text().splitlines()
+
+
+def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None:
+    """IMAGE_SIZE=128 RENDERER=gl (issue 44 item 3) trains and evaluates at that size with that
+    renderer into runs/central-128-gl, never restores the published 36² runs into it, and reports
+    beside them; without the variables the 36² recipe is unchanged."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
+    published = tmp_path / "docs" / "learned" / "central" / "oracle-map"
+    published.mkdir(parents=True)
+    for name in ("metrics.json", "episodes.jsonl"):
+        (published / name).write_text("{}\n")
+
+    stdout, calls = _central_calls(tmp_path, {"IMAGE_SIZE": "128", "RENDERER": "gl"})
+    trains = [c for c in calls if c.startswith("train ")]
+    evals = [c for c in calls if c.startswith("eval ")]
+    assert "restored" not in stdout
+    assert len(trains) == 3 and len(evals) == 4  # oracle-map, no-map, oracle-ego-map (+ random)
+    for call in trains:
+        assert "--image-size 128 " in call and "--set camera.renderer=gl" in call, call
+        assert "--out runs/central-128-gl/" in call, call
+    assert all("--set camera.renderer=gl" in call for call in evals)
+    report = next(c for c in calls if c.startswith("report "))
+    assert "docs/learned/central " in report and "--out runs/central-128-gl/report" in report
+
+    stdout, calls = _central_calls(tmp_path, {})
+    assert "restored: oracle-map" in stdout
+    trains = [c for c in calls if c.startswith("train ")]
+    assert len(trains) == 2  # oracle-map is published
+    for call in trains:
+        assert "--image-size 36 " in call and "camera.renderer" not in call, call
+        assert "--out runs/central/" in call, call
