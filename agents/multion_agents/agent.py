@@ -17,13 +17,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from multion.config.errors import UsageError
+
 Observation = dict[str, np.ndarray]
 ConfigOverrides = dict[str, dict[str, Any]]
 EnvConfigDict = dict[str, Any]
 """A resolved environment config as nested dicts (every field, defaults included)."""
 
 
-class AgentError(ValueError):
+class AgentError(UsageError, ValueError):
     """An agent that cannot be found or built; the message says what to do instead."""
 
 

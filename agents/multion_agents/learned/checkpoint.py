@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from multion.config.codec import env_config_from_dict
+from multion.config.errors import UsageError
 from multion.task.spaces import build_observation_space
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.map_ops import MapGeometry
@@ -25,7 +26,7 @@ from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy, hidden_s
 FORMAT_VERSION = 1
 
 
-class CheckpointError(ValueError):
+class CheckpointError(UsageError, ValueError):
     """A file that is not a usable MultiON checkpoint."""
 
 

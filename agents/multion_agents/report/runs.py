@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from multion.config.datasets import parse_task
+from multion.config.errors import UsageError
 from multion.config.task import TaskConfig
 from multion_agents.report.stats import HEADLINE
 from multion_client.constants import DEFAULT_GOAL_SET
@@ -26,7 +27,7 @@ TRAINING_LOG = "progress.csv"
 DEFAULT_FOUND_BUDGET = TaskConfig().found_budget
 
 
-class RunError(ValueError):
+class RunError(UsageError, ValueError):
     """A directory that is not a readable ``multion eval`` run; the message names it."""
 
 

@@ -19,9 +19,9 @@ from typing import Any
 from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
-from multion.config.codec import ConfigError, session_config_from_dict
+from multion.config.codec import session_config_from_dict
 from multion.task.episode_checks import check_caller_episodes, check_reset_options
-from multion.task.errors import BadEpisodeError, BadResetOptionError
+from multion.task.errors import BadResetOptionError
 from multion.task.memory import estimate_env_bytes, goal_sites_bytes, mib
 from multion_client import errors
 from multion_client.constants import ACTIONS_TEXT, action_id
@@ -106,10 +106,8 @@ class SessionRegistry:
 
         ``owner`` names the client of a plain session (its per-client cap); ``for_run``
         marks a leaderboard run's session, which may use the share kept for runs."""
-        try:  # fail fast, before any worker is involved
-            config, episodes = session_config_from_dict(message.config)
-        except ConfigError as error:
-            raise errors.InvalidConfig(str(error)) from None
+        # Fail fast, before any worker is involved (a ConfigError is a 422 InvalidConfig).
+        config, episodes = session_config_from_dict(message.config)
         env_bytes, cache_bytes = estimate_env_bytes(config), goal_sites_bytes(config)
         if env_bytes + cache_bytes > self.pool.capacity_bytes:
             need, smaller = f"{mib(env_bytes)} MiB", " or a smaller maps.ego_size"
@@ -123,10 +121,9 @@ class SessionRegistry:
             )
         # Files the config names are on this server's disk: only allowed directories (403).
         message = dataclasses.replace(message, config=checked_config(message.config, self.roots))
-        try:  # after the path check: whether a mesh file exists is told only where it may be read
-            check_caller_episodes(episodes or [], config.task, "episodes")
-        except BadEpisodeError as error:
-            raise errors.InvalidEpisode(str(error)) from None
+        # After the path check: whether a mesh file exists is told only where it may be read
+        # (a BadEpisodeError is a 422 InvalidEpisode).
+        check_caller_episodes(episodes or [], config.task, "episodes")
         n, s = message.num_envs, self.settings
         if n > s.max_envs_per_session:
             raise errors.TooManyEnvs(
@@ -214,6 +211,9 @@ class SessionRegistry:
         actions = _check_actions(message.actions, session.num_envs)
 
         async def run(session: Session) -> bytes:
+            # Refused here, before any worker: a session's envs span workers stepped in
+            # parallel, so a worker's refusal would come after the others had stepped. ``done``
+            # is what the envs themselves reported (``episode_over``) in the last replies.
             if not session.auto_reset:
                 over = [i for i, done in enumerate(session.done) if done]
                 if not session.started or over:
@@ -402,7 +402,9 @@ class SessionRegistry:
             if "traceback" in header:
                 raise _simulator_bug(header["traceback"], sh.worker)
             if not header["ok"]:
-                raise errors.error_from_code(header["code"], header["message"])
+                raise errors.error_from_code(
+                    header["code"], header["message"], header.get("status")
+                )
         return results  # type: ignore[return-value]
 
     async def _release(self, shards: list[Shard]) -> None:

@@ -16,17 +16,9 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.common.processes import give_back_memory, ignore_stop_signals, limit_address_space
-from multion.config.codec import ConfigError, session_config_from_dict
+from multion.config.codec import session_config_from_dict
 from multion.sim.camera import resolve_renderer, why_not_gl
 from multion.task.env import MultiONEnv
-from multion.task.errors import (
-    BadEpisodeError,
-    BadResetOptionError,
-    DatasetError,
-    EpisodeNotFoundError,
-    EpisodeOverError,
-    IllegalActionError,
-)
 from multion_client import errors
 from multion_client.protocol import encode, encode_items, space_to_wire
 
@@ -95,9 +87,10 @@ def env_metadata() -> dict[str, Any]:
 def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) -> Reply:
     """Run one command; every failure becomes an error header with a code and a message.
 
-    The env's :mod:`~multion.task.errors` (bad input) are mapped to 4xx codes by name in the
-    commands below; anything else is a bug: its header carries a generic message for the client
-    and, under ``traceback``, the traceback that the server logs (``sessions.py``)."""
+    Bad input raises a wire error (the env's :mod:`~multion.task.errors` and the configs' errors
+    derive from them): its own code, status and message are answered. Anything else is a bug:
+    its header carries a generic message for the client and, under ``traceback``, the traceback
+    that the server logs (``sessions.py``)."""
     try:
         if command == "create":
             return _create(shards, shard_id, payload)
@@ -116,7 +109,12 @@ def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) 
             return {"ok": True}, []
         raise errors.BadRequest(f"unknown worker command {command!r}")
     except errors.MultiONError as error:
-        return {"ok": False, "code": error.code, "message": error.message}, []
+        return {
+            "ok": False,
+            "code": error.code,
+            "status": error.status,
+            "message": error.message,
+        }, []
     except MemoryError:
         raise
     except Exception:  # noqa: BLE001 - a worker must answer, whatever happened
@@ -125,13 +123,9 @@ def handle(shards: dict[str, Shard], command: str, shard_id: str, payload: Any) 
 
 
 def _create(shards: dict[str, Shard], shard_id: str, payload: dict[str, Any]) -> Reply:
-    try:
-        config, episodes = session_config_from_dict(payload["config"])
-        envs = [MultiONEnv(config, episodes) for _ in range(payload["num_envs"])]
-    except BadEpisodeError as error:  # the server checked them: only direct callers
-        raise errors.InvalidEpisode(str(error)) from None
-    except (ConfigError, DatasetError, ValueError, TypeError) as error:
-        raise errors.InvalidConfig(str(error)) from None
+    # The server checked the config and episodes: their errors reach only direct callers.
+    config, episodes = session_config_from_dict(payload["config"])
+    envs = [MultiONEnv(config, episodes) for _ in range(payload["num_envs"])]
     shards[shard_id] = Shard(envs, payload["auto_reset"])
     spaces = {
         "observation_space": space_to_wire(envs[0].observation_space),
@@ -147,27 +141,29 @@ def _reset(shard: Shard, seeds: list[int | None], options: list[dict[str, Any] |
     for index, (env, seed, option) in enumerate(zip(shard.envs, seeds, options, strict=True)):
         try:
             results.append(env.reset(seed=seed, options=option))
-        except (EpisodeNotFoundError, BadEpisodeError, DatasetError) as error:
-            raise errors.InvalidEpisode(f"reset of environment {index} failed: {error}") from None
-        except BadResetOptionError as error:  # the server checked them: only direct callers
-            raise errors.BadRequest(f"environment {index}: {error}") from None
+        except errors.MultiONError as error:
+            message = f"reset of environment {index} failed: {error.message}"
+            raise _reworded(error, message) from None
     shard.observations = [obs for obs, _ in results]
     shard.infos = [info for _, info in results]
     return _observations(shard)
 
 
 def _step(shard: Shard, actions: list[Any]) -> Reply:
-    over = [i for i, env in enumerate(shard.envs) if env.episode_over]
-    if over and not shard.auto_reset:
-        raise errors.EpisodeOver(f"the episode of environment(s) {over} is over; call reset")
+    # The env decides whether it may step; all are asked before any steps, so a refused step
+    # changes none of them. (The server refuses it before it gets here: a session's envs span
+    # several workers. Only direct callers of a worker see this.)
+    for index, env in enumerate(shard.envs):
+        try:
+            env.check_can_step()
+        except errors.MultiONError as error:
+            raise _reworded(error, f"environment {index}: {error.message}") from None
     rewards, terminated, truncated = [], [], []
     for index, (env, action) in enumerate(zip(shard.envs, actions, strict=True)):
         try:
             obs, reward, term, trunc, info = env.step(action)
-        except EpisodeOverError as error:
-            raise errors.EpisodeOver(f"environment {index}: {error}") from None
-        except IllegalActionError as error:
-            raise errors.InvalidAction(f"environment {index}: {error}") from None
+        except errors.MultiONError as error:
+            raise _reworded(error, f"environment {index}: {error.message}") from None
         if shard.auto_reset and (term or trunc):
             # Gymnasium SAME_STEP autoreset: the next episode's first observation, with the
             # ended episode's last observation and info under final_obs / final_info.
@@ -187,6 +183,11 @@ def _step(shard: Shard, actions: list[Any]) -> Reply:
     ]
     done = [env.episode_over for env in shard.envs]
     return {"ok": True, "done": done}, parts
+
+
+def _reworded(error: errors.MultiONError, message: str) -> errors.MultiONError:
+    """``error``'s code and status with another message (one naming the shard's environment)."""
+    return errors.MultiONError(message, code=error.code, status=error.status)
 
 
 def _observations(shard: Shard) -> Reply:

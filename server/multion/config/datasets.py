@@ -30,12 +30,15 @@ from typing import Any
 import numpy as np
 
 from multion.config.episode import Episode
+from multion.config.errors import UsageError
 from multion.config.scenes import GENERATOR_VERSION
 from multion_client.constants import NUM_CATEGORIES
+from multion_client.errors import InvalidConfig
 
 
-class DatasetError(ValueError):
-    """A dataset file that cannot be used; the message names the file and the problem."""
+class DatasetError(UsageError, InvalidConfig, ValueError):
+    """A dataset file that cannot be used; the message names the file and the problem (422
+    ``invalid_config``: the config's ``dataset``)."""
 
 
 FORMAT = "multion-episodes"

@@ -20,9 +20,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from multion.config.errors import UsageError
+from multion_client.errors import InvalidConfig
 
-class ConfigError(ValueError):
-    """A config value that cannot be used; the message names the field and what is allowed."""
+
+class ConfigError(UsageError, InvalidConfig, ValueError):
+    """A config value that cannot be used; the message names the field and what is allowed
+    (422 ``invalid_config``; still a ``ValueError`` for the callers that caught that)."""
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from multion.config.codec import ConfigError, env_config_from_dict
+from multion.config.errors import UsageError
 from multion.config.task import SENSORS
 from multion.scenes.registry import HOUSE_CONFIG, MAX_SIZED_ROOMS
 
@@ -63,7 +64,7 @@ MIN_SECRET_CHARS = 16
 _NAME = re.compile(r"[a-z0-9][a-z0-9._-]{0,39}")
 
 
-class ChallengeError(ValueError):
+class ChallengeError(UsageError, ValueError):
     """A challenge file that cannot be used; the message names the field and the problem."""
 
 

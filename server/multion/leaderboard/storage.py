@@ -22,6 +22,7 @@ from sqlalchemy import Engine, create_engine, event, func, make_url, select
 from sqlalchemy.exc import ArgumentError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
+from multion.config.errors import UsageError
 from multion.leaderboard.models import Run, SecretFingerprint, Team, Token, utcnow
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
@@ -33,7 +34,7 @@ TEAM_RULE = (
 )
 
 
-class StorageError(ValueError):
+class StorageError(UsageError, ValueError):
     """A database that cannot be opened, or an admin operation that cannot be done."""
 
 

@@ -18,11 +18,13 @@ import dataclasses
 import functools
 import re
 
+from multion.config.errors import UsageError
 from multion.config.scenes import GENERATOR_VERSION as GENERATOR_VERSION  # re-exported
 from multion.config.scenes import SPLIT_SIZES, HouseConfig
 from multion.scenes.house import generate_house
 from multion.scenes.layout import SceneLayout
 from multion.scenes.room import make_room
+from multion_client.errors import InvalidConfig
 
 MAX_ROOM_SIDE_M = 50.0
 """A ``room-WxD`` side is at most this (the grid, and so memory, grows with the room's area)."""
@@ -47,7 +49,7 @@ _ACCEPTED_ALL = (
 )
 
 
-class SceneIdError(ValueError):
+class SceneIdError(UsageError, InvalidConfig, ValueError):
     """A scene id of no accepted form, or out of its range; the message says what is allowed."""
 
 

@@ -25,17 +25,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multion.config.errors import UsageError
 from multion.config.sim import RENDERERS, CameraConfig
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion.sim.gl.context import EGL_PACKAGES, gl_unavailable_reason
 from multion.sim.gl.renderer import GLRenderer, shifted_projection
+from multion_client.errors import InvalidConfig
 
 CAMERA_RENDERERS = ("tiny", "gl", "egl")
 """What a camera renders with once ``auto`` is resolved."""
 
 
-class RendererUnavailableError(ValueError):
+class RendererUnavailableError(UsageError, InvalidConfig, ValueError):
     """``camera.renderer`` names ``gl`` or ``egl`` on a machine where it cannot run."""
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from multion.config.errors import UsageError
 from multion.scenes.layout import Box, SceneLayout
 from multion.scenes.textures import SIZE_STEP, texture_file
 from multion.sim.bullet import c_output_silenced
@@ -25,6 +26,7 @@ from multion.sim.goal_objects import MODELS, body_bounds, scaled_urdf
 from multion.sim.goal_shapes import goal_mesh_file
 from multion.sim.merged_visual import merged_visual
 from multion_client.constants import OBJECT_CATEGORIES
+from multion_client.errors import InvalidConfig
 
 # pybullet refuses ray batches above this size
 RAY_BATCH_LIMIT = 16_384
@@ -33,7 +35,7 @@ HIDDEN_POSITION = (0.0, 0.0, -100.0)
 DEFAULT_LIGHTING = (0.6, 0.4)  # (ambient, diffuse): rooms, meshes, houses that say nothing
 
 
-class MeshSceneError(ValueError):
+class MeshSceneError(UsageError, InvalidConfig, ValueError):
     """A mesh scene file that cannot be used (its format, or a file PyBullet or trimesh cannot
     read): the fault of whoever named it, not of the simulator."""
 

@@ -293,9 +293,9 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         return self._observe(), self._info()
 
     def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
-        if self._done or self.state is None:
-            raise EpisodeOverError("the episode is over; call reset() before step()")
+        self.check_can_step()
         action = _check_action(action)
+        assert self.state is not None  # check_can_step saw it
         state, task = self.state, self.config.task
         state.step += 1
         state.found_correct = state.found_wrong = False
@@ -350,6 +350,12 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
     @property
     def episode_over(self) -> bool:
         return self._done
+
+    def check_can_step(self) -> None:
+        """Raise :class:`EpisodeOverError` unless an episode is under way: the one place that
+        decides it (``step`` asks, and so does the server's worker before stepping any env)."""
+        if self._done or self.state is None:
+            raise EpisodeOverError("the episode is over; call reset() before step()")
 
     def metrics(self) -> dict[str, Any]:
         return self.measures.values()

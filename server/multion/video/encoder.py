@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from multion.config.errors import UsageError
+
 FPS = 10
 """Frames per second: one step every 0.1 s (the environment's ``render_fps``)."""
 MAX_BITRATE = 500_000
@@ -24,7 +26,7 @@ CONTAINER_BYTES = 64_000
 SETUP_VIDEO = "install the video extra: pip install -e '.[video]' (PyAV)"
 
 
-class EncoderUnavailable(RuntimeError):
+class EncoderUnavailable(UsageError, RuntimeError):
     """PyAV (or its H.264 encoder) is not installed; the message says how to install it."""
 
 
