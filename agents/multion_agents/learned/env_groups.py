@@ -2,7 +2,8 @@
 
 The policy acts for one group while the other group's simulator processes step: on a machine
 whose cores the simulators share with the learner, acting otherwise leaves a core idle every
-step. Local environments form two groups of worker processes; environments on MultiON servers
+step. Local environments form two groups of worker processes (each process running one
+environment or several, ``envs_per_process``); environments on MultiON servers
 form one (their requests are already spread over servers).
 
 The groups are seeded as one vector env of all the environments would be (environment ``i``
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, VectorEnv
 
+from multion_agents.learned.env_workers import SharedProcessVectorEnv
 from multion_agents.learned.rollout_envs import make_vector_env
 
 StepResult = tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
@@ -55,7 +57,7 @@ class EnvGroups:
     def start_step(self, index: int, actions: np.ndarray) -> None:
         """Send group ``index`` its actions (local workers start stepping at once)."""
         group = self.groups[index]
-        if isinstance(group, AsyncVectorEnv):
+        if isinstance(group, AsyncVectorEnv | SharedProcessVectorEnv):
             group.step_async(actions)
         else:
             self._pending[index] = group.step(actions)
@@ -63,7 +65,7 @@ class EnvGroups:
     def finish_step(self, index: int) -> StepResult:
         """Wait for group ``index``'s step: observations, rewards, terminated, truncated, infos."""
         group = self.groups[index]
-        if isinstance(group, AsyncVectorEnv):
+        if isinstance(group, AsyncVectorEnv | SharedProcessVectorEnv):
             return group.step_wait()
         return self._pending.pop(index)
 
@@ -73,11 +75,17 @@ class EnvGroups:
 
 
 def make_env_groups(
-    config: dict[str, Any], num_envs: int, servers: Sequence[str] = (), expert: bool = False
+    config: dict[str, Any],
+    num_envs: int,
+    servers: Sequence[str] = (),
+    expert: bool = False,
+    envs_per_process: int = 1,
 ) -> EnvGroups:
     """Two groups of local worker processes (one when there is a single environment), or one
-    group on ``servers``."""
+    group on ``servers``; ``envs_per_process`` local environments share each process."""
     if servers or num_envs < 2:
-        return EnvGroups([make_vector_env(config, num_envs, servers, expert)])
+        return EnvGroups([make_vector_env(config, num_envs, servers, expert, envs_per_process)])
     half = num_envs // 2
-    return EnvGroups([make_vector_env(config, n, (), expert) for n in (half, num_envs - half)])
+    return EnvGroups(
+        [make_vector_env(config, n, (), expert, envs_per_process) for n in (half, num_envs - half)]
+    )

@@ -254,7 +254,7 @@ def train(args: Args) -> dict[str, Any]:
     servers = tuple(args.servers[rank::world]) or tuple(args.servers)
     stage = stage_config(env_config, args.curriculum, frames)
     imitate = args.imitation_coef > 0
-    envs = make_env_groups(stage, args.envs, servers, expert=imitate)
+    envs = make_env_groups(stage, args.envs, servers, imitate, args.envs_per_process)
     log = TrainingLog(out, tensorboard=args.tensorboard) if rank == 0 else None
     if log is not None and args.resume:
         log.rewind(update)
@@ -276,7 +276,7 @@ def train(args: Args) -> dict[str, Any]:
                 # the curriculum's next stage: new environments, fresh episodes and memories
                 envs.close()
                 stage = wanted
-                envs = make_env_groups(stage, args.envs, servers, expert=imitate)
+                envs = make_env_groups(stage, args.envs, servers, imitate, args.envs_per_process)
                 live = start_episodes(envs, policy, _reset_seed(args, update, rank))
             tick = time.perf_counter()
             rollout, next_value, timing = collect(envs, policy, live, args.rollout_steps, window)

@@ -19,6 +19,7 @@ from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
 from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
+from multion_agents.learned.env_workers import SharedProcessVectorEnv
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
 from multion_agents.learned.train_options import Curriculum
 from multion_client.vector import RemoteVectorEnv
@@ -84,11 +85,19 @@ def _make_local_env(config: dict[str, Any], expert: bool = False) -> gym.Env:
 
 
 def make_vector_env(
-    config: dict[str, Any], num_envs: int, servers: Sequence[str] = (), expert: bool = False
+    config: dict[str, Any],
+    num_envs: int,
+    servers: Sequence[str] = (),
+    expert: bool = False,
+    envs_per_process: int = 1,
 ) -> VectorEnv:
-    """``num_envs`` environments: on ``servers`` (spread evenly) or in local worker processes.
+    """``num_envs`` environments: on ``servers`` (spread evenly) or in local worker processes,
+    ``envs_per_process`` in each (1: gymnasium's ``AsyncVectorEnv``, one process each; more:
+    :class:`.env_workers.SharedProcessVectorEnv`, whose envs share a process's goal-site cache).
     ``expert``: local environments whose infos carry the oracle planner's action
     (:mod:`.expert`)."""
+    if envs_per_process < 1:
+        raise ValueError(f"--envs-per-process {envs_per_process}: at least 1")
     if servers:
         if expert:
             raise ValueError(
@@ -102,8 +111,11 @@ def make_vector_env(
         if min(counts) < 1:
             raise ValueError(f"{num_envs} envs cannot be spread over {len(servers)} servers")
         return RemoteVectorEnv(list(servers), counts, config)
+    factories = [functools.partial(_make_local_env, config, expert) for _ in range(num_envs)]
+    if envs_per_process > 1:
+        return SharedProcessVectorEnv(factories, envs_per_process)
     return AsyncVectorEnv(
-        [functools.partial(_make_local_env, config, expert) for _ in range(num_envs)],
+        factories,
         context="spawn",
         autoreset_mode=AutoresetMode.SAME_STEP,
     )

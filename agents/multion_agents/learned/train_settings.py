@@ -43,6 +43,15 @@ class Args:
     envs: int = setting(
         16, low=1, cli=Option("environments per rank (default %(default)s, the paper's)")
     )
+    envs_per_process: int = setting(
+        1,
+        low=1,
+        high=64,
+        cli=Option(
+            "local environments per simulator process, stepped in turn (1-64; default 1: one "
+            "process each); more share a process's goal-site cache and scenes, using less memory"
+        ),
+    )
     servers: tuple[str, ...] = setting(
         (),
         cli=Option(
