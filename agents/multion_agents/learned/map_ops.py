@@ -269,5 +269,6 @@ def register(
     flat = global_map.flatten(2)
     old = flat.gather(2, cells)
     local = local.unsqueeze(1).expand(batch, channels, local.shape[1])
-    merged = old.scatter_reduce(2, local, source, "amax", include_self=True)
+    # the map keeps its dtype when the projection ran under autocast (--mixed-precision)
+    merged = old.scatter_reduce(2, local, source.to(old.dtype), "amax", include_self=True)
     return flat.scatter(2, cells, merged).view(batch, channels, size, size)

@@ -266,8 +266,12 @@ class RecurrentPolicy(nn.Module):
         weight_ih, bias_ih = cast(Tensor, gru.weight_ih_l0), cast(Tensor, gru.bias_ih_l0)
         weight_hh, bias_hh = cast(Tensor, gru.weight_hh_l0), cast(Tensor, gru.bias_hh_l0)
         gates_x = nn.functional.linear(inputs, weight_ih, bias_ih)
+        # the recurrence in float32 even under autocast (--mixed-precision): its hand-written
+        # backward multiplies with the float32 weight, and bf16 would drift over 128 steps
+        gates_x, hidden = gates_x.float(), hidden.float()
         keep = 1.0 - episode_start.to(gates_x.dtype)
-        outputs = MaskedGRU.apply(gates_x, hidden, keep, weight_hh, bias_hh)
+        with torch.autocast(gates_x.device.type, enabled=False):
+            outputs = MaskedGRU.apply(gates_x, hidden, keep, weight_hh, bias_hh)
         return outputs, outputs[-1]
 
     # cleanrl-style entry points ---------------------------------------------------------

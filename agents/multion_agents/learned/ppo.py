@@ -42,6 +42,7 @@ from multion_agents.learned.distributed import (
     weights_digest,
 )
 from multion_agents.learned.env_groups import make_env_groups
+from multion_agents.learned.precision import update_precision
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
 from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
@@ -103,6 +104,7 @@ def ppo_update(
     if args.normalize_advantages:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
     device = policy.device
+    precision = update_precision(args.mixed_precision, device, optimizer)
     totals: dict[str, float] = {}
     updates = 0
     policy.train()
@@ -129,12 +131,14 @@ def ppo_update(
                 if rollout.expert_actions.numel()
                 else rollout.expert_actions,
             )
-            loss, losses = ppo_loss(policy, minibatch, clip, args)
+            with precision.autocast():
+                loss, losses = ppo_loss(policy, minibatch, clip, args)
             optimizer.zero_grad(set_to_none=False)
-            loss.backward()
+            precision.backward(loss)
             average_gradients(policy)
+            precision.unscale(optimizer)
             grad_norm = nn.utils.clip_grad_norm_(policy.parameters(), args.max_grad_norm)
-            optimizer.step()
+            precision.step(optimizer)
             stats = {k: v.item() if v is not None else math.nan for k, v in losses.items()}
             stats["grad_norm"] = float(grad_norm)
             for key, value_ in stats.items():

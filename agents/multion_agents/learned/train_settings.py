@@ -11,6 +11,7 @@ from multion_agents.agent import ConfigOverrides
 from multion_agents.cli_fields import Option, check_settings, setting
 from multion_agents.config_overrides import parse_env_overrides
 from multion_agents.learned.policy import HIDDEN_SIZE, MAX_HIDDEN_SIZE
+from multion_agents.learned.precision import PRECISIONS
 from multion_agents.learned.train_options import Curriculum, MapPretraining, parse_curriculum
 
 PPO = "PPO schedule (defaults follow the reference code, ppo_multinav.yaml)"
@@ -158,6 +159,14 @@ class Args:
         ),
     )
     device: str = setting("auto", cli=Option("cpu, cuda, cuda:N or auto (cuda when available)"))
+    mixed_precision: str = setting(
+        "off",
+        choices=PRECISIONS,
+        cli=Option(
+            "PPO update in mixed precision: off (default, float32), bf16 (autocast) or fp16 "
+            "(autocast and loss scaling, CUDA only); for GPUs, slower on a CPU"
+        ),
+    )
     lr_decay: bool = setting(
         True,
         cli=Option("decay the learning rate linearly to 0 over the run", toggle=True, group=PPO),
