@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from multion.config.datasets import DatasetError, task_name
-    from multion_agents.agent import AgentError
+    from multion.config.errors import UsageError
     from multion_agents.cli_fields import from_options
     from multion_agents.eval_settings import EvalSettings
     from multion_agents.files import output_directory_problem
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
         if args.checkpoint is None:
             agent_class(args.agent)
         settings = from_options(EvalSettings, args)
-    except (ValueError, AgentError) as error:
+    except UsageError as error:
         if args.checkpoint is None and _is_learned(args.agent):
             return _fail(f"{args.agent!r} is a learned agent: give its --checkpoint")
         return _fail(str(error))
@@ -72,12 +72,10 @@ def run(args: argparse.Namespace) -> int:
             "--dataset FILE"
         )  # fmt: skip
         return _fail(f"no episodes to evaluate: {error}{hint}")
-    except MultiONError as error:
+    except UsageError as error:  # a bad checkpoint, a local server that did not start, ...
+        return _fail(str(error))
+    except MultiONError as error:  # after UsageError: the local config errors are wire errors too
         return _fail(f"the server refused the evaluation: {error}")
-    except (AgentError, ValueError) as error:  # a bad checkpoint (CheckpointError is a ValueError)
-        return _fail(str(error))
-    except RuntimeError as error:  # a local server that did not start, a dataset mismatch
-        return _fail(str(error))
     print(format_table(summarize(result.records), title_of(result)))
     if args.out is not None:
         written = write_report(result, args.out, pictures=args.pictures)

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from multion.config.errors import UsageError
 from multion_agents.agent import Agent, AgentError
 from multion_agents.evaluate import EvalSettings, episode_seed, resolve_agent, resolve_config
 from multion_client.client import Client
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     )
     try:
         cls = resolve_agent(settings)
-    except (AgentError, ValueError) as error:
+    except UsageError as error:
         return _fail(str(error))
     if args.resume is None and not (args.track and args.phase):
         return _fail("a new run needs --track and --phase (or --resume RUN_ID)")
@@ -71,10 +72,10 @@ def run(args: argparse.Namespace) -> int:
         status = submit(args, cls)
     except ServerUnavailable as error:
         return _fail(f"cannot reach {args.server}: {error} (resume with --resume)")
+    except UsageError as error:  # before MultiONError: the local config errors are wire errors too
+        return _fail(str(error))
     except MultiONError as error:
         return _fail(f"the server refused: {error}")
-    except ValueError as error:
-        return _fail(str(error))
     print(describe_run(status))
     return 0
 
@@ -192,7 +193,7 @@ def _track(challenge: dict[str, Any], name: str) -> dict[str, Any]:
         if track["name"] == name:
             found: dict[str, Any] = track
             return found
-    raise ValueError(
+    raise AgentError(
         f"the server has no track {name!r}; tracks: {[t['name'] for t in challenge['tracks']]}"
     )
 
@@ -200,13 +201,13 @@ def _track(challenge: dict[str, Any], name: str) -> dict[str, Any]:
 def _check_overrides(cls: type[Agent], track: dict[str, Any]) -> None:
     missing = [s for s in cls.sensors if s not in track["sensors"]]
     if missing:
-        raise ValueError(
+        raise AgentError(
             f"agent {cls.__name__} needs sensor(s) {missing}, which track {track['name']!r} does "
             f"not allow (it allows {track['sensors']})"
         )
     other = set(cls.config_overrides or {}) - {"maps", "camera"}
     if other:
-        raise ValueError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
+        raise AgentError(f"agent {cls.__name__} changes {sorted(other)}, which a track fixes")
 
 
 TRACK_RULES = ("max_steps", "num_distractors", "success_distance", "found_budget", "goal_set")

@@ -27,9 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from multion.config.errors import UsageError
     from multion_agents.cli_fields import from_options
     from multion_agents.files import output_directory_problem
-    from multion_agents.learned.checkpoint import CheckpointError
     from multion_agents.learned.models import MODELS
     from multion_agents.learned.ppo import train
     from multion_agents.learned.train_settings import Args
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     try:
         settings = from_options(Args, args, extra={"argv": sys.argv})
-    except ValueError as error:
+    except UsageError as error:
         return _fail(str(error))
     if settings.agent not in MODELS:
         return _fail(f"unknown learned agent {settings.agent!r}; known: {', '.join(MODELS)}")
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"--out {settings.out}: {problem}")
     try:
         summary = train(settings)
-    except (CheckpointError, ValueError) as error:
+    except UsageError as error:  # a bad checkpoint, resume or option; anything else is a bug
         return _fail(str(error))
     if "fps" in summary:
         print(

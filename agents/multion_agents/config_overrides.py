@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+from multion.config.ranges import ConfigError
 from multion_agents.agent import ConfigOverrides
 
 
@@ -14,7 +15,7 @@ def parse_env_overrides(items: list[str]) -> ConfigOverrides:
         key, sep, raw = item.partition("=")
         section, dot, name = key.partition(".")
         if not (sep and dot and section and name):
-            raise ValueError(
+            raise ConfigError(
                 f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. task.max_steps=500"
             )
         try:

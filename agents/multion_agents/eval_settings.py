@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from multion.config.datasets import parse_task
+from multion.config.ranges import ConfigError
 from multion_agents.agent import ConfigOverrides
 from multion_agents.cli_fields import Option, check_settings, setting
 from multion_agents.config_overrides import parse_env_overrides
@@ -94,6 +95,6 @@ class EvalSettings:
     def __post_init__(self) -> None:
         check_settings(self)
         if self.split not in SPLITS and self.dataset is None:
-            raise ValueError(f"unknown split {self.split!r}; splits are {', '.join(SPLITS)}")
+            raise ConfigError(f"unknown split {self.split!r}; splits are {', '.join(SPLITS)}")
         if self.in_process and self.server is not None:
-            raise ValueError("--in-process and --server exclude each other")
+            raise ConfigError("--in-process and --server exclude each other")

@@ -32,6 +32,8 @@ from tqdm import tqdm
 from multion.config.codec import env_config_from_dict, env_config_to_dict, session_config_from_dict
 from multion.config.datasets import load_dataset, packaged_dataset_path, read_header, task_name
 from multion.config.episode import Episode
+from multion.config.errors import UsageError
+from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion.scenes.viz import gps_to_world
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
@@ -44,6 +46,11 @@ EnvFactory = Callable[[dict[str, Any]], gym.Env]
 """Builds one environment from a config dict (EnvConfig as nested dicts)."""
 
 RECORDED_SENSOR = "gps"
+
+
+class EpisodeMismatchError(UsageError, RuntimeError):
+    """The server played another episode than the one asked for: client and server datasets
+    differ."""
 
 
 @dataclass
@@ -100,7 +107,7 @@ def select_episodes(settings: EvalSettings) -> list[Episode]:
     every = load_dataset(dataset_file(settings), settings.num_goals)
     count = len(every) if settings.episodes is None else min(settings.episodes, len(every))
     if count <= 0:
-        raise ValueError(f"--episodes must be positive, got {settings.episodes}")
+        raise ConfigError(f"--episodes must be positive, got {settings.episodes}")
     return [every[i * len(every) // count] for i in range(count)]
 
 
@@ -141,10 +148,10 @@ def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
 def check_overrides(overrides: ConfigOverrides) -> None:
     """Refuse ``--set`` fields that other options own (the task's m is ``--task``)."""
     if "num_goals" in overrides.get("task", {}):
-        raise ValueError("--set task.num_goals: give the number of goals with --task instead")
+        raise ConfigError("--set task.num_goals: give the number of goals with --task instead")
     for section, values in overrides.items():
         if not isinstance(values, dict):
-            raise ValueError(f"--set {section}: expected SECTION.FIELD=VALUE")
+            raise ConfigError(f"--set {section}: expected SECTION.FIELD=VALUE")
 
 
 def resolve_config(config: dict[str, Any]) -> dict[str, Any]:
@@ -218,7 +225,7 @@ def run_episode(
     started = time.perf_counter()
     observation, info = env.reset(options=options or {"episode_id": episode.episode_id})
     if info.get("episode_id") != episode.episode_id:
-        raise RuntimeError(
+        raise EpisodeMismatchError(
             f"the server played episode {info.get('episode_id')!r} instead of "
             f"{episode.episode_id!r}: do client and server have the same dataset?"
         )

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from multion.config.ranges import ConfigError
 from multion.leaderboard.run_store import BASELINE_TEAM
 from multion.leaderboard.storage import (
     Database,
@@ -71,14 +72,14 @@ def play_baselines(
     hosted = server_tracks(server)
     unknown = sorted(set(tracks or ()) - {t["name"] for t in hosted})
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"--track {', '.join(unknown)}: the server has {[t['name'] for t in hosted]}"
         )
     selected = [t for t in hosted if not tracks or t["name"] in tracks]
     known_phases = sorted({p["name"] for t in selected for p in t["phases"]})
     missing = sorted(set(phases or ()) - set(known_phases))
     if missing:
-        raise ValueError(f"--phase {', '.join(missing)}: the server's phases are {known_phases}")
+        raise ConfigError(f"--phase {', '.join(missing)}: the server's phases are {known_phases}")
     token = baseline_token(db)
     run_ids = []
     try:

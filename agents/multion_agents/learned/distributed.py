@@ -10,6 +10,8 @@ import torch
 import torch.distributed as dist
 from torch import nn
 
+from multion.config.ranges import ConfigError
+
 
 def init_distributed(device: torch.device) -> tuple[int, int]:
     """(rank, world size): from torchrun's environment, or (0, 1) for a single process."""
@@ -80,10 +82,10 @@ def select_device(name: str) -> torch.device:
     try:
         device = torch.device(name)
     except RuntimeError:
-        raise ValueError(f"--device {name!r}: expected cpu, cuda, cuda:N or auto") from None
+        raise ConfigError(f"--device {name!r}: expected cpu, cuda, cuda:N or auto") from None
     if device.type == "cuda":
         if not torch.cuda.is_available():
-            raise ValueError(
+            raise ConfigError(
                 f"--device {name}: torch sees no CUDA GPU (a CPU build of torch, or no driver)"
             )
         if device.index is None:

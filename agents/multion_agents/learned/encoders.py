@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor, nn
 
+from multion.config.ranges import ConfigError
 from multion_client.constants import NUM_CATEGORIES
 
 EMBED_DIM = 16
@@ -48,7 +49,7 @@ class ImageEncoder(nn.Module):
         for kernel, stride in ((8, 4), (4, 2), (3, 1)):
             side = conv_output_size(side, kernel, stride)
         if side < 1:
-            raise ValueError(f"images of {image_size} px are too small for the CNN (min 36)")
+            raise ConfigError(f"images of {image_size} px are too small for the CNN (min 36)")
         self.feature_channels, self.feature_side = 32, side
         self.embed = nn.Sequential(nn.Flatten(), nn.Linear(32 * side * side, out_dim), nn.ReLU())
         self.out_dim = out_dim

@@ -14,6 +14,7 @@ from typing import Any
 
 from gymnasium import spaces
 
+from multion_agents.agent import AgentError
 from multion_agents.learned.episodic import build_frmqn, build_smt
 from multion_agents.learned.learned_maps import build_ego_map, build_proj_neural_map, obj_recog_map
 from multion_agents.learned.map_ops import MapGeometry, default_geometry
@@ -155,7 +156,7 @@ MODELS: dict[str, ModelSpec] = {spec.name: spec for spec in _SPECS}
 
 
 def model_spec(name: str) -> ModelSpec:
-    """The spec registered as ``name``, or a ValueError listing the known names."""
+    """The spec registered as ``name``, or an AgentError listing the known names."""
     if name not in MODELS:
-        raise ValueError(f"unknown learned agent {name!r}; known: {', '.join(MODELS)}")
+        raise AgentError(f"unknown learned agent {name!r}; known: {', '.join(MODELS)}")
     return MODELS[name]

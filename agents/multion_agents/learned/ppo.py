@@ -23,6 +23,7 @@ import torch
 from torch import Tensor, nn
 from tqdm import tqdm
 
+from multion.config.ranges import ConfigError
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.checkpoint import (
     CheckpointError,
@@ -42,10 +43,10 @@ from multion_agents.learned.distributed import (
     weights_digest,
 )
 from multion_agents.learned.env_groups import make_env_groups
-from multion_agents.learned.precision import update_precision
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.periodic_eval import evaluate_policy
 from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
+from multion_agents.learned.precision import update_precision
 from multion_agents.learned.pretrain import check_map_pretraining, pretrain_map
 from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import (
@@ -66,7 +67,7 @@ def set_found_prior(policy: RecurrentPolicy, probability: float) -> None:
     """Set the actor's biases so that the untrained policy (near-zero actor weights) calls FOUND
     with ``probability`` and spreads the rest evenly over the other actions."""
     if not 0.0 < probability < 1.0:
-        raise ValueError(f"found_prior must be in (0, 1), got {probability}")
+        raise ConfigError(f"found_prior must be in (0, 1), got {probability}")
     others = policy.actor.bias.numel() - 1
     with torch.no_grad():
         policy.actor.bias.fill_(math.log((1.0 - probability) / others))

@@ -29,6 +29,7 @@ from tqdm import tqdm
 
 from multion.config.codec import env_config_from_dict
 from multion.config.datasets import packaged_dataset_path
+from multion.config.ranges import ConfigError
 from multion.sim.geodesic import distance_field
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
@@ -165,7 +166,7 @@ def blank_frames(policy: RecurrentPolicy, env_config: dict[str, Any]) -> Batch:
     """One all-zero frame (1, 1, ...) of each observation ``policy`` reads in ``env_config``."""
     space = build_observation_space(env_config_from_dict(env_config))
     if MAP_SENSOR not in policy.sensors:
-        raise ValueError(
+        raise ConfigError(
             f"--pretrain-map trains on the {MAP_SENSOR!r} observation; this agent reads "
             f"{', '.join(policy.sensors)}"
         )
@@ -192,7 +193,7 @@ def check_map_pretraining(settings: MapPretraining, agent: str, sensors: tuple[s
     """A ValueError naming ``--pretrain-map`` when ``settings`` asks to pretrain ``agent``
     (reading ``sensors``), which has no oracle map."""
     if settings.steps > 0 and MAP_SENSOR not in sensors:
-        raise ValueError(
+        raise ConfigError(
             f"--pretrain-map trains on the {MAP_SENSOR!r} observation, which {agent} does not "
             f"read (it reads {', '.join(sensors)})"
         )

@@ -17,6 +17,7 @@ import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
 
 from multion.config.codec import env_config_from_dict
+from multion.config.ranges import ConfigError
 from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
@@ -58,10 +59,12 @@ def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None
     if not curriculum:
         return
     if env_config.get("dataset") is not None:
-        raise ValueError("--curriculum samples episodes online; it cannot be used with --dataset")
+        raise ConfigError("--curriculum samples episodes online; it cannot be used with --dataset")
     ends = [until for until, _ in curriculum]
     if ends[0] <= 0 or any(b <= a for a, b in zip(ends, ends[1:], strict=False)):
-        raise ValueError(f"--curriculum stages must end at increasing frame counts > 0, got {ends}")
+        raise ConfigError(
+            f"--curriculum stages must end at increasing frame counts > 0, got {ends}"
+        )
     for until, _ in curriculum:
         env_config_from_dict(stage_config(env_config, curriculum, until - 1))
 
@@ -97,10 +100,10 @@ def make_vector_env(
     ``expert``: local environments whose infos carry the oracle planner's action
     (:mod:`.expert`)."""
     if envs_per_process < 1:
-        raise ValueError(f"--envs-per-process {envs_per_process}: at least 1")
+        raise ConfigError(f"--envs-per-process {envs_per_process}: at least 1")
     if servers:
         if expert:
-            raise ValueError(
+            raise ConfigError(
                 "--imitation-coef labels steps with a planner beside the simulator: it needs "
                 "local environments, not --server"
             )
@@ -109,7 +112,7 @@ def make_vector_env(
             num_envs // len(servers) + (i < num_envs % len(servers)) for i in range(len(servers))
         ]
         if min(counts) < 1:
-            raise ValueError(f"{num_envs} envs cannot be spread over {len(servers)} servers")
+            raise ConfigError(f"{num_envs} envs cannot be spread over {len(servers)} servers")
         return RemoteVectorEnv(list(servers), counts, config)
     factories = [functools.partial(_make_local_env, config, expert) for _ in range(num_envs)]
     if envs_per_process > 1:

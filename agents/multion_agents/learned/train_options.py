@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from multion.config.ranges import bounded, check_fields, one_of
+from multion.config.ranges import ConfigError, bounded, check_fields, one_of
 
 Curriculum = tuple[tuple[int, float], ...]
 """``((until_frames, max_geodesic), ...)``: until ``until_frames`` frames of the run, online
@@ -27,7 +27,7 @@ def parse_curriculum(texts: Sequence[str]) -> Curriculum:
                 raise ValueError
             stages.append((int(frames), float(metres)))
         except ValueError:
-            raise ValueError(
+            raise ConfigError(
                 f"--curriculum stage {text!r} is not FRAMES:METRES (e.g. 240000:4)"
             ) from None
     return tuple(stages)

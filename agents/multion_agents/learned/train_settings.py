@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from multion.config.datasets import parse_task
+from multion.config.ranges import ConfigError
 from multion_agents.agent import ConfigOverrides
 from multion_agents.cli_fields import Option, check_settings, setting
 from multion_agents.config_overrides import parse_env_overrides
@@ -26,7 +27,7 @@ def _pretraining(steps: int) -> MapPretraining:
     try:
         return MapPretraining(steps=steps)
     except ValueError as error:
-        raise ValueError(f"--pretrain-map: {error}") from None
+        raise ConfigError(f"--pretrain-map: {error}") from None
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ from multion.api.routers import live, meta, sessions
 from multion.api.sessions import SessionRegistry
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
 from multion.api.workers import WorkerPool
+from multion.config.ranges import ConfigError
 from multion_client.errors import (
     BadRequest,
     InternalError,
@@ -68,7 +69,7 @@ def create_app(
     if warning:  # `multion serve` fitted them already; an app built another way says it here
         log.warning(warning)
     if settings.sessions == "token" and not any(e.authenticates_teams for e in extensions):
-        raise ValueError(
+        raise ConfigError(
             "sessions = 'token' needs a challenge (--challenge FILE): team tokens come from "
             "the leaderboard"
         )

@@ -16,6 +16,7 @@ from pydantic_settings import BaseSettings
 
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
+from multion.config.errors import UsageError
 
 DATASET_DIRS = "allowed_dataset_dirs"
 """The one setting whose option is not its name: ``--dataset-dir DIR``, repeatable."""
@@ -122,7 +123,7 @@ def checked_settings(args: argparse.Namespace) -> ServerSettings | None:
         return None
     try:
         settings, warning = fit_outer_memory_limit(settings)
-    except ValueError as error:
+    except UsageError as error:
         print(f"multion serve: {error}", file=sys.stderr)
         return None
     if warning:
@@ -153,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         app = create_app(settings)
-    except ValueError as error:
+    except UsageError as error:
         print(f"multion serve: {error}")
         return 2
     return serve(app, settings, args)

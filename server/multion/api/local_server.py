@@ -13,6 +13,7 @@ from types import TracebackType
 import httpx
 
 from multion.common.processes import die_with_parent
+from multion.config.errors import UsageError
 from multion_client.protocol import HEALTH_PATH
 
 
@@ -21,6 +22,10 @@ def free_port(host: str = "127.0.0.1") -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
         sock.bind((host, 0))
         return int(sock.getsockname()[1])
+
+
+class LocalServerError(UsageError, RuntimeError):
+    """The local server did not start (its output says why: a port in use, a bad option)."""
 
 
 class LocalServer:
@@ -82,7 +87,9 @@ class LocalServer:
         deadline = time.monotonic() + self.start_timeout_s
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
-                raise RuntimeError(f"server exited with {self.process.returncode}: {self.command}")
+                raise LocalServerError(
+                    f"server exited with {self.process.returncode}: {self.command}"
+                )
             try:
                 if httpx.get(self.url + HEALTH_PATH, timeout=1.0).status_code == 200:
                     return self
@@ -90,7 +97,9 @@ class LocalServer:
                 pass
             time.sleep(0.1)
         self.stop()
-        raise RuntimeError(f"server did not answer within {self.start_timeout_s} s: {self.command}")
+        raise LocalServerError(
+            f"server did not answer within {self.start_timeout_s} s: {self.command}"
+        )
 
     def stop(self, timeout_s: float = 15.0) -> None:
         if self.process is None or self.process.poll() is not None:

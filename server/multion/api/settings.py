@@ -11,6 +11,7 @@ from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from multion.common.processes import address_space_limit
+from multion.config.ranges import ConfigError
 
 ID_LENGTH = 32
 """Session and run ids are at most this long (the leaderboard's ``runs.id`` is String(32))."""
@@ -139,13 +140,13 @@ def fit_outer_memory_limit(
     outer_mb = outer_bytes // 2**20
     option = "--worker-memory-mb (MULTION_WORKER_MEMORY_MB)"
     if outer_mb < MIN_WORKER_MEMORY_MB:
-        raise ValueError(
+        raise ConfigError(
             f"this process's address-space limit (ulimit -v / prlimit --as) is {outer_mb} MiB, "
             f"below the {MIN_WORKER_MEMORY_MB} MiB a simulator worker needs ({option} is at "
             f"least {MIN_WORKER_MEMORY_MB}): raise the limit"
         )
     if "worker_memory_mb" in settings.model_fields_set:
-        raise ValueError(
+        raise ConfigError(
             f"{option} is {settings.worker_memory_mb} MiB, above this process's address-space "
             f"limit (ulimit -v / prlimit --as) of {outer_mb} MiB, which the simulator workers "
             f"cannot exceed: give {outer_mb} or less, or raise the limit"

@@ -31,6 +31,7 @@ import numpy as np
 
 from multion.config.episode import Episode
 from multion.config.errors import UsageError
+from multion.config.ranges import ConfigError
 from multion.config.scenes import GENERATOR_VERSION
 from multion_client.constants import NUM_CATEGORIES
 from multion_client.errors import InvalidConfig
@@ -57,7 +58,7 @@ def parse_task(name: str | int) -> int:
         text[: -len("-on")] if text.endswith("-on") else text[:-2] if text.endswith("on") else text
     )
     if not number.isdigit() or not 1 <= int(number) <= NUM_CATEGORIES:
-        raise ValueError(f"unknown task {name!r}: use 1-on … {NUM_CATEGORIES}-on")
+        raise ConfigError(f"unknown task {name!r}: use 1-on … {NUM_CATEGORIES}-on")
     return int(number)
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from multion.config.ranges import ConfigError
+
 SPLIT_SIZES: dict[str, int] = {"train": 61, "val": 11, "test": 18}
 
 SPLITS: tuple[str, ...] = tuple(SPLIT_SIZES)
@@ -47,12 +49,12 @@ class PlanConfig:
 
     def __post_init__(self) -> None:
         if self.door_width[1] > self.min_shared_wall - self.wall_thickness:
-            raise ValueError("door_width must fit in min_shared_wall minus the wall thickness")
+            raise ConfigError("door_width must fit in min_shared_wall minus the wall thickness")
         for name in ("corridor_probability", "extra_door_probability", "opening_probability"):
             if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+                raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         if not 0 <= self.corner_cuts[0] <= self.corner_cuts[1] <= 3:
-            raise ValueError(f"corner_cuts must be a range within 0..3, got {self.corner_cuts}")
+            raise ConfigError(f"corner_cuts must be a range within 0..3, got {self.corner_cuts}")
 
 
 @dataclass(frozen=True)
@@ -89,13 +91,13 @@ class HouseConfig:
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_rooms <= self.max_rooms <= 40:
-            raise ValueError(
+            raise ConfigError(
                 f"need 1 <= min_rooms <= max_rooms <= 40, got {self.min_rooms}, {self.max_rooms}"
             )
         if not 0.0 <= self.furniture_density <= 5.0:
-            raise ValueError(f"furniture_density must be in [0, 5], got {self.furniture_density}")
+            raise ConfigError(f"furniture_density must be in [0, 5], got {self.furniture_density}")
         if not 0 <= self.clutter <= 10:
-            raise ValueError(f"clutter must be in 0..10, got {self.clutter}")
+            raise ConfigError(f"clutter must be in 0..10, got {self.clutter}")
 
     @property
     def wall_thickness(self) -> float:

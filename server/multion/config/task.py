@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from multion.config.ranges import bounded, check_fields, one_of, require
+from multion.config.ranges import ConfigError, bounded, check_fields, one_of, require
 from multion.config.scenes import SPLITS
 from multion.config.sim import AgentConfig, CameraConfig, NavGridConfig
 from multion_client.constants import DEFAULT_GOAL_SET, GOAL_SETS, NUM_CATEGORIES
@@ -56,15 +56,15 @@ class EpisodeConstraints:
 
     def __post_init__(self) -> None:
         if not 0 < self.min_geodesic <= self.max_geodesic:
-            raise ValueError(
+            raise ConfigError(
                 f"need 0 < min_geodesic <= max_geodesic, got {self.min_geodesic}, {self.max_geodesic}"
             )
         if self.min_goal_separation < 0 or self.min_distractor_separation < 0:
-            raise ValueError("goal and distractor separations must be >= 0")
+            raise ConfigError("goal and distractor separations must be >= 0")
         if self.reach <= 0:
-            raise ValueError(f"reach must be > 0, got {self.reach}")
+            raise ConfigError(f"reach must be > 0, got {self.reach}")
         if self.max_tries < 1:
-            raise ValueError(f"max_tries must be >= 1, got {self.max_tries}")
+            raise ConfigError(f"max_tries must be >= 1, got {self.max_tries}")
 
 
 @dataclass(frozen=True)

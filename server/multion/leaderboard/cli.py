@@ -32,7 +32,8 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from multion.leaderboard.challenge import ChallengeError
+from multion.config.errors import UsageError
+from multion.config.ranges import ConfigError
 from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
 from multion.leaderboard.house_stats import house_stats, stats_table, val_stats
@@ -40,7 +41,6 @@ from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.replay import rescore
 from multion.leaderboard.storage import (
     Database,
-    StorageError,
     add_team,
     add_token,
     check_secret,
@@ -136,7 +136,7 @@ def run(args: argparse.Namespace, more_actions: Mapping[str, Action] | None = No
         return 2
     try:
         return int(actions[args.action](args) or 0)
-    except (ChallengeError, StorageError, MultiONError, ValueError) as error:
+    except (UsageError, MultiONError) as error:  # a bad file or option, or a server's refusal
         print(f"multion leaderboard {args.action}: {error}", file=sys.stderr)
         return 2
 
@@ -144,7 +144,7 @@ def run(args: argparse.Namespace, more_actions: Mapping[str, Action] | None = No
 # ---------------------------------------------------------------------- actions
 def _challenge(args: argparse.Namespace) -> Any:
     if args.challenge is None:
-        raise ValueError("give --challenge FILE (or set MULTION_LEADERBOARD_CHALLENGE)")
+        raise ConfigError("give --challenge FILE (or set MULTION_LEADERBOARD_CHALLENGE)")
     return load_challenge(args.challenge)
 
 
@@ -261,7 +261,7 @@ def _team(args: argparse.Namespace) -> int:
         with db.sessions.begin() as session:
             if args.team_action == "add":
                 if not args.name:
-                    raise ValueError("team add needs a NAME")
+                    raise ConfigError("team add needs a NAME")
                 team, token = add_team(session, args.name)
                 print(f"team {team.name!r} added; its token (shown once, keep it secret):")
                 print(token)
@@ -393,9 +393,9 @@ def _check_filters(session: Any, args: argparse.Namespace) -> None:
         if given not in known:
             listed = ", ".join(known[:20]) + (" …" if len(known) > 20 else "") or "none yet"
             where = "teams" if option == "team" else f"{option}s with runs"
-            raise ValueError(f"--{option} {given!r}: no such {option}; {where}: {listed}")
+            raise ConfigError(f"--{option} {given!r}: no such {option}; {where}: {listed}")
     if args.state is not None and args.state not in RUN_STATES:
-        raise ValueError(f"--state {args.state!r}: states are {', '.join(RUN_STATES)}")
+        raise ConfigError(f"--state {args.state!r}: states are {', '.join(RUN_STATES)}")
 
 
 def _export(args: argparse.Namespace) -> int:
@@ -429,7 +429,7 @@ def _export(args: argparse.Namespace) -> int:
                 writer.writerows(rows)
                 text = buffer.getvalue()
             else:
-                raise ValueError(f"--out must end in .csv or .json, got {args.out}")
+                raise ConfigError(f"--out must end in .csv or .json, got {args.out}")
     finally:
         db.close()
     _write_atomically(args.out, text)
@@ -442,7 +442,7 @@ def _replay(args: argparse.Namespace) -> int:
     if args.video is not None:
         return _film(args, challenge)
     if args.episode is not None:
-        raise ValueError("--episode goes with --video DIR (which episodes to film)")
+        raise ConfigError("--episode goes with --video DIR (which episodes to film)")
     db = existing_database(args)
     try:
         with db.sessions.begin() as session:

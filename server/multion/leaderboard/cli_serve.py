@@ -14,10 +14,9 @@ from pydantic import ValidationError
 
 from multion.api import cli_serve
 from multion.api.app import create_app
+from multion.config.errors import UsageError
 from multion.leaderboard.app import LeaderboardExtension
-from multion.leaderboard.challenge import ChallengeError
 from multion.leaderboard.settings import LeaderboardSettings
-from multion.leaderboard.storage import StorageError
 
 SERVE_MODULE = __name__
 """What ``LocalServer(serve_module=...)`` runs for a server that may hold leaderboard runs."""
@@ -47,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         leaderboard = LeaderboardSettings(**{k: v for k, v in given.items() if v is not None})
         app = create_app(settings, [LeaderboardExtension(leaderboard)])
-    except (ValidationError, ChallengeError, StorageError) as error:
+    except (ValidationError, UsageError) as error:
         print(f"multion serve: {error}")
         return 2
     return cli_serve.serve(app, settings, args)

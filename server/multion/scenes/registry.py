@@ -19,6 +19,7 @@ import functools
 import re
 
 from multion.config.errors import UsageError
+from multion.config.ranges import ConfigError
 from multion.config.scenes import GENERATOR_VERSION as GENERATOR_VERSION  # re-exported
 from multion.config.scenes import SPLIT_SIZES, HouseConfig
 from multion.scenes.house import generate_house
@@ -84,14 +85,14 @@ def sized_house_id(seed: int, rooms: int) -> str:
     """The id of house number ``seed`` built with exactly ``rooms`` rooms (1..16), e.g.
     ``house-1234567-r3``; used for the hidden houses of a challenge that narrows their range."""
     if not 1 <= rooms <= MAX_SIZED_ROOMS:
-        raise ValueError(f"rooms must be in 1..{MAX_SIZED_ROOMS}, got {rooms}")
+        raise SceneIdError(f"rooms must be in 1..{MAX_SIZED_ROOMS}, got {rooms}")
     return f"{house_id(seed)}-r{rooms}"
 
 
 def scene_ids(split: str) -> list[str]:
     """The house ids of ``split`` ("train", "val" or "test")."""
     if split not in SPLIT_SIZES:
-        raise ValueError(f"unknown split {split!r}; valid splits are {', '.join(SPLIT_SIZES)}")
+        raise ConfigError(f"unknown split {split!r}; valid splits are {', '.join(SPLIT_SIZES)}")
     start = _first_seeds()[split]
     return [house_id(seed) for seed in range(start, start + SPLIT_SIZES[split])]
 

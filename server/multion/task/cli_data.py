@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from multion.config.datasets import DatasetError, load_dataset, parse_task
+from multion.config.errors import UsageError
 from multion.scenes.obj_export import export_obj
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.scenes.viz import scene_picture
@@ -163,7 +164,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
 def run_scene(args: argparse.Namespace) -> int:
     try:
         layout = None if is_mesh_scene(args.scene_id) else layout_for(args.scene_id)
-    except ValueError as error:
+    except UsageError as error:  # an unknown scene id
         print(error, file=sys.stderr)
         return 2
     if args.action == "export":
