@@ -5,6 +5,7 @@ a bug, a logged 500, and the worker goes on serving."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -209,3 +210,15 @@ def test_server_answers_4xx_for_bad_input_and_a_logged_500_for_a_builtin(
     assert post(api, session_path(sid, "reset"), {"seeds": [0]})[0] == 200
     assert post(api, session_path(sid, "step"), {"actions": [1]})[0] == 200
     assert api.delete(session_path(sid)).status_code == 200
+
+
+def test_a_mesh_scene_without_a_floor_is_the_callers_mistake(tmp_path: Path) -> None:
+    from multion.config.sim import NavGridConfig
+    from multion.sim.navgrid import build_navgrid
+    from multion.sim.world import PyBulletWorld
+
+    wall = tmp_path / "wall.obj"  # one upright 4 m x 2.5 m quad: nothing to stand on
+    wall.write_text("v 0 0 0\nv 4 0 0\nv 4 0 2.5\nv 0 0 2.5\nf 1 2 3\nf 1 3 4\n")
+    with pytest.raises(MeshSceneError, match="no floor found|no navigable floor") as raised:
+        build_navgrid(PyBulletWorld.from_mesh(wall), NavGridConfig())
+    assert (raised.value.code, raised.value.status) == ("invalid_config", 422)

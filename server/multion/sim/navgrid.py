@@ -20,7 +20,7 @@ import numpy as np
 from scipy import ndimage
 
 from multion.config.sim import NavGridConfig
-from multion.sim.world import PyBulletWorld
+from multion.sim.world import MeshSceneError, PyBulletWorld
 
 NAVGRID_VERSION = 1
 """Version of :func:`build_navgrid`'s algorithm. Bump it whenever a change alters the cells it
@@ -140,7 +140,7 @@ def build_navgrid(world: PyBulletWorld, config: NavGridConfig = NavGridConfig())
     eroded = clearance >= config.agent_radius - 1e-9
     labels, count = ndimage.label(eroded, structure=np.ones((3, 3), dtype=int))
     if count == 0:
-        raise ValueError(
+        raise MeshSceneError(
             "the scene has no navigable floor for the agent (is it a single-floor indoor scene?)"
         )
     sizes = np.bincount(labels.ravel())
@@ -202,7 +202,7 @@ def _find_floor(
     ends = np.column_stack([sample, np.full(len(sample), high[2] + 0.1)])
     hit, fraction, _ = world.cast_rays(starts, ends)
     if not hit.any():
-        raise ValueError("no floor found: no surface under the scene")
+        raise MeshSceneError("no floor found: no surface under the scene")
     lowest = starts[hit, 2] + fraction[hit] * (ends[hit, 2] - starts[hit, 2])
     tops = lowest + 0.3
     down_starts = np.column_stack([sample[hit], tops])
@@ -210,7 +210,9 @@ def _find_floor(
     hit2, fraction2, normal2 = world.cast_rays(down_starts, down_ends)
     up_facing = hit2 & (normal2[:, 2] > 0.7)
     if not up_facing.any():
-        raise ValueError("no floor found: no upward-facing surface near the bottom of the scene")
+        raise MeshSceneError(
+            "no floor found: no upward-facing surface near the bottom of the scene"
+        )
     z = down_starts[up_facing, 2] + fraction2[up_facing] * (
         down_ends[up_facing, 2] - down_starts[up_facing, 2]
     )
