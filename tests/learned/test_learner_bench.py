@@ -35,17 +35,19 @@ def test_synthetic_frames_lie_in_the_observation_space(agent: str) -> None:
 
 
 def test_the_learner_bench_times_each_agent_and_compares_with_no_map(capsys) -> None:
-    bench = dataclasses.replace(
-        learner_settings("no-map,obj-recog-map", 1, "cpu"), rollout_steps=4, envs=2
-    )
-    results = run_learner_bench(bench)
+    settings = learner_settings("no-map,obj-recog-map", 1, "cpu", envs="2,4")
+    results = run_learner_bench(dataclasses.replace(settings, rollout_steps=4))
     assert results is not None and list(results) == ["no-map", "obj-recog-map"]
-    for figures in results.values():
-        assert figures["act_ms"] > 0 and figures["update_ms"] > 0
-        assert figures["fps"] == pytest.approx(1000 / (figures["act_ms"] + figures["update_ms"]))
+    for rows in results.values():
+        assert list(rows) == [2, 4]  # one row per number of environments
+        for figures in rows.values():
+            assert figures["act_ms"] > 0 and figures["update_ms"] > 0
+            total = figures["act_ms"] + figures["update_ms"]
+            assert figures["fps"] == pytest.approx(1000 / total)
     out = capsys.readouterr().out
     assert "synthetic observations (no simulator)" in out
-    assert "obj-recog-map" in out and "×" in out
+    rows = [line.split() for line in out.splitlines() if line.strip().startswith("obj-recog-map")]
+    assert [row[1] for row in rows] == ["2", "4"] and all(row[-1].endswith("×") for row in rows)
 
 
 def test_the_learner_bench_names_an_unknown_agent_and_a_bad_count(capsys) -> None:
@@ -54,6 +56,17 @@ def test_the_learner_bench_names_an_unknown_agent_and_a_bad_count(capsys) -> Non
     assert "--learner-agents: unknown agent(s) nope" in err and "proj-neural-map" in err
     assert main(["bench", "--only", "learner", "--learner-updates", "0"]) == 2
     assert "--learner-updates 0: at least 1" in capsys.readouterr().err
+    assert main(["bench", "--only", "learner", "--learner-envs", "8,0"]) == 2
+    assert "--learner-envs '8,0': each count in 1-256" in capsys.readouterr().err
+    assert main(["bench", "--only", "learner", "--learner-mixed-precision", "fp8"]) == 2
+    assert "--learner-mixed-precision 'fp8': one of off, bf16, fp16" in capsys.readouterr().err
+
+
+def test_the_learner_bench_times_a_bf16_update(capsys) -> None:
+    settings = learner_settings("no-map", 1, "cpu", envs="2", mixed_precision="bf16")
+    results = run_learner_bench(dataclasses.replace(settings, rollout_steps=4))
+    assert results is not None and results["no-map"][2]["update_ms"] > 0
+    assert "mixed precision bf16" in capsys.readouterr().out
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the message of a machine without one")

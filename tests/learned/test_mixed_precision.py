@@ -7,11 +7,11 @@ import pytest
 import torch
 from rollouts import random_rollout, space_for
 
-from multion_agents.learned.checkpoint import build_policy
-from multion_agents.learned.models import model_spec
-from multion_agents.learned.ppo import Args, ppo_update
+from multion_agents.learned.models import build_policy, model_spec
+from multion_agents.learned.ppo import ppo_update
 from multion_agents.learned.precision import update_precision
 from multion_agents.learned.rollout_envs import training_env_config
+from multion_agents.learned.train_settings import Args
 
 TOLERANCE = 0.01
 """Relative difference of each logged loss, bf16 vs float32. Measured on one update of 8 steps

@@ -391,18 +391,33 @@ def test_training_bench_measures_both_rates_in_one_run(capsys, recipe: str) -> N
     from multion_agents.bench.train import bench_settings, run_train_bench
 
     agent = "no-map" if recipe == "default" else None  # v3: the recipe's oracle-map
-    settings = bench_settings(recipe, agent, 36, 2, 2, "cpu")
-    result = run_train_bench(settings)
-    assert result is not None
-    assert result["bare_fps"] > 0 and result["train_fps"] > 0
-    assert result["ratio"] == pytest.approx(result["train_fps"] / result["bare_fps"])
-    shares = [result[f"{k}_share"] for k in ("sim", "act", "update")]
-    assert all(0 < s < 1 for s in shares) and sum(shares) <= 1.0 + 1e-6
-    assert result["learner_ms_per_frame"] > 0
+    # v3: one row per number of envs, the envs sharing processes (2 per process)
+    envs, per_process = ((2,), 1) if recipe == "default" else ((2, 3), 2)
+    settings = bench_settings(recipe, agent, 36, envs, 2, "cpu", per_process)
+    results = run_train_bench(settings)
+    assert results is not None and list(results) == list(envs)
+    for result in results.values():
+        assert result["bare_fps"] > 0 and result["train_fps"] > 0
+        assert result["ratio"] == pytest.approx(result["train_fps"] / result["bare_fps"])
+        shares = [result[f"{k}_share"] for k in ("sim", "act", "update")]
+        assert all(0 < s < 1 for s in shares) and sum(shares) <= 1.0 + 1e-6
+        assert result["learner_ms_per_frame"] > 0
     out = capsys.readouterr().out
     assert "ratio train / bare" in out
+    rows = [line.split()[0] for line in out.splitlines() if line[:5].strip().isdigit()]
+    assert rows == [str(n) for n in envs]
     if recipe == "v3":
         assert "oracle-map" in out and "online train episodes" in out
+        assert "(2 per process)" in out
+
+
+def test_the_training_bench_names_a_bad_env_count_or_update_count(capsys) -> None:
+    from multion_agents.cli import main
+
+    assert main(["bench", "--only", "train", "--train-envs", "8,x"]) == 2
+    assert "--train-envs '8,x': comma-separated whole numbers" in capsys.readouterr().err
+    assert main(["bench", "--only", "train", "--train-updates", "1"]) == 2
+    assert "--train-updates 1: at least 2" in capsys.readouterr().err
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the message of a machine without one")

@@ -56,6 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=[
             *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
             *("explorer", "reset", "diversity", "site-memory", "participants", "learner"),
+            "env-processes",
         ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
@@ -91,7 +92,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     train.add_argument("--train-agent", help="learned agent (default oracle-map)")
     train.add_argument("--train-image-size", type=int, help="camera size (64; v3: 36)")
-    train.add_argument("--train-envs", type=int, help="local environments (4; v3: 8)")
+    train.add_argument(
+        "--train-envs",
+        help="comma-separated numbers of local environments, one row each (4; v3: 8; "
+        "e.g. 8,16,32,64 with --train-updates 2)",
+    )
+    train.add_argument(
+        "--train-envs-per-process",
+        type=int,
+        default=1,
+        help="local environments per simulator process (default 1)",
+    )
     train.add_argument(
         "--train-updates", type=int, help="PPO updates, the first one not timed (default 4)"
     )
@@ -102,6 +113,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     learner.add_argument(
         "--learner-updates", type=int, default=2, help="timed PPO updates per agent (default 2)"
+    )
+    learner.add_argument(
+        "--learner-envs",
+        help="comma-separated numbers of environments, one row each (default 8,16,32,64)",
+    )
+    learner.add_argument(
+        "--learner-mixed-precision",
+        default="off",
+        help="the update's precision: off (default), bf16 or fp16 (CUDA only)",
     )
     parser.add_argument(
         "--participants",
@@ -145,6 +165,10 @@ def run(args: argparse.Namespace) -> int:
         run_diversity_bench()
     if "site-memory" in parts:
         run_site_memory_bench()
+    if "env-processes" in parts:
+        from multion_agents.bench.env_processes import run_env_processes_bench
+
+        run_env_processes_bench(steps=min(args.steps, 100))
     if "cache" in parts:
         bench_cache(args.eval_episodes)
     if "memory" in parts:
@@ -166,19 +190,28 @@ def run(args: argparse.Namespace) -> int:
     if "explorer" in parts:
         run_explorer_bench(args.explorer_image, args.explorer_houses, args.explorer_steps)
     if "train" in parts:
+        from multion_agents.bench.learner import parse_counts
         from multion_agents.bench.train import bench_settings, run_train_bench
 
-        settings = bench_settings(
-            args.train_recipe, args.train_agent, args.train_image_size, args.train_envs,
-            args.train_updates, args.device,
-        )  # fmt: skip
+        try:
+            envs = parse_counts("--train-envs", args.train_envs, 256) if args.train_envs else None
+            settings = bench_settings(
+                args.train_recipe, args.train_agent, args.train_image_size, envs,
+                args.train_updates, args.device, args.train_envs_per_process,
+            )  # fmt: skip
+        except ValueError as error:
+            print(f"multion bench: {error}", file=sys.stderr)
+            return 2
         if run_train_bench(settings) is None:
             return 2
     if "learner" in parts:
         from multion_agents.bench.learner import learner_settings, run_learner_bench
 
         try:
-            bench = learner_settings(args.learner_agents, args.learner_updates, args.device)
+            bench = learner_settings(
+                args.learner_agents, args.learner_updates, args.device, args.learner_envs,
+                args.learner_mixed_precision,
+            )  # fmt: skip
         except ValueError as error:
             print(f"multion bench: {error}", file=sys.stderr)
             return 2

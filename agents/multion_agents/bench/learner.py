@@ -2,8 +2,10 @@
 
 The rollout is synthetic (observations drawn from the environment's observation space with a
 fixed seed) but shaped as the central comparison's recipe (``scripts/central_comparison.sh``):
-8 environments in two groups, 128 steps per update, 36² RGB-D, the reference's defaults
-(50-cell oracle crop, 768-unit GRU). The two timed parts are the trainer's own code:
+environments in two groups (8, 16, 32 and 64 by default: one row each), 128 steps per update,
+36² RGB-D, the reference's defaults (50-cell oracle crop, 768-unit GRU, 4 mini-batches, so a
+mini-batch holds a quarter of the environments and grows with them). The two timed parts are
+the trainer's own code:
 
 1. **acting**: ``policy.get_action_and_value`` for each group of environments, step by step,
    with the frames copied to the device as the trainer copies them;
@@ -12,7 +14,8 @@ fixed seed) but shaped as the central comparison's recipe (``scripts/central_com
 The learner's frames/s (1000 / learner ms per frame) is the most a training run could make if
 simulation were free, so comparing it with ``--only train``'s bare simulation rate says which of
 the two bounds an agent on a machine. It needs neither PyBullet nor a scene, so it also runs on a
-GPU machine that has only torch (``--device cuda``).
+GPU machine that has only torch (``--device cuda``, with ``--learner-mixed-precision bf16``
+to time the update under autocast).
 """
 
 from __future__ import annotations
@@ -29,11 +32,11 @@ from torch import Tensor
 from multion.config.codec import env_config_from_dict
 from multion.task.spaces import build_observation_space
 from multion_agents.bench.train import cuda_missing
-from multion_agents.learned.checkpoint import build_policy
 from multion_agents.learned.distributed import cores_per_rank, select_device
-from multion_agents.learned.models import MODELS, model_spec
+from multion_agents.learned.models import MODELS, build_policy, model_spec
 from multion_agents.learned.policy import State, frames_to_tensors
 from multion_agents.learned.ppo import ppo_update
+from multion_agents.learned.precision import PRECISIONS
 from multion_agents.learned.rollout import Rollout, compute_gae
 from multion_agents.learned.rollout_envs import training_env_config
 from multion_agents.learned.train_settings import Args
@@ -46,19 +49,39 @@ AGENTS = ("no-map", "oracle-map", "oracle-ego-map", "proj-neural-map", "obj-reco
 class LearnerBench:
     agents: tuple[str, ...] = AGENTS
     device: str = "cpu"
-    envs: int = 8
+    env_counts: tuple[int, ...] = (8, 16, 32, 64)
+    """One row per number of environments."""
     image_size: int = 36
     rollout_steps: int = 128
     updates: int = 2
     """Timed updates; one more before them is a warm-up."""
+    mixed_precision: str = "off"
     episode_steps: int = 50
     """Mean episode length of the synthetic rollout (a new episode starts with probability
     1 / ``episode_steps``): an untrained policy's episodes end every few dozen steps."""
 
 
-def learner_settings(agents: str | None, updates: int, device: str) -> LearnerBench:
-    """The bench of ``--learner-agents`` (comma-separated; None: :data:`AGENTS`), or a
-    ``ValueError`` naming the option and what it allows."""
+def parse_counts(option: str, text: str, high: int) -> tuple[int, ...]:
+    """Comma-separated environment counts, or a ``ValueError`` naming ``option`` and the range."""
+    try:
+        counts = tuple(int(part) for part in text.split(","))
+    except ValueError:
+        raise ValueError(f"{option} {text!r}: comma-separated whole numbers") from None
+    if any(not 1 <= count <= high for count in counts):
+        raise ValueError(f"{option} {text!r}: each count in 1-{high}")
+    return counts
+
+
+def learner_settings(
+    agents: str | None, updates: int, device: str, envs: str | None = None,
+    mixed_precision: str = "off",
+) -> LearnerBench:  # fmt: skip
+    """The bench of ``--learner-agents`` (comma-separated; None: :data:`AGENTS`) and
+    ``--learner-envs`` (comma-separated; None: 8,16,32,64), or a ``ValueError`` naming the
+    option and what it allows."""
+    env_counts = (
+        LearnerBench.env_counts if envs is None else parse_counts("--learner-envs", envs, 256)
+    )
     names = tuple(agents.split(",")) if agents else AGENTS
     unknown = [name for name in names if name not in MODELS]
     if unknown:
@@ -67,7 +90,14 @@ def learner_settings(agents: str | None, updates: int, device: str) -> LearnerBe
         )
     if updates < 1:
         raise ValueError(f"--learner-updates {updates}: at least 1 timed update")
-    return LearnerBench(agents=names, device=device, updates=updates)
+    if mixed_precision not in PRECISIONS:
+        raise ValueError(
+            f"--learner-mixed-precision {mixed_precision!r}: one of {', '.join(PRECISIONS)}"
+        )
+    return LearnerBench(
+        agents=names, device=device, updates=updates, env_counts=env_counts,
+        mixed_precision=mixed_precision,
+    )  # fmt: skip
 
 
 def synthetic_frames(
@@ -98,19 +128,21 @@ def _synchronize(device: torch.device) -> None:
         torch.cuda.synchronize(device)
 
 
-def time_agent(agent: str, bench: LearnerBench) -> dict[str, float]:
-    """Acting and updating seconds per frame of ``agent`` (means over the timed updates)."""
+def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
+    """Acting and updating ms per frame of ``agent`` with ``envs`` environments (means over the
+    timed updates)."""
     device = select_device(bench.device)
     spec = model_spec(agent)
     config = training_env_config(1, spec.train_sensors, bench.image_size, "train",
                                  spec.config_overrides)  # fmt: skip
     env_config = env_config_from_dict(config)
-    args = Args(agent=agent, envs=bench.envs, image_size=bench.image_size,
-                rollout_steps=bench.rollout_steps, progress=False, tensorboard=False)  # fmt: skip
+    args = Args(agent=agent, envs=envs, image_size=bench.image_size,
+                rollout_steps=bench.rollout_steps, progress=False, tensorboard=False,
+                mixed_precision=bench.mixed_precision)  # fmt: skip
     torch.manual_seed(0)
     policy = build_policy(agent, config, args.hidden_size).to(device)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
-    keys, steps, envs = policy.train_sensors, bench.rollout_steps, bench.envs
+    keys, steps = policy.train_sensors, bench.rollout_steps
     frames = synthetic_frames(build_observation_space(env_config), keys, steps, envs, seed=0)
     groups = [slice(0, envs // 2), slice(envs // 2, envs)] if envs > 1 else [slice(0, 1)]
     generator = torch.Generator().manual_seed(0)
@@ -168,31 +200,35 @@ def time_agent(agent: str, bench: LearnerBench) -> dict[str, float]:
     return {"act_ms": act_ms, "update_ms": update_ms, "fps": 1000 / (act_ms + update_ms)}
 
 
-def run_learner_bench(bench: LearnerBench) -> dict[str, dict[str, float]] | None:
-    """Print and return each agent's learner figures; None (with the reason printed) when the
-    device asked for is not there."""
+def run_learner_bench(bench: LearnerBench) -> dict[str, dict[int, dict[str, float]]] | None:
+    """Print and return each agent's learner figures for each number of environments; None
+    (with the reason printed) when the device asked for is not there."""
     if cuda_missing(bench.device, "learner"):
         return None
     name = torch.cuda.get_device_name() if bench.device.startswith("cuda") else "cpu"
     print(
-        f"learner bench: 1-ON, {bench.image_size}² RGB-D, {bench.envs} envs in 2 groups, "
+        f"learner bench: 1-ON, {bench.image_size}² RGB-D, envs in 2 groups, "
         f"{bench.updates} timed updates of {bench.rollout_steps} steps (after a warm-up), "
-        f"reference defaults; device {bench.device} ({name}), {cores_per_rank()} cores, "
-        "synthetic observations (no simulator)"
+        f"reference defaults, mixed precision {bench.mixed_precision}; device {bench.device} "
+        f"({name}), {cores_per_rank()} cores, synthetic observations (no simulator)"
     )
-    columns = ("acting", "updating", "learner", "learner", "vs no-map")
+    columns = ("envs", "acting", "updating", "learner", "learner", "vs no-map")
     print(f"{'agent':>16} " + " ".join(f"{c:>10}" for c in columns))
-    units = ("ms/frame", "ms/frame", "ms/frame", "frames/s", "(time)")
+    units = ("", "ms/frame", "ms/frame", "ms/frame", "frames/s", "(time)")
     print(f"{'':>16} " + " ".join(f"{c:>10}" for c in units))
-    results: dict[str, dict[str, float]] = {}
+    results: dict[str, dict[int, dict[str, float]]] = {}
     for agent in bench.agents:
-        result = time_agent(agent, bench)
-        results[agent] = result
-        total = result["act_ms"] + result["update_ms"]
-        base = results.get("no-map")
-        ratio = f"{total / (base['act_ms'] + base['update_ms']):9.1f}×" if base else f"{'-':>10}"
-        print(
-            f"{agent:>16} {result['act_ms']:10.2f} {result['update_ms']:10.2f} {total:10.2f} "
-            f"{result['fps']:10.0f} {ratio}"
-        )
+        results[agent] = {}
+        for envs in bench.env_counts:
+            result = time_agent(agent, bench, envs)
+            results[agent][envs] = result
+            total = result["act_ms"] + result["update_ms"]
+            base = results.get("no-map", {}).get(envs)
+            ratio = (
+                f"{total / (base['act_ms'] + base['update_ms']):9.1f}×" if base else f"{'-':>10}"
+            )
+            print(
+                f"{agent:>16} {envs:10d} {result['act_ms']:10.2f} {result['update_ms']:10.2f} "
+                f"{total:10.2f} {result['fps']:10.0f} {ratio}"
+            )
     return results

@@ -9,7 +9,9 @@ environments in local simulator processes, episodes):
    update is a warm-up and is not counted.
 
 It prints both rates, their ratio (issue 30's target at the v3 recipe's settings: ≥ 0.6) with
-the time split between simulation, acting and updating, and frames/s per process and per GPU.
+the time split between simulation, acting and updating, and frames/s per process and per GPU,
+for each number of environments asked for (``--train-envs 8,16,32,64``: one row each; with
+``--train-envs-per-process K`` the environments share simulator processes, K per process).
 
 ``--train-recipe default`` is the bench of issue 22 (packaged 1-ON val episodes, grouped by
 scene so scene loading hardly counts); ``v3`` uses the v3 recipe's settings (docs/learned.md):
@@ -33,8 +35,8 @@ import torch
 from multion.config.datasets import packaged_dataset_path
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.models import model_spec
-from multion_agents.learned.ppo import Args, train
 from multion_agents.learned.rollout_envs import make_vector_env, training_env_config
+from multion_agents.learned.ppo import Args, train
 
 TARGET_RATIO = 0.6
 """Issue 30's target: training runs at ≥ 0.6× the bare simulation's frames/s."""
@@ -46,7 +48,9 @@ class TrainBench:
 
     agent: str = "oracle-map"
     image_size: int = 64
-    envs: int = 4
+    env_counts: tuple[int, ...] = (4,)
+    """One row per number of environments."""
+    envs_per_process: int = 1
     updates: int = 4
     online: bool = False
     """Online episodes on the train houses; else the packaged 1-ON val episodes."""
@@ -61,7 +65,7 @@ RECIPES = {
     "default": TrainBench(),
     "v3": TrainBench(
         image_size=36,
-        envs=8,
+        env_counts=(8,),
         online=True,
         max_steps=500,
         episodes_per_scene=5,
@@ -72,26 +76,35 @@ RECIPES = {
 
 
 def bench_settings(
-    recipe: str, agent: str | None, image_size: int | None, envs: int | None,
-    updates: int | None, device: str,
+    recipe: str, agent: str | None, image_size: int | None, envs: int | tuple[int, ...] | None,
+    updates: int | None, device: str, envs_per_process: int = 1,
 ) -> TrainBench:  # fmt: skip
-    """The recipe's settings, with the command line's values where given."""
+    """The recipe's settings, with the command line's values where given, or a ``ValueError``
+    naming the option and what it allows."""
+    if updates is not None and updates < 2:
+        raise ValueError(f"--train-updates {updates}: at least 2 (the first is not timed)")
+    if envs_per_process < 1:
+        raise ValueError(f"--train-envs-per-process {envs_per_process}: at least 1")
     base = RECIPES[recipe]
+    counts = (envs,) if isinstance(envs, int) else envs
     return dataclasses.replace(
         base,
         device=device,
         agent=base.agent if agent is None else agent,
         image_size=base.image_size if image_size is None else image_size,
-        envs=base.envs if envs is None else envs,
+        env_counts=base.env_counts if counts is None else counts,
+        envs_per_process=envs_per_process,
         updates=base.updates if updates is None else updates,
     )
 
 
-def bare_rate(config: dict, envs: int, steps: int, found_prior: float | None) -> float:
+def bare_rate(
+    config: dict, envs: int, steps: int, found_prior: float | None, envs_per_process: int = 1
+) -> float:
     """Vector-env steps per second (frames) with the untrained policy's action distribution."""
     found = 0.25 if found_prior is None else found_prior
     odds = [found, *[(1.0 - found) / 3] * 3]
-    vector = make_vector_env(config, envs)
+    vector = make_vector_env(config, envs, envs_per_process=envs_per_process)
     try:
         vector.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -118,9 +131,9 @@ def cuda_missing(device: str, bench: str) -> bool:
     return False
 
 
-def run_train_bench(bench: TrainBench) -> dict[str, float] | None:
-    """Print and return the bench's figures; None (with the reason printed) when the device
-    asked for is not there."""
+def run_train_bench(bench: TrainBench) -> dict[int, dict[str, float]] | None:
+    """Print and return the bench's figures for each number of environments; None (with the
+    reason printed) when the device asked for is not there."""
     if cuda_missing(bench.device, "training"):
         return None
     dataset = None if bench.online else str(packaged_dataset_path(1, "val"))
@@ -131,23 +144,58 @@ def run_train_bench(bench: TrainBench) -> dict[str, float] | None:
         1, spec.train_sensors, bench.image_size, split, overrides, bench.max_steps, dataset
     )
     config["episodes_per_scene"] = bench.episodes_per_scene
-    rollout_steps = 128
     source = "online train episodes" if bench.online else "packaged val episodes"
     print(
-        f"training bench: {bench.agent}, 1-ON, {bench.image_size}² RGB-D, {bench.envs} local "
-        f"envs, {source}, {bench.updates} updates of {rollout_steps} steps, device "
-        f"{bench.device}, {torch.get_num_threads()} torch threads available"
+        f"training bench: {bench.agent}, 1-ON, {bench.image_size}² RGB-D, local envs "
+        f"({bench.envs_per_process} per process), {source}, {bench.updates} updates of "
+        f"{ROLLOUT_STEPS} steps (the first not timed), device {bench.device}, "
+        f"{torch.get_num_threads()} torch threads available"
     )
+    print(
+        f"{'envs':>5} {'bare':>8} {'train':>8} {'ratio':>6} {'sim':>5} {'act':>5} {'update':>6} "
+        f"{'learner':>8} {'acting':>8} {'updating':>8}"
+    )
+    print(
+        f"{'':>5} {'frames/s':>8} {'frames/s':>8} {'':>6} {'%':>5} {'%':>5} {'%':>6} "
+        f"{'ms/frame':>8} {'ms/frame':>8} {'ms/frame':>8}"
+    )
+    results = {}
+    for envs in bench.env_counts:
+        result = _measure(bench, config, dataset, envs)
+        results[envs] = result
+        print(
+            f"{envs:5d} {result['bare_fps']:8.1f} {result['train_fps']:8.1f} "
+            f"{result['ratio']:6.2f} {100 * result['sim_share']:5.0f} "
+            f"{100 * result['act_share']:5.0f} {100 * result['update_share']:6.0f} "
+            f"{result['learner_ms_per_frame']:8.2f} {result['act_ms_per_frame']:8.2f} "
+            f"{result['update_ms_per_frame']:8.2f}"
+        )
+    per_gpu = ", and per GPU (one process on one GPU)" if bench.device != "cpu" else ""
+    print(
+        f"  ratio train / bare: target ≥ {TARGET_RATIO:.1f} at the v3 recipe's settings; "
+        f"train frames/s are per process{per_gpu}"
+    )
+    return results
+
+
+ROLLOUT_STEPS = 128
+
+
+def _measure(
+    bench: TrainBench, config: dict[str, Any], dataset: str | None, envs: int
+) -> dict[str, float]:
     bare = bare_rate(
-        config, bench.envs, rollout_steps * max(1, bench.updates - 1), bench.found_prior
-    )
+        config, envs, ROLLOUT_STEPS * max(1, bench.updates - 1), bench.found_prior,
+        bench.envs_per_process,
+    )  # fmt: skip
     with tempfile.TemporaryDirectory() as out:
         train(
             Args(
                 agent=bench.agent,
                 task="1-on",
-                frames=bench.updates * rollout_steps * bench.envs,
-                envs=bench.envs,
+                frames=bench.updates * ROLLOUT_STEPS * envs,
+                envs=envs,
+                envs_per_process=bench.envs_per_process,
                 image_size=bench.image_size,
                 dataset=dataset,
                 out=out,
@@ -161,11 +209,11 @@ def run_train_bench(bench: TrainBench) -> dict[str, float] | None:
             )
         )
         rows = list(csv.DictReader((Path(out) / "progress.csv").open()))[1:]
-    frames = rollout_steps * bench.envs * len(rows)
-    seconds = sum(rollout_steps * bench.envs / float(r["fps"]) for r in rows)
+    frames = ROLLOUT_STEPS * envs * len(rows)
+    seconds = sum(ROLLOUT_STEPS * envs / float(r["fps"]) for r in rows)
     parts = {k: sum(float(r[f"{k}_seconds"]) for r in rows) for k in ("sim", "act", "update")}
     trained = frames / seconds
-    result = {
+    return {
         "bare_fps": bare,
         "train_fps": trained,
         "ratio": trained / bare,
@@ -175,22 +223,3 @@ def run_train_bench(bench: TrainBench) -> dict[str, float] | None:
         "act_ms_per_frame": 1000 * parts["act"] / frames,
         "update_ms_per_frame": 1000 * parts["update"] / frames,
     }
-    gpus = 1 if bench.device.startswith("cuda") else 0
-    print(f"  bare simulation      {bare:8.1f} frames/s")
-    print(
-        f"  training             {trained:8.1f} frames/s per process"
-        + (f", {trained:.1f} per GPU (one process on one GPU)" if gpus else "")
-    )
-    print(
-        f"  ratio train / bare   {result['ratio']:8.2f}   (target ≥ {TARGET_RATIO:.1f} at the v3 "
-        f"recipe's settings; overhead {100 * result['overhead']:.0f}%)"
-    )
-    print(
-        "  training time split   "
-        + ", ".join(f"{k} {100 * result[f'{k}_share']:.0f}%" for k in ("sim", "act", "update"))
-    )
-    print(
-        f"  learner time          {result['learner_ms_per_frame']:8.2f} ms/frame (acting "
-        f"{result['act_ms_per_frame']:.2f}, updating {result['update_ms_per_frame']:.2f})"
-    )
-    return result
