@@ -7,8 +7,9 @@ runtime modules (``multion.sim``, ``multion.task``, ``multion.scenes``, ``multio
 from here, never the reverse.
 
 * :mod:`multion.config.sim`: ``CameraConfig``, ``AgentConfig``, ``NavGridConfig``
-* :mod:`multion.config.task`: ``TaskConfig``, ``MapConfig``, ``EnvConfig``, ``SENSORS``,
-  ``EpisodeConstraints``
+* :mod:`multion.config.task`: ``TaskConfig``, ``MapConfig``, ``EnvConfig``, ``EpisodeConstraints``
+* :mod:`multion.config.sensors`: ``SensorSpec``, one per sensor (``SENSOR_SPECS``), and
+  ``SENSORS``, their names (re-exported by :mod:`multion.config.task`)
 * :mod:`multion.config.scenes`: ``HouseConfig``, ``PlanConfig``, ``PlacementConfig``, ``SPLITS``
 * :mod:`multion.config.episode`: ``Episode`` and ``Goal``, the episodes a session may carry
 * :mod:`multion.config.codec`: configs as nested dicts (the wire form) and back

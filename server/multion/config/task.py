@@ -7,23 +7,10 @@ from dataclasses import dataclass, field
 
 from multion.config.ranges import ConfigError, bounded, check_fields, one_of, require
 from multion.config.scenes import SPLITS
+from multion.config.sensors import SENSORS as SENSORS  # re-exported: read here since before
 from multion.config.sim import AgentConfig, CameraConfig, NavGridConfig
 from multion_client.constants import DEFAULT_GOAL_SET, GOAL_SETS, NUM_CATEGORIES
 from multion_client.semantic_map import MAP_CONVENTIONS, PROJECT_CONVENTION
-
-SENSORS = (
-    "rgb",
-    "depth",
-    "goal",
-    "goal_onehot",
-    "gps",
-    "compass",
-    "oracle_map",
-    "oracle_ego_map",
-    "goal_mask",
-    "goal_distance",
-)
-
 
 TRAIN_SAMPLERS = ("sites", "online")
 """How train episodes are drawn (``EnvConfig.train_sampler``)."""

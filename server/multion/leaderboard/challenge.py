@@ -44,13 +44,14 @@ from typing import Any
 
 from multion.config.codec import ConfigError, env_config_from_dict
 from multion.config.errors import UsageError
-from multion.config.task import SENSORS
+from multion.config.sensors import SENSORS, sensors_with_access
 from multion.scenes.registry import HOUSE_CONFIG, MAX_SIZED_ROOMS
 
-STANDARD_SENSORS = ("rgb", "depth", "goal", "goal_onehot", "gps", "compass")
-"""What a *standard* track may receive (the MultiON challenge's sensors)."""
-ORACLE_SENSORS = (*STANDARD_SENSORS, "oracle_map", "oracle_ego_map", "goal_distance")
-"""What an *oracle* track may receive besides: the oracle maps and the oracle goal distance."""
+STANDARD_SENSORS = sensors_with_access(("standard",))
+"""What a *standard* track may receive (the MultiON challenge's sensors): no privileged one."""
+ORACLE_SENSORS = sensors_with_access(("standard", "oracle"))
+"""What an *oracle* track may receive: the standard sensors and the oracle ones (the oracle maps
+and the oracle goal distance); training-only sensors (``goal_mask``) go to no track."""
 TRACK_KINDS = {"standard": STANDARD_SENSORS, "oracle": ORACLE_SENSORS}
 METRICS = ("ppl", "progress", "success", "spl")
 FEEDBACK = ("episodes", "aggregate", "sealed")
@@ -209,6 +210,12 @@ class Track:
         if unknown:
             raise ChallengeError(
                 f"{where}: unknown sensor(s) {unknown}; sensors are {list(SENSORS)}"
+            )
+        beyond_kind = [s for s in self.sensors if s not in TRACK_KINDS[self.kind]]
+        if beyond_kind:  # a standard track lists no privileged sensor, no track a training one
+            raise ChallengeError(
+                f"{where}: sensor(s) {beyond_kind} are not for a {self.kind} track; "
+                f"a {self.kind} track may receive {list(TRACK_KINDS[self.kind])}"
             )
         if self.metric not in METRICS:
             raise ChallengeError(f"{where}: metric must be one of {METRICS}, got {self.metric!r}")

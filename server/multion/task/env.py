@@ -33,15 +33,15 @@ from multion.task.errors import (
     IllegalActionError,
 )
 from multion.task.goal_sites import GoalSites, sample_site_episode
-from multion.task.maps import EgoMapReveal, OracleMap, can_see
+from multion.task.maps import EgoMapReveal, OracleMap, PoseCrops, can_see
 from multion.task.measures import EpisodeState, Measures
 from multion.task.sampling import check_on_grid, sample_episode
+from multion.task.sensors import Frame, SensorInputs, configured_sensors, uses_source
 from multion.task.spaces import build_observation_space
 from multion_client.constants import (
     ACTIONS_TEXT,
     GOAL_RGBA,
     NUM_ACTIONS,
-    NUM_CATEGORIES,
     SHAPE_RGBA,
     Action,
     action_id,
@@ -282,7 +282,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         )
         self._update_seen()
         self.measures.reset(self.state)
-        if {"oracle_map", "oracle_ego_map"} & set(self.config.sensors):
+        if uses_source(configured_sensors(self.config), "oracle_map"):
             if self._oracle is None or self._oracle.grid is not grid:
                 self._oracle = OracleMap(grid, self.config.maps)
                 self._reveal = EgoMapReveal(self._oracle, self.config.camera.hfov_deg)
@@ -404,52 +404,31 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         }
 
     def _observe(self) -> dict[str, np.ndarray]:
-        sensors = set(self.config.sensors)
         state, episode = self.state, self.episode
         assert state is not None and episode is not None
-        obs: dict[str, np.ndarray] = {}
-        self._last_rgb = None
-        if sensors & {"rgb", "depth", "goal_mask"}:
-            image = self.sim.render(segmentation="goal_mask" in sensors)
-            self._last_rgb = image.rgb
-            if "rgb" in sensors:
-                obs["rgb"] = image.rgb
-            if "depth" in sensors:
-                obs["depth"] = image.depth
-            if "goal_mask" in sensors:
-                obs["goal_mask"] = self._goal_mask(image.segmentation)
-        current = episode.goals[min(state.goals_found, episode.num_goals - 1)].category
-        if "goal" in sensors:
-            obs["goal"] = np.int64(current)
-        if "goal_onehot" in sensors:
-            onehot = np.zeros(NUM_CATEGORIES, dtype=np.float32)
-            onehot[current] = 1.0
-            obs["goal_onehot"] = onehot
-        if "goal_distance" in sensors:
-            obs["goal_distance"] = np.array([min(state.distance_to_goal, 1e6)], dtype=np.float32)
-        if sensors & {"gps", "compass"}:
-            start = np.asarray(episode.start_position[:2])
-            c, s = math.cos(episode.start_yaw), math.sin(episode.start_yaw)
-            dx, dy = self.sim.position - start
-            if "gps" in sensors:
-                obs["gps"] = np.array([c * dx + s * dy, -s * dx + c * dy], dtype=np.float32)
-            if "compass" in sensors:
-                obs["compass"] = np.array(
-                    [math.remainder(self.sim.yaw - episode.start_yaw, 2 * math.pi)],
-                    dtype=np.float32,
-                )
-        if self._oracle is not None and sensors & {"oracle_map", "oracle_ego_map"}:
-            if "oracle_map" in sensors:
-                obs["oracle_map"] = self._oracle.egocentric(
-                    self._oracle.layers, self.sim.position, self.sim.yaw
-                )
-            if "oracle_ego_map" in sensors:
-                assert self._reveal is not None
-                self._reveal.update(self.sim.position, self.sim.yaw)
-                obs["oracle_ego_map"] = self._oracle.egocentric(
-                    self._reveal.layers(), self.sim.position, self.sim.yaw
-                )
-        return obs
+        sensors = configured_sensors(self.config)
+        frame: Frame | None = None
+        if uses_source(sensors, "camera"):
+            goal_mask = "goal_mask" in self.config.sensors
+            image = self.sim.render(segmentation=goal_mask)
+            mask = self._goal_mask(image.segmentation) if goal_mask else None
+            frame = Frame(image.rgb, image.depth, mask)
+        self._last_rgb = frame.rgb if frame is not None else None
+        crops = None
+        if self._oracle is not None and uses_source(sensors, "oracle_map"):
+            assert self._reveal is not None
+            crops = PoseCrops(self._oracle, self._reveal, self.sim.position, self.sim.yaw)
+        inputs = SensorInputs(
+            frame=frame,
+            goal_category=episode.goals[min(state.goals_found, episode.num_goals - 1)].category,
+            distance_to_goal=state.distance_to_goal,
+            position=self.sim.position,
+            yaw=self.sim.yaw,
+            start_position=np.asarray(episode.start_position[:2]),
+            start_yaw=episode.start_yaw,
+            oracle=crops,
+        )
+        return {sensor.spec.name: sensor.observe(inputs) for sensor in sensors}
 
     def _goal_mask(self, segmentation: np.ndarray | None) -> np.ndarray:
         assert segmentation is not None and self.episode is not None and self.sim.world is not None

@@ -262,3 +262,23 @@ class EgoMapReveal:
         if self.oracle.config.convention == REFERENCE_CONVENTION:
             seen_value = seen_value + 1
         return np.where(self.seen[..., None], seen_value, 0).astype(np.uint8)
+
+
+class PoseCrops:
+    """The oracle maps cut around one pose: what the oracle map sensors read at one step
+    (:class:`multion.task.sensors.OracleCrops`)."""
+
+    def __init__(
+        self, oracle: OracleMap, reveal: EgoMapReveal, position: np.ndarray, yaw: float
+    ) -> None:
+        self.oracle, self.reveal = oracle, reveal
+        self.position, self.yaw = position, yaw
+
+    def full(self) -> np.ndarray:
+        return self.oracle.egocentric(self.oracle.layers, self.position, self.yaw)
+
+    def revealed(self) -> np.ndarray:
+        """The ego map: what is seen from this pose is revealed first (once per step: only the
+        ``oracle_ego_map`` sensor asks)."""
+        self.reveal.update(self.position, self.yaw)
+        return self.oracle.egocentric(self.reveal.layers(), self.position, self.yaw)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from multion.config.task import EnvConfig
 from multion.scenes.registry import MAX_ROOM_SIDE_M
+from multion.task.sensors import sensors_working_bytes
 
 MiB = 2**20
 
@@ -23,8 +24,6 @@ conversion and the observation arrays (measured: ~50 held, more while rendering)
 BYTES_PER_GRID_CELL_AND_FIELD = 8
 """A float64 distance field (one per goal, plus the fast-marching scratch) per grid cell."""
 SCRATCH_FIELDS = 4
-BYTES_PER_MAP_CELL = 64
-"""Per cell of the egocentric map crop: its coordinates and indices while it is cut (float64)."""
 EGL_WORLD_BYTES = 768 * MiB
 """A world rendered through the EGL plugin (measured with Mesa: ~360 MiB resident, ~720 MiB of
 address space); counted for ``egl`` and for ``auto``, which may pick EGL."""
@@ -39,11 +38,9 @@ def estimate_env_bytes(config: EnvConfig) -> int:
     side_cells = MAX_SCENE_SIDE_M / config.navgrid.cell_size + 1
     fields = config.task.num_goals + config.task.num_distractors + SCRATCH_FIELDS
     grid = int(side_cells**2) * fields * BYTES_PER_GRID_CELL_AND_FIELD
-    maps = 0
-    if {"oracle_map", "oracle_ego_map"} & set(config.sensors):
-        maps = config.maps.ego_size**2 * BYTES_PER_MAP_CELL
+    sensors = sensors_working_bytes(config)  # the oracle map's crop, when a sensor reads it
     renderer = EGL_WORLD_BYTES if config.camera.renderer != "tiny" else 0
-    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + maps + renderer
+    return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + sensors + renderer
 
 
 def goal_sites_bytes(config: EnvConfig) -> int:
