@@ -25,8 +25,15 @@ BYTES_PER_GRID_CELL_AND_FIELD = 8
 """A float64 distance field (one per goal, plus the fast-marching scratch) per grid cell."""
 SCRATCH_FIELDS = 4
 EGL_WORLD_BYTES = 768 * MiB
-"""A world rendered through the EGL plugin (measured with Mesa: ~360 MiB resident, ~720 MiB of
-address space); counted for ``egl`` and for ``auto``, which may pick EGL."""
+"""A world rendered through PyBullet's EGL plugin (measured with Mesa: ~360 MiB resident, ~720
+MiB of address space); counted for ``egl``."""
+GL_WORLD_BYTES = 400 * MiB
+"""A world rendered by the project's OpenGL renderer (``gl``, and ``auto``, which picks gl or
+tiny). Measured with Mesa's llvmpipe, gl minus tiny at 36², 128² and 256² alike: the process's
+one OpenGL context ~99 MiB resident and ~365 MiB of address space (workers are limited in
+address space), then ~8 MiB per env, resident and address space. The context is opened once per
+process but the pool reserves per env, so each env carries it (tight for one env per worker)."""
+RENDERER_BYTES = {"tiny": 0, "gl": GL_WORLD_BYTES, "auto": GL_WORLD_BYTES, "egl": EGL_WORLD_BYTES}
 MAX_SCENE_SIDE_M = MAX_ROOM_SIDE_M
 """The largest scene side a session may reach (procedural houses are smaller)."""
 
@@ -39,7 +46,7 @@ def estimate_env_bytes(config: EnvConfig) -> int:
     fields = config.task.num_goals + config.task.num_distractors + SCRATCH_FIELDS
     grid = int(side_cells**2) * fields * BYTES_PER_GRID_CELL_AND_FIELD
     sensors = sensors_working_bytes(config)  # the oracle map's crop, when a sensor reads it
-    renderer = EGL_WORLD_BYTES if config.camera.renderer != "tiny" else 0
+    renderer = RENDERER_BYTES[config.camera.renderer]
     return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + sensors + renderer
 
 

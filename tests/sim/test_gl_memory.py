@@ -1,0 +1,76 @@
+"""What a ``gl`` world costs (issue 43): the memory estimate charges the project's OpenGL
+renderer what it holds, measured here, not the EGL plugin's 768 MiB."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
+from multion.task.memory import (
+    EGL_WORLD_BYTES,
+    GL_WORLD_BYTES,
+    estimate_env_bytes,
+    estimate_process_bytes,
+)
+
+MiB = 2**20
+NUM_ENVS = 2
+PROBE = """
+import json, sys
+from multion.config.sim import CameraConfig
+from multion.config.task import EnvConfig
+from multion.task.env import MultiONEnv
+
+def status(key):
+    with open("/proc/self/status") as f:
+        return next(int(l.split()[1]) * 1024 for l in f if l.startswith(key + ":"))
+
+renderer, size, count = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+camera = CameraConfig(width=size, height=size, renderer=renderer)
+config = EnvConfig(camera=camera, sensors=("rgb", "depth", "goal"))
+rss, space, envs = status("VmRSS"), status("VmSize"), []
+for seed in range(count):  # from a process with no env (and no GL context) yet
+    env = MultiONEnv(config); env.reset(seed=seed); env.step(1); env.step(2); envs.append(env)
+print(json.dumps({"rss": status("VmRSS") - rss, "address_space": status("VmSize") - space}))
+"""
+
+
+def grown(renderer: str, size: int) -> dict[str, int]:
+    """Resident and address-space growth of a fresh process opening NUM_ENVS envs."""
+    output = subprocess.run(
+        ["prlimit", f"--as={4 * 2**30}", sys.executable, "-c", PROBE, renderer, str(size),
+         str(NUM_ENVS)],
+        capture_output=True, text=True, timeout=300, check=True,
+    ).stdout  # fmt: skip
+    result: dict[str, int] = json.loads(output.splitlines()[-1])
+    return result
+
+
+@pytest.mark.parametrize("size", [36, 128])
+def test_the_gl_charge_bounds_and_fits_what_gl_worlds_hold(gl: None, size: int) -> None:
+    camera = CameraConfig(width=size, height=size, renderer="gl")
+    config = EnvConfig(camera=camera, sensors=("rgb", "depth", "goal"))
+    gl_grown, tiny_grown = grown("gl", size), grown("tiny", size)
+    print(f"{size}²: gl {gl_grown}, tiny {tiny_grown} (bytes, {NUM_ENVS} envs)")
+    # the whole estimate bounds the process's growth, in address space too (workers' limit)
+    assert gl_grown["address_space"] <= estimate_process_bytes(config, NUM_ENVS)
+    # the renderer's charge bounds what gl adds over tiny, and is not the EGL plugin's: within
+    # 1.5 times what gl adds to a process's first env (its context and that env's buffers)
+    gl_extra = max(gl_grown[k] - tiny_grown[k] for k in ("rss", "address_space"))
+    assert gl_extra <= NUM_ENVS * GL_WORLD_BYTES
+    assert GL_WORLD_BYTES <= 1.5 * gl_extra
+    tiny_config = EnvConfig(camera=CameraConfig(width=size, height=size), sensors=config.sensors)
+    assert estimate_env_bytes(config) - estimate_env_bytes(tiny_config) == GL_WORLD_BYTES
+
+
+def test_auto_is_charged_as_gl_and_egl_as_the_plugin() -> None:
+    def charge(renderer: str) -> int:
+        camera = CameraConfig(renderer=renderer)
+        return estimate_env_bytes(EnvConfig(camera=camera)) - estimate_env_bytes(EnvConfig())
+
+    assert charge("auto") == charge("gl") == GL_WORLD_BYTES < EGL_WORLD_BYTES == charge("egl")
