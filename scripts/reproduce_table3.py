@@ -160,7 +160,7 @@ def warm_grid_cache() -> None:
 def estimate(options: argparse.Namespace) -> dict[str, float]:
     """Frames per second of two PPO updates per agent (1-ON, the run's settings); prints the
     estimated hours of one run of ``--frames``."""
-    from multion_agents.learned.ppo import train
+    from multion_agents.learned.training_run import train
 
     rates: dict[str, float] = {}
     print(
@@ -206,7 +206,7 @@ def duration(seconds: float) -> str:
 
 def run_training(options: argparse.Namespace, agent: str, task: str, out: Path) -> Path:
     from multion_agents.learned.checkpoint import load_checkpoint
-    from multion_agents.learned.ppo import train
+    from multion_agents.learned.training_run import train
 
     checkpoint = out / "checkpoint.pt"
     if checkpoint.is_file():

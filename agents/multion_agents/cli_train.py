@@ -27,12 +27,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from multion.config.datasets import parse_task
     from multion.config.errors import UsageError
     from multion_agents.cli_fields import from_options
     from multion_agents.files import output_directory_problem
     from multion_agents.learned.models import MODELS
-    from multion_agents.learned.ppo import train
     from multion_agents.learned.train_settings import Args
+    from multion_agents.learned.training_run import train
+    from multion_agents.periodic_eval import ValEvaluation
 
     if args.list:
         for name, spec in MODELS.items():
@@ -47,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     if (problem := output_directory_problem(Path(settings.out))) is not None:
         return _fail(f"--out {settings.out}: {problem}")
     try:
-        summary = train(settings)
+        evaluation = ValEvaluation(settings.eval_episodes, settings.seed, parse_task(settings.task))
+        summary = train(settings, evaluation)
     except UsageError as error:  # a bad checkpoint, resume or option; anything else is a bug
         return _fail(str(error))
     if "fps" in summary:

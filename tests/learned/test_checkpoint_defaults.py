@@ -13,8 +13,8 @@ from multion.config.codec import env_config_from_dict, env_config_to_dict
 from multion_agents.agent import AgentError
 from multion_agents.evaluate import EvalSettings, evaluate, resolve_config
 from multion_agents.learned.agent import learned_agent_class
-from multion_agents.learned.checkpoint import build_policy, load_policy, save_checkpoint
-from multion_agents.learned.models import model_spec
+from multion_agents.learned.checkpoint import load_policy, save_checkpoint
+from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import HIDDEN_SIZE
 from multion_agents.learned.rollout_envs import training_env_config
 

@@ -16,9 +16,10 @@ from multion.task.env import MultiONEnv
 from multion_agents.learned.env_groups import EnvGroups
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
 from multion_agents.learned.models import MODELS
-from multion_agents.learned.ppo import Args, ppo_loss, train
+from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout import collect, start_episodes
 from multion_agents.learned.rollout_envs import NO_LABEL, expert_labels
+from multion_agents.learned.training_run import train
 from multion_client.constants import Action
 
 
@@ -110,7 +111,7 @@ class _CountingEnvs:
 def test_a_rollout_stores_each_label_with_the_frame_it_labels() -> None:
     from collections import deque
 
-    from multion_agents.learned.checkpoint import build_policy
+    from multion_agents.learned.models import build_policy
 
     space = space_for("oracle-map")
     space.seed(0)
@@ -124,7 +125,7 @@ def test_a_rollout_stores_each_label_with_the_frame_it_labels() -> None:
 
 
 def test_the_imitation_loss_is_the_cross_entropy_of_the_labelled_steps() -> None:
-    from multion_agents.learned.checkpoint import build_policy
+    from multion_agents.learned.models import build_policy
 
     torch.manual_seed(0)
     policy = build_policy("oracle-map", _oracle_map_config())

@@ -18,8 +18,8 @@ from rollouts import actor_rollout, assert_same_loss_and_gradients
 from torch import Tensor
 
 from multion_agents.learned import policy as policy_module
-from multion_agents.learned.checkpoint import build_policy
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
+from multion_agents.learned.models import build_policy
 from multion_agents.learned.oracle_maps import OracleMapMemory
 from multion_agents.learned.policy import Batch
 from multion_agents.learned.ppo import Args, ppo_loss

@@ -16,8 +16,7 @@ from rollouts import actor_rollout, assert_same_loss_and_gradients
 from torch import Tensor
 
 from multion_agents.learned import policy as policy_module
-from multion_agents.learned.checkpoint import build_policy
-from multion_agents.learned.models import model_spec
+from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import MapMemory
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout_envs import training_env_config

@@ -464,7 +464,7 @@ def _hidden_after(policy, frames, starts, initial, steps: int) -> torch.Tensor:
 def test_maps_take_every_parameter_from_the_env_config(name: str) -> None:
     """Field of view, depth range, cell size and crop size come from the env config (the one
     stored in a checkpoint), not from constants of the agents."""
-    from multion_agents.learned.checkpoint import build_policy
+    from multion_agents.learned.models import build_policy
 
     config = {
         "camera": {

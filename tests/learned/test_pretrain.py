@@ -5,16 +5,18 @@ from __future__ import annotations
 import csv
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
-from multion.config.codec import env_config_from_dict, env_config_to_dict
-from multion_agents.learned.checkpoint import build_policy, load_checkpoint
-from multion_agents.learned.models import model_spec
-from multion_agents.learned.ppo import Args, train
+from multion.config.codec import env_config_from_dict
+from multion.config.task import EnvConfig
+from multion_agents.learned.checkpoint import load_checkpoint
+from multion_agents.learned.models import build_policy, model_spec
+from multion_agents.learned.ppo import Args
 from multion_agents.learned.pretrain import (
     MapPretraining,
     accuracy,
@@ -24,16 +26,17 @@ from multion_agents.learned.pretrain import (
     sample_map_crops,
 )
 from multion_agents.learned.rollout_envs import training_env_config
+from multion_agents.learned.training_run import train
 from multion_client.constants import Action
 
 EGO_SIZE = 25
 
 
-def _config(dataset: Path | None = None) -> dict:
+def _config(dataset: Path | None = None) -> EnvConfig:
     spec = model_spec("oracle-map")
     config = training_env_config(1, spec.train_sensors, 36, "train", None, 40, dataset)
     config["maps"] = {"ego_size": EGO_SIZE}
-    return env_config_to_dict(env_config_from_dict(config))
+    return env_config_from_dict(config)
 
 
 @pytest.mark.parametrize(
@@ -101,7 +104,7 @@ def test_crops_show_the_goal_where_the_labels_say() -> None:
 def test_hidden_goal_objects_stay_on_the_map(room_dataset: Path) -> None:
     # oracle-map-hidden-objects renders no goal cylinders, but its map still shows the goals
     config = _config(room_dataset)
-    config["task"]["goals_visible"] = False
+    config = replace(config, task=replace(config.task, goals_visible=False))
     crops = sample_map_crops(config, 20, 0, MapPretraining(poses_per_scene=20))
     pairs = zip(crops.maps, crops.goals, strict=True)
     assert all((crop[..., 1] == goal + 1).any() for crop, goal in pairs)

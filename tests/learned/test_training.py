@@ -16,6 +16,7 @@ import torch
 import torch.multiprocessing as mp
 from rollouts import SIZE, random_rollout, sample_frames, space_for
 
+from multion.config.codec import env_config_from_dict
 from multion_agents.learned.checkpoint import (
     CheckpointError,
     load_checkpoint,
@@ -24,14 +25,13 @@ from multion_agents.learned.checkpoint import (
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import (
     Args,
-    _save,
     ppo_loss,
     ppo_update,
     schedule,
     set_found_prior,
-    train,
 )
 from multion_agents.learned.rollout import Rollout, compute_gae
+from multion_agents.learned.training_run import save_run_checkpoint, train
 
 
 def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **changes) -> Args:
@@ -195,7 +195,8 @@ def test_resume_reproduces_the_next_update_exactly(tmp_path: Path) -> None:
         rollout.initial_state = policy_state
     ppo_update(policy, optimizer, first, args)
     path = tmp_path / "checkpoint.pt"
-    _save(path, policy, optimizer, args, {"camera": {"width": SIZE, "height": SIZE}}, 1, 12)
+    camera = {"camera": {"width": SIZE, "height": SIZE}}
+    save_run_checkpoint(path, policy, optimizer, args, env_config_from_dict(camera), 1, 12)
     ppo_update(policy, optimizer, second, args)
     uninterrupted = copy.deepcopy(policy.state_dict())
 

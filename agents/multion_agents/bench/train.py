@@ -36,7 +36,8 @@ from multion.config.datasets import packaged_dataset_path
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.rollout_envs import make_vector_env, training_env_config
-from multion_agents.learned.ppo import Args, train
+from multion_agents.learned.train_settings import Args
+from multion_agents.learned.training_run import train
 
 TARGET_RATIO = 0.6
 """Issue 30's target: training runs at ≥ 0.6× the bare simulation's frames/s."""

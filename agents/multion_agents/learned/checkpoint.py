@@ -15,13 +15,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from multion.config.codec import env_config_from_dict
 from multion.config.errors import UsageError
-from multion.task.spaces import build_observation_space
 from multion_agents.agent import ConfigOverrides, merge_overrides
-from multion_agents.learned.map_ops import MapGeometry
-from multion_agents.learned.models import model_spec
-from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy, hidden_size_of
+from multion_agents.learned.models import build_policy, model_spec
+from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
 
 FORMAT_VERSION = 1
 
@@ -99,16 +96,6 @@ def with_legacy_fields(env_config: dict[str, Any]) -> dict[str, Any]:
         if isinstance(config.get(section), dict):
             config[section] = {**values, **config[section]}
     return config
-
-
-def build_policy(
-    agent: str, env_config: dict[str, Any], hidden_size: int = HIDDEN_SIZE
-) -> RecurrentPolicy:
-    """The (untrained) policy of model ``agent`` for environments configured by ``env_config``,
-    with a GRU of ``hidden_size`` units (768, the reference's, by default)."""
-    config = env_config_from_dict(env_config)
-    space = build_observation_space(config)
-    return model_spec(agent).build(space, MapGeometry.from_env_config(config), hidden_size)
 
 
 def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str]:

@@ -8,12 +8,15 @@ it changes (e.g. hidden goal objects). ``multion train --agent NAME`` and
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from gymnasium import spaces
 
+from multion.config.codec import env_config_from_dict
+from multion.config.task import EnvConfig
+from multion.task.spaces import build_observation_space
 from multion_agents.agent import AgentError
 from multion_agents.learned.episodic import build_frmqn, build_smt
 from multion_agents.learned.learned_maps import build_ego_map, build_proj_neural_map, obj_recog_map
@@ -160,3 +163,15 @@ def model_spec(name: str) -> ModelSpec:
     if name not in MODELS:
         raise AgentError(f"unknown learned agent {name!r}; known: {', '.join(MODELS)}")
     return MODELS[name]
+
+
+def build_policy(
+    agent: str, env_config: EnvConfig | Mapping[str, Any], hidden_size: int = HIDDEN_SIZE
+) -> RecurrentPolicy:
+    """The (untrained) policy of model ``agent`` for environments configured by ``env_config``
+    (or its wire form, nested dicts), with a GRU of ``hidden_size`` units (768, the
+    reference's, by default)."""
+    if not isinstance(env_config, EnvConfig):
+        env_config = env_config_from_dict(env_config)
+    space = build_observation_space(env_config)
+    return model_spec(agent).build(space, MapGeometry.from_env_config(env_config), hidden_size)

@@ -19,17 +19,16 @@ FOUND next to it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
-from multion.config.codec import env_config_from_dict
 from multion.config.datasets import packaged_dataset_path
 from multion.config.ranges import ConfigError
+from multion.config.task import EnvConfig
 from multion.sim.geodesic import distance_field
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
@@ -77,7 +76,7 @@ def pose_label(
 
 
 def sample_map_crops(
-    env_config: dict[str, Any],
+    env_config: EnvConfig,
     count: int,
     seed: int,
     settings: MapPretraining,
@@ -87,10 +86,12 @@ def sample_map_crops(
     """``count`` labelled crops at random poses in episodes of ``env_config`` on ``split`` (a
     random episode, so mostly a new house, every ``poses_per_scene`` poses; ``seed`` picks the
     episodes and poses)."""
-    wanted = {**env_config, "sensors": ["goal"], "episodes_per_scene": 1, "split": split}
-    if split != "train":
-        wanted.pop("dataset", None)  # the split's packaged episodes, not a training file
-    config = env_config_from_dict(wanted)  # the oracle map shows goals even when unrendered
+    # the split's packaged episodes, not a training file; the oracle map shows goals even
+    # when they are not rendered
+    dataset = env_config.dataset if split == "train" else None
+    config = replace(
+        env_config, sensors=("goal",), episodes_per_scene=1, split=split, dataset=dataset
+    )
     found_within = settings.found_fraction * config.task.success_distance
     rng = np.random.default_rng(seed)
     maps: list[np.ndarray] = []
@@ -162,9 +163,9 @@ def _logits(
     return output.logits[0]
 
 
-def blank_frames(policy: RecurrentPolicy, env_config: dict[str, Any]) -> Batch:
+def blank_frames(policy: RecurrentPolicy, env_config: EnvConfig) -> Batch:
     """One all-zero frame (1, 1, ...) of each observation ``policy`` reads in ``env_config``."""
-    space = build_observation_space(env_config_from_dict(env_config))
+    space = build_observation_space(env_config)
     if MAP_SENSOR not in policy.sensors:
         raise ConfigError(
             f"--pretrain-map trains on the {MAP_SENSOR!r} observation; this agent reads "
@@ -201,7 +202,7 @@ def check_map_pretraining(settings: MapPretraining, agent: str, sensors: tuple[s
 
 def pretrain_map(
     policy: RecurrentPolicy,
-    env_config: dict[str, Any],
+    env_config: EnvConfig,
     settings: MapPretraining,
     out: Path,
     progress: bool = True,
@@ -225,7 +226,7 @@ def pretrain_map(
 
 def _fit(
     policy: RecurrentPolicy,
-    env_config: dict[str, Any],
+    env_config: EnvConfig,
     settings: MapPretraining,
     log: TrainingLog,
     progress: bool,
@@ -234,10 +235,8 @@ def _fit(
     train_crops = sample_map_crops(
         env_config, settings.samples, settings.seed, settings, "train", progress
     )
-    config = env_config_from_dict(env_config)
-    has_val = packaged_dataset_path(
-        config.task.num_goals, "val", config.task.num_distractors
-    ).is_file()
+    task = env_config.task
+    has_val = packaged_dataset_path(task.num_goals, "val", task.num_distractors).is_file()
     use_val = settings.held_out_split == "val" and has_val
     held_out = sample_map_crops(
         env_config,

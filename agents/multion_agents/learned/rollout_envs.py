@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
@@ -18,6 +19,7 @@ from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
 
 from multion.config.codec import env_config_from_dict
 from multion.config.ranges import ConfigError
+from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
@@ -53,12 +55,12 @@ def training_env_config(
     return merge_overrides(config, overrides or {})
 
 
-def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None:
-    """A ``ValueError`` (or the config's own ``ConfigError``, naming ``online_max_geodesic``
-    and its range) before any environment starts, rather than at a stage switch."""
+def check_curriculum(curriculum: Curriculum, env_config: EnvConfig) -> None:
+    """A ``ConfigError`` before any environment starts, rather than at a stage switch (a
+    stage's distance out of range: the config's own, naming ``online_max_geodesic``)."""
     if not curriculum:
         return
-    if env_config.get("dataset") is not None:
+    if env_config.dataset is not None:
         raise ConfigError("--curriculum samples episodes online; it cannot be used with --dataset")
     ends = [until for until, _ in curriculum]
     if ends[0] <= 0 or any(b <= a for a, b in zip(ends, ends[1:], strict=False)):
@@ -66,14 +68,14 @@ def check_curriculum(curriculum: Curriculum, env_config: dict[str, Any]) -> None
             f"--curriculum stages must end at increasing frame counts > 0, got {ends}"
         )
     for until, _ in curriculum:
-        env_config_from_dict(stage_config(env_config, curriculum, until - 1))
+        stage_config(env_config, curriculum, until - 1)  # each stage's range checked
 
 
-def stage_config(env_config: dict[str, Any], curriculum: Curriculum, frames: int) -> dict[str, Any]:
+def stage_config(env_config: EnvConfig, curriculum: Curriculum, frames: int) -> EnvConfig:
     """The env config to train with once ``frames`` frames are done."""
     for until, metres in curriculum:
         if frames < until:
-            return {**env_config, "online_max_geodesic": metres}
+            return replace(env_config, online_max_geodesic=metres)
     return env_config
 
 
