@@ -324,7 +324,7 @@ class SessionRegistry:
         cache_bytes: int,
         owner: str | None,
         for_run: bool,
-    ) -> bytes:
+    ) -> Session:
         session_id = self.settings.new_id()  # NAME-<hex> on a named replica
         shards, start = [], 0
         plain_cap = None
