@@ -16,7 +16,7 @@ import pytest
 
 from multion.config.episode import Episode
 from multion.video.encoder import read_frames, size_bound
-from multion.video.film import END_HOLD, FOUND_HOLD, MAX_VIDEO_FRAMES
+from multion.video.stored import END_HOLD, FOUND_HOLD, MAX_VIDEO_FRAMES
 from multion_agents import cli_eval, cli_video
 from multion_agents.eval_settings import EvalSettings
 from multion_agents.evaluate import evaluate

@@ -34,7 +34,7 @@ from multion.task.errors import (
     TaskError,
 )
 from multion.video.encoder import EncoderUnavailable
-from multion.video.replay import VideoError
+from multion.video.stored import VideoError
 from multion_agents.agent import AgentError
 from multion_agents.evaluate import EpisodeMismatchError
 from multion_agents.report.document import DocumentError

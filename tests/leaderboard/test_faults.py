@@ -295,7 +295,7 @@ def test_a_helper_that_keeps_failing_charges_no_quota(
         def broken(*args: object) -> None:
             raise BrokenProcessPool("A child process terminated abruptly, the process pool …")
 
-        monkeypatch.setattr(app.state.runs.hidden, "_call_plain", broken)
+        monkeypatch.setattr(app.state.runs.hidden, "_run", broken)
         code, started = post(run_path(info["run_id"], "episodes"), StartEpisode(0).to_wire())
         assert code == 500 and "refunded" in started["error"]["message"]
         code, again = post(RUNS_PATH, create)

@@ -24,7 +24,7 @@ from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.models import EpisodeRecord, Run
 from multion.leaderboard.run_videos import video_refusal
 from multion.leaderboard.storage import Database
-from multion.video.film import END_HOLD, MAX_VIDEO_FRAMES, frame_count
+from multion.video.stored import END_HOLD, MAX_VIDEO_FRAMES, frame_count
 from multion_agents.cli import main
 from waiting import wait_until
 

@@ -11,9 +11,9 @@ from pathlib import Path
 from PIL import Image
 
 from multion.task.env import MultiONEnv
-from multion.video.film import Film, StoredEpisode, check_length
 from multion.video.film import film_episode as film_stored
 from multion.video.film import still as still_of
+from multion.video.stored import Film, StoredEpisode, check_length
 from multion_agents.video.recorded import (
     RecordedEpisode,
     RecordedRun,

@@ -23,8 +23,9 @@ from multion.config.datasets import DatasetError, load_dataset, packaged_dataset
 from multion.config.episode import Episode
 from multion.config.ranges import ConfigError
 from multion.task.env import MultiONEnv
-from multion.video.replay import FILMED_SENSORS, StepView, VideoError
+from multion.video.replay import StepView
 from multion.video.replay import replay as replay_steps
+from multion.video.stored import FILMED_SENSORS, VideoError
 from multion_client.constants import NUM_ACTIONS
 
 METRICS_FILE = "metrics.json"

@@ -10,8 +10,7 @@ from multion.leaderboard.models import Run
 from multion.leaderboard.run_videos import film_run
 from multion.leaderboard.storage import Database, StorageError, check_secret
 from multion.video.encoder import EncoderUnavailable, check_encoder
-from multion.video.film import Film
-from multion.video.replay import VideoError
+from multion.video.stored import Film, VideoError
 
 
 def film(

@@ -14,6 +14,10 @@ Every number here comes from ``HMAC-SHA256(secret, label)``:
 
 Nothing is written to disk; the same secret always gives the same houses and episodes, so a
 stored run can be replayed and re-scored later. Without the secret nothing can be guessed.
+
+This module derives the numbers and loads no simulator (the leaderboard's server process imports
+it); building houses and sampling in them happen in :mod:`.hidden_sampling`, reached through
+:mod:`.hidden_entry` in the helper process (or a command's own process).
 """
 
 from __future__ import annotations
@@ -24,7 +28,6 @@ import hmac
 import logging
 import multiprocessing
 import threading
-from collections import OrderedDict
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -36,12 +39,9 @@ import numpy as np
 from multion.common.processes import ignore_stop_signals
 from multion.config.datasets import variant_name
 from multion.config.episode import Episode
+from multion.leaderboard import hidden_entry
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.scenes.registry import house_id, sized_house_id
-from multion.sim.navgrid import NavGrid
-from multion.sim.simulator import Simulator
-from multion.task.generate import generate_episodes
-from multion.task.sampling import sample_episode
 
 HIDDEN_HOUSE_BASE = 10**9
 """Hidden house numbers start here, far from the packaged splits' 0–89."""
@@ -51,8 +51,6 @@ SAMPLE_TRIES = 8
 giving up on a house (the packaged generator allows 4)."""
 T = TypeVar("T")
 log = logging.getLogger("multion.leaderboard")
-GRIDS_KEPT = 32
-"""Navigable grids the episode sampler keeps in memory (a phase may have up to 1000 houses)."""
 
 
 def derived_int(secret: str, label: str, bits: int = 63) -> int:
@@ -105,16 +103,16 @@ def hidden_houses(challenge: Challenge, track: Track, phase: Phase) -> list[str]
 
 # ---------------------------------------------------------------------- episodes
 def generate_hidden_episodes(challenge: Challenge, track: Track, phase: Phase) -> list[Episode]:
-    """The fixed episode set of (track, phase), in canonical order (runs shuffle it)."""
+    """The fixed episode set of (track, phase), in canonical order (runs shuffle it).
+    Blocking: it builds the phase's houses in this process."""
     seed = derived_int(challenge.secret, f"episodes/{track.name}/{phase.name}")
-    return generate_episodes(
+    return hidden_entry.fixed_episode_set(
         track.num_goals,
         f"hidden-{phase.name}",
         phase.episodes,
-        seed=seed,
-        scenes=hidden_houses(challenge, track, phase),
-        progress=False,
-        num_distractors=track.num_distractors,
+        seed,
+        hidden_houses(challenge, track, phase),
+        track.num_distractors,
     )
 
 
@@ -150,54 +148,20 @@ def fresh_episode(
 ) -> Episode:
     """Episode ``position`` of fresh run ``run_id``: a pure function of the secret, the run
     id and the position (``houses``: the phase's :func:`hidden_houses`, which its callers
-    keep). Blocking (the house's grid may have to be built)."""
+    keep). Blocking (the house's grid may have to be built, in this process)."""
     scene = houses[fresh_house_plan(challenge, track, phase, run_id)[position]]
     label = f"episode/{track.name}/{phase.name}/{run_id}/{position}"
-    rng = np.random.default_rng(derived_int(challenge.secret, label))
-    grid = _grid(scene)
-    for _ in range(SAMPLE_TRIES):
-        episode = sample_episode(
-            grid, scene, track.num_goals, rng, fresh_episode_id(run_id, position),
-            num_distractors=track.num_distractors,
-        )  # fmt: skip
-        if episode is not None:
-            return episode
+    episode = hidden_entry.episode_in_house(
+        scene, track.num_goals, track.num_distractors, derived_int(challenge.secret, label),
+        fresh_episode_id(run_id, position), SAMPLE_TRIES,
+    )  # fmt: skip
+    if episode is not None:
+        return episode
     raise RuntimeError(
         f"cannot place {variant_name(track.num_goals, track.num_distractors)} goals in a hidden "
         "house of "
         f"{track.name}/{phase.name}"
     )
-
-
-_grids: OrderedDict[str, NavGrid] = OrderedDict()
-_grids_lock = threading.Lock()
-
-
-def _grid(scene: str) -> NavGrid:
-    """A house's navigable grid, kept for the next episodes (this process's own simulator)."""
-    with _grids_lock:
-        if scene in _grids:
-            _grids.move_to_end(scene)
-            return _grids[scene]
-        simulator = _simulator()
-        grid = simulator.load_scene(scene)
-        simulator.close()  # the grid is all the sampler needs; free the bodies
-        _grids[scene] = grid
-        while len(_grids) > GRIDS_KEPT:
-            _grids.popitem(last=False)
-        return grid
-
-
-@functools.cache
-def _simulator() -> Simulator:
-    return Simulator()
-
-
-def _warm(scenes: list[str]) -> int:
-    """Build (or load from the grid cache) the navigable grids of ``scenes``."""
-    for scene in scenes:
-        _grid(scene)
-    return len(scenes)
 
 
 # ---------------------------------------------------------------------- the service's view
@@ -235,7 +199,8 @@ class HiddenEpisodes:
         key = (track.name, phase.name)
         with self._lock:
             if key not in self._sets:
-                self._sets[key] = self._call(generate_hidden_episodes, track, phase)
+                generate = functools.partial(generate_hidden_episodes, self.challenge, track, phase)
+                self._sets[key] = self._run(generate)
             return self._sets[key]
 
     def episode(self, track: Track, phase: Phase, draw: RunDraw, position: int) -> Episode:
@@ -243,7 +208,10 @@ class HiddenEpisodes:
         if draw.episode_set == "fixed":
             return self.phase_set(track, phase)[draw.order[position]]
         houses = self.houses[(track.name, phase.name)]
-        return self._call(fresh_episode, track, phase, houses, draw.run_id, position)
+        draw_one = functools.partial(
+            fresh_episode, self.challenge, track, phase, houses, draw.run_id, position
+        )
+        return self._run(draw_one)
 
     def episode_ids(self, track: Track, phase: Phase, draw: RunDraw) -> list[str]:
         """The ids of a run's episodes in play order, without drawing fresh ones."""
@@ -265,23 +233,24 @@ class HiddenEpisodes:
         if phase.episode_set == "fixed":
             self.phase_set(track, phase)
         else:
-            self._call_plain(_warm, self.houses[(track.name, phase.name)])
+            self._run(
+                functools.partial(hidden_entry.build_grids, self.houses[(track.name, phase.name)])
+            )
 
     def close(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = None
 
-    def _call(self, function: Callable[..., T], track: Track, phase: Phase, *args: object) -> T:
-        return self._call_plain(function, self.challenge, track, phase, *args)
-
-    def _call_plain(self, function: Callable[..., T], *args: object) -> T:
+    def _run(self, work: Callable[[], T]) -> T:
+        """``work`` (a module-level function with its arguments: picklable) in the helper, or
+        in this process without ``in_subprocess``."""
         if not self.in_subprocess:
-            return function(*args)
+            return work()
         for attempt in range(2):
             pool = self._live_pool()
             try:
-                return pool.submit(function, *args).result()
+                return pool.submit(work).result()
             except BrokenProcessPool:
                 # The helper died (killed, out of memory): a broken pool stays broken, so a
                 # new one takes its place, and the call is tried once more in it.

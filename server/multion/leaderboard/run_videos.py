@@ -15,13 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from multion.config.codec import session_config_from_dict
 from multion.config.episode import Episode
+from multion.leaderboard import drawing_entry
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run
-from multion.task.env import MultiONEnv
-from multion.video.film import Film, StoredEpisode, check_length, film_episode
-from multion.video.replay import FILMED_SENSORS, VideoError
+from multion.video.stored import FILMED_SENSORS, Film, StoredEpisode, VideoError, check_length
 
 REPLAYED_ENDS = ("success", "wrong_found", "max_steps")
 """End reasons a replay reproduces; a timeout or an abandon ends where the actions end, and
@@ -82,14 +80,9 @@ class EpisodeFilm:
     captions: Path
 
     def film(self) -> Film:
-        config, _ = session_config_from_dict(
-            self.track.env_config(self.phase, FILMED_SENSORS, self.maps)
-        )
-        env = MultiONEnv(config, episodes=[])
-        try:
-            return film_episode(env, self.stored, self.out, self.captions)
-        finally:
-            env.close()
+        """Film the episode in this process (the drawer's helper: it loads the simulator)."""
+        config_dict = self.track.env_config(self.phase, FILMED_SENSORS, self.maps)
+        return drawing_entry.film(config_dict, self.stored, self.out, self.captions)
 
 
 def episode_film(

@@ -1,6 +1,7 @@
 """Filming a stored episode: replay, compose each frame, encode; an MP4 and its captions.
 
-A FOUND's frame is held for ``FOUND_HOLD`` frames and the last frame for ``END_HOLD`` more, so
+A FOUND's frame is held for ``FOUND_HOLD`` frames and the last frame for ``END_HOLD`` more
+(:mod:`.stored`, with the length cap and the film's light types), so
 a viewer can read the result: a video of an episode with ``T`` actions, ``F`` of them FOUND, has
 ``1 + T + F * (FOUND_HOLD - 1) + END_HOLD`` frames at :data:`~.encoder.FPS` frames a second.
 """
@@ -9,71 +10,19 @@ from __future__ import annotations
 
 import itertools
 import time
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from PIL import Image
 
-from multion.config.episode import Episode
 from multion.task.env import MultiONEnv
 from multion.video.captions import CaptionTrack
 from multion.video.encoder import FPS, Mp4Writer
 from multion.video.frames import FrameComposer
-from multion.video.replay import StepView, VideoError, replay
+from multion.video.replay import StepView, replay
+from multion.video.stored import END_HOLD, FOUND_HOLD, Film, StoredEpisode, VideoError, check_length
 from multion_client.constants import Action, goal_categories
-
-MAX_VIDEO_FRAMES = 6000
-"""Longest video: 10 minutes at 10 frames a second (an episode of the paper's 2,500 steps fits
-with room for its held frames), at most 37.6 MB (:func:`~.encoder.size_bound`)."""
-FOUND_HOLD = 5
-END_HOLD = 20
-
-
-@dataclass(frozen=True)
-class StoredEpisode:
-    """What a film is made of: an episode, the actions played in it and the metrics stored."""
-
-    episode: Episode
-    actions: tuple[int, ...]
-    metrics: dict[str, Any]
-    label: str
-    """How errors name the episode (an id, or "3 of run …")."""
-    title: str
-    """The first caption line of every frame (who played what)."""
-
-
-@dataclass(frozen=True)
-class Film:
-    """A written video (and its WebVTT captions, where asked for)."""
-
-    path: Path
-    frames: int
-    seconds: float
-    """Time taken to make it (replay, drawing and encoding)."""
-    captions: Path | None = None
-
-    @property
-    def bytes(self) -> int:
-        return self.path.stat().st_size
-
-
-def frame_count(actions: Sequence[int]) -> int:
-    """How many frames the video of ``actions`` has (see the module docstring)."""
-    founds = sum(1 for action in actions if action == Action.FOUND)
-    return 1 + len(actions) + founds * (FOUND_HOLD - 1) + END_HOLD
-
-
-def check_length(actions: Sequence[int], label: str) -> None:
-    """A VideoError when the video of ``actions`` would be longer than the cap."""
-    if (frames := frame_count(actions)) > MAX_VIDEO_FRAMES:
-        raise VideoError(
-            f"episode {label} would make a video of {frames} frames "
-            f"({len(actions)} actions); videos are limited to {MAX_VIDEO_FRAMES} frames "
-            f"({MAX_VIDEO_FRAMES // FPS // 60} minutes)"
-        )
 
 
 def composed_frames(

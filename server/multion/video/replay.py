@@ -15,15 +15,8 @@ from typing import Any
 import numpy as np
 
 from multion.config.episode import Episode
-from multion.config.errors import UsageError
 from multion.task.env import MultiONEnv
-
-FILMED_SENSORS = ("rgb", "depth")
-"""What a video shows of the agent's view (metrics do not depend on the sensors)."""
-
-
-class VideoError(UsageError, ValueError):
-    """An episode that cannot be filmed; the message says which and why."""
+from multion.video.stored import VideoError
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import asyncio
 import datetime as dt
-import io
 import logging
 import multiprocessing
 import os
@@ -27,20 +26,16 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
-import numpy as np
 from sqlalchemy import CursorResult, Insert, Select, delete, exists, or_, select, update
 from sqlalchemy.orm import Session
 
 from multion.common.processes import ignore_stop_signals, limit_address_space
-from multion.config.codec import session_config_from_dict
 from multion.config.episode import Episode
+from multion.leaderboard import drawing_entry
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodePicture, EpisodeRecord, Run, utcnow
 from multion.leaderboard.results import RANKED_STATES
 from multion.leaderboard.storage import Database
-from multion.scenes.viz import gps_to_world
-from multion.sim.pictures import episode_picture
-from multion.task.env import MultiONEnv
 
 log = logging.getLogger("multion.leaderboard.pictures")
 Drawn = TypeVar("Drawn")
@@ -84,25 +79,12 @@ class EpisodeReplay:
     label: str
 
     def draw(self) -> bytes:
-        """Replay the actions (GPS only: nothing rendered) and draw the episode as a PNG."""
+        """Replay the actions (GPS only: nothing rendered) and draw the episode as a PNG, in
+        this process (the drawer's helper: it loads the simulator)."""
         config_dict = self.track.env_config(self.phase, ("gps",), self.maps)
-        config, _ = session_config_from_dict(config_dict)
-        env = MultiONEnv(config, episodes=[self.episode])
-        try:
-            observation, _ = env.reset(options={"episode_index": 0})
-            gps = [np.asarray(observation["gps"], dtype=np.float64)]
-            for action in self.actions:
-                observation, *_ = env.step(int(action))
-                gps.append(np.asarray(observation["gps"], dtype=np.float64))
-            path = gps_to_world(np.asarray(gps), self.episode)
-            image = episode_picture(
-                self.episode, path, self.metrics, env.sim, PIXELS_PER_METRE, label=self.label
-            )
-        finally:
-            env.close()
-        buffer = io.BytesIO()
-        image.save(buffer, format="PNG", optimize=True)
-        return buffer.getvalue()
+        return drawing_entry.draw_picture(
+            config_dict, self.episode, self.actions, self.metrics, self.label, PIXELS_PER_METRE
+        )
 
 
 def pictured(records: Sequence[EpisodeRecord]) -> list[EpisodeRecord]:

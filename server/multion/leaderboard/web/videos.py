@@ -29,7 +29,7 @@ from multion.leaderboard.run_videos import EpisodeFilm, Refusal, episode_film, v
 from multion.leaderboard.storage import Database
 from multion.leaderboard.web.pictures import EpisodeOf, pictured
 from multion.video.encoder import EncoderUnavailable, check_encoder
-from multion.video.film import Film
+from multion.video.stored import Film
 
 log = logging.getLogger("multion.leaderboard.videos")
 
