@@ -83,7 +83,8 @@ class MapCNN(nn.Module):
         self.out_dim = out_dim
 
     def forward(self, grid: Tensor) -> Tensor:
-        return self.net(grid)
+        out: Tensor = self.net(grid)
+        return out
 
     def forward_cells(self, cells: Tensor, tables: Sequence[Tensor]) -> Tensor:
         """``self(embedded map)`` for integer ``cells`` (B, S, S, K) whose channel ``k`` is
@@ -91,7 +92,8 @@ class MapCNN(nn.Module):
         (:func:`embed_and_convolve`)."""
         first = self.net[0]
         assert isinstance(first, nn.Conv2d)
-        return self.net[1:](embed_and_convolve(cells, tables, first))
+        out: Tensor = self.net[1:](embed_and_convolve(cells, tables, first))
+        return out
 
 
 def embed_and_convolve(cells: Tensor, tables: Sequence[Tensor], conv: nn.Conv2d) -> Tensor:

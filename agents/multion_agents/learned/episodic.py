@@ -123,7 +123,8 @@ class _Block(nn.Module):
     def forward(self, x: Tensor, memory: Tensor, ignore: Tensor) -> Tensor:
         attended, _ = self.attention(x, memory, memory, key_padding_mask=ignore, need_weights=False)
         x = self.norm1(x + attended)
-        return self.norm2(x + self.feed_forward(x))
+        out: Tensor = self.norm2(x + self.feed_forward(x))
+        return out
 
 
 class SMT(Memory):
@@ -173,7 +174,8 @@ class SMT(Memory):
         ignore[:, 0] &= anything  # keep one key in empty memories: masked rows would give NaN
         encoded = self.encoder(memory, memory, ignore)
         decoded = self.decoder(current.unsqueeze(1), encoded, ignore)[:, 0]
-        return decoded * anything.unsqueeze(1).to(decoded.dtype)
+        read: Tensor = decoded * anything.unsqueeze(1).to(decoded.dtype)
+        return read
 
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
         current = self.embed(query)

@@ -123,7 +123,8 @@ class ObjRecogMap(MapMemory):
         if self.dynamic:
             current = frames["goal"].long().view(-1, 1, 1) + 1
             cells = cells * (cells == current)
-        return self.cnn(self.embedding(cells).permute(0, 3, 1, 2))
+        features: Tensor = self.cnn(self.embedding(cells).permute(0, 3, 1, 2))
+        return features
 
     def auxiliary_loss(self, frames: Batch, precomputed: Batch) -> Tensor | None:
         if "goal_mask" not in frames or "depth" not in frames:
@@ -194,7 +195,8 @@ class ProjNeuralMap(MapMemory):
         return crop, {"map": grid}
 
     def read(self, views: Tensor, frames: Batch) -> Tensor:
-        return self.cnn(views)
+        features: Tensor = self.cnn(views)
+        return features
 
 
 class EgoMap(ProjNeuralMap):

@@ -280,12 +280,13 @@ class RecurrentPolicy(nn.Module):
     ) -> PolicyOutput:
         """One time step for B environments (inputs without the time dimension); the
         output keeps a time dimension of 1."""
-        return self(
+        output: PolicyOutput = self(
             {k: v.unsqueeze(0) for k, v in frames.items()},
             prev_action.unsqueeze(0),
             episode_start.unsqueeze(0),
             state,
         )
+        return output
 
     def get_value(
         self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State

@@ -160,7 +160,8 @@ def _logits(
         torch.ones(1, batch, device=device),
         policy.initial_state(batch),
     )
-    return output.logits[0]
+    logits: torch.Tensor = output.logits[0]
+    return logits
 
 
 def blank_frames(policy: RecurrentPolicy, env_config: EnvConfig) -> Batch:

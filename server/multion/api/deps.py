@@ -29,7 +29,8 @@ class MsgpackResponse(Response):
 
 
 def registry_of(request: Request) -> SessionRegistry:
-    return request.app.state.registry
+    registry: SessionRegistry = request.app.state.registry
+    return registry
 
 
 # Dependencies are coroutines: FastAPI would run plain functions in a thread pool per request.
@@ -38,7 +39,8 @@ async def get_registry(request: Request) -> SessionRegistry:
 
 
 async def get_settings(request: Request) -> ServerSettings:
-    return request.app.state.settings
+    settings: ServerSettings = request.app.state.settings
+    return settings
 
 
 async def session_owner(request: Request) -> str:

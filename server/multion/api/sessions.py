@@ -14,7 +14,7 @@ import secrets
 import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings, replica_of
@@ -36,6 +36,7 @@ from multion_client.protocol import (
 )
 
 log = logging.getLogger("multion.api")
+Answer = TypeVar("Answer")
 
 OBSERVATION_FIELDS = ("observations", "infos")
 STEP_FIELDS = ("observations", "rewards", "terminated", "truncated", "infos")
@@ -481,7 +482,7 @@ def _background(coro: Awaitable[Any]) -> None:
     task.add_done_callback(_tasks.discard)
 
 
-async def _shielded(coro: Awaitable[Any]) -> Any:
+async def _shielded(coro: Awaitable[Answer]) -> Answer:
     """Await ``coro`` in its own task: cancelling the caller (a client hanging up) leaves it
     running to the end, so a worker reply is never left for the next request to read."""
     task = asyncio.ensure_future(coro)

@@ -39,7 +39,8 @@ NAN = Estimate(float("nan"), float("nan"), float("nan"))
 def resampled_means(data: np.ndarray, resamples: int, seed: int) -> np.ndarray:
     """Means of ``resamples`` resamples (with replacement) of ``data``, seeded."""
     rng = np.random.default_rng(seed)
-    return data[rng.integers(len(data), size=(resamples, len(data)))].mean(axis=1)
+    means: np.ndarray = data[rng.integers(len(data), size=(resamples, len(data)))].mean(axis=1)
+    return means
 
 
 def bootstrap(values: Samples, resamples: int = RESAMPLES, seed: int = 0) -> Estimate:

@@ -29,7 +29,8 @@ __all__ = [
 
 def env_config_to_dict(config: EnvConfig) -> dict[str, Any]:
     """The nested-dict form of ``config`` (tuples become lists)."""
-    return _plain(dataclasses.asdict(config))
+    plain: dict[str, Any] = _plain(dataclasses.asdict(config))
+    return plain
 
 
 def config_ranges(config_class: type = EnvConfig, prefix: str = "") -> dict[str, str]:

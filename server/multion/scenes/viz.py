@@ -70,7 +70,7 @@ def world_to_pixel(x: float, y: float, frame: PictureFrame) -> tuple[float, floa
     return ((x - frame.origin[0]) * ppm, (top - y) * ppm)
 
 
-def _rect_pixels(x0: float, y0: float, x1: float, y1: float, frame: PictureFrame):
+def _rect_pixels(x0: float, y0: float, x1: float, y1: float, frame: PictureFrame) -> list[float]:
     (px0, py1), (px1, py0) = world_to_pixel(x0, y0, frame), world_to_pixel(x1, y1, frame)
     return [px0, py0, px1, py1]
 
