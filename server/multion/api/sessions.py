@@ -396,9 +396,11 @@ class SessionRegistry:
             ),
             return_exceptions=True,
         )
+        replies: list[Reply] = []
         for sh, result in zip(shards, results, strict=True):
             if isinstance(result, BaseException):
                 raise result
+            replies.append(result)
             header, _ = result
             if "traceback" in header:
                 raise _simulator_bug(header["traceback"], sh.worker)
@@ -406,7 +408,7 @@ class SessionRegistry:
                 raise errors.error_from_code(
                     header["code"], header["message"], header.get("status")
                 )
-        return results  # type: ignore[return-value]
+        return replies
 
     async def _release(self, shards: list[Shard]) -> None:
         for shard in shards:

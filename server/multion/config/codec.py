@@ -108,7 +108,7 @@ def _build(cls: type, data: Any, prefix: str) -> Any:
 def _convert(hint: Any, value: Any, name: str) -> Any:
     """``value`` checked (and, for tuples and floats, converted) against a type hint."""
     if dataclasses.is_dataclass(hint):
-        return _build(hint, value, f"{name}.")  # type: ignore[arg-type]
+        return _build(hint, value, f"{name}.")  # type: ignore[arg-type]  # is_dataclass: a class or instance
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
