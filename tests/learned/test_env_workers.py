@@ -61,3 +61,13 @@ def test_a_worker_s_error_is_raised_with_its_traceback(room_dataset: Path) -> No
 def test_envs_per_process_below_one_is_refused() -> None:
     with pytest.raises(ValueError, match="--envs-per-process 0: at least 1"):
         make_vector_env({}, 2, envs_per_process=0)
+
+
+def test_the_env_processes_bench_counts_the_simulator_processes_and_their_memory() -> None:
+    from multion_agents.bench.env_processes import measure
+
+    shared, alone = measure(2, 2, steps=3), measure(2, 1, steps=3)
+    assert shared["processes"] == 1 and alone["processes"] == 2  # not the resource tracker
+    assert 0 < shared["pss_mib"] <= shared["rss_mib"]
+    assert shared["rss_mib"] < alone["rss_mib"]  # one process's imports instead of two
+    assert shared["fps"] > 0 and alone["fps"] > 0
