@@ -16,6 +16,7 @@ state (FRMQN, EgoMap), with which it advances step by step.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import cast
 
@@ -28,6 +29,9 @@ from torch.distributions import Categorical
 from multion_agents.learned.encoders import ImageEncoder
 from multion_agents.learned.gru import MaskedGRU
 from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
+
+AUTOCAST_DEVICES = ("cpu", "cuda")
+"""Devices whose autocast the GRU recurrence turns off (see ``_recurrent``)."""
 
 State = dict[str, Tensor]
 Batch = dict[str, Tensor]
@@ -270,7 +274,9 @@ class RecurrentPolicy(nn.Module):
         # backward multiplies with the float32 weight, and bf16 would drift over 128 steps
         gates_x, hidden = gates_x.float(), hidden.float()
         keep = 1.0 - episode_start.to(gates_x.dtype)
-        with torch.autocast(gates_x.device.type, enabled=False):
+        device = gates_x.device.type  # autocast knows cpu and cuda; "meta" (shape checks) not
+        off = torch.autocast(device, enabled=False) if device in AUTOCAST_DEVICES else nullcontext()
+        with off:
             outputs = MaskedGRU.apply(gates_x, hidden, keep, weight_hh, bias_hh)
         return outputs, outputs[-1]
 
