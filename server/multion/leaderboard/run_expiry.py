@@ -17,6 +17,7 @@ from multion.leaderboard.clock import Clock
 from multion.leaderboard.live_run import Lane, LiveRun
 from multion.leaderboard.models import Run
 from multion.leaderboard.run_store import EpisodeResult
+from multion.leaderboard.storage import Database
 from multion_client import errors
 
 log = logging.getLogger("multion.leaderboard")
@@ -34,9 +35,7 @@ class RunExpiry(ABC):
     clock: Clock
     """What the deadlines are compared with."""
     live: dict[str, LiveRun]
-
-    @abstractmethod
-    async def _db(self, work: Any) -> Any: ...
+    db: Database
 
     @abstractmethod
     async def _get_live(self, team_id: int, run_id: str) -> LiveRun: ...
@@ -68,7 +67,7 @@ class RunExpiry(ABC):
             ).all()
             return [(r[0], r[1]) for r in rows]
 
-        for run_id, team_id in await self._db(due):
+        for run_id, team_id in await self.db.transaction(due):
             try:
                 live = await self._get_live(team_id, run_id)
                 for lane in live.lanes:

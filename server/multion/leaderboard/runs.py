@@ -25,11 +25,9 @@ import datetime as dt
 import logging
 import time
 from collections import OrderedDict
-from collections.abc import Callable
-from typing import Any, NoReturn, TypeVar
+from typing import Any, NoReturn
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session
 
 from multion.api.sessions import SessionRegistry
 from multion.config.episode import Episode
@@ -55,8 +53,6 @@ from multion.leaderboard.storage import Database
 from multion_client import errors
 from multion_client.protocol import encode
 from multion_client.run_protocol import CreateRun, RunInfo, RunObservation, RunStatus, StartEpisode
-
-Answer = TypeVar("Answer")
 
 log = logging.getLogger("multion.leaderboard")
 ENDED_KEPT = 256
@@ -136,7 +132,7 @@ class RunService(RunExpiry):
             **state.columns(),
         )
         async with self._creating:
-            await self._db(lambda s: create_run(s, row, track, phase, row.created_at))
+            await self.db.transaction(lambda s: create_run(s, row, track, phase, row.created_at))
         live = LiveRun.of(row, track, phase, episode_ids)
         for lane, first in zip(live.lanes, firsts, strict=True):
             lane.episode = first
@@ -294,7 +290,7 @@ class RunService(RunExpiry):
                 raise errors.RunNotFound(f"no run {run_id!r} for this team")
             return describe_run(session, self.challenge, run)
 
-        return await self._db(read)
+        return await self.db.transaction(read)
 
     async def list_runs(self, team_id: int) -> list[RunStatus]:
         def read(session: Any) -> list[RunStatus]:
@@ -303,7 +299,7 @@ class RunService(RunExpiry):
             ).all()
             return [describe_run(session, self.challenge, run, episodes=False) for run in runs]
 
-        return await self._db(read)
+        return await self.db.transaction(read)
 
     # ------------------------------------------------------------------ internals
     def _lane(self, live: LiveRun, episode: int) -> Lane:
@@ -320,7 +316,7 @@ class RunService(RunExpiry):
             if live.team_id != team_id:
                 raise errors.RunNotFound(f"no run {run_id!r} for this team")
             return live
-        row = await self._db(lambda s: s.get(Run, run_id))
+        row = await self.db.transaction(lambda s: s.get(Run, run_id))
         if row is None or row.team_id != team_id:
             raise errors.RunNotFound(f"no run {run_id!r} for this team")
         if row.state != "running":
@@ -332,7 +328,7 @@ class RunService(RunExpiry):
 
     async def _check_running(self, live: LiveRun) -> None:
         if live.run_id not in self.live:
-            row = await self._db(lambda s: s.get(Run, live.run_id))
+            row = await self.db.transaction(lambda s: s.get(Run, live.run_id))
             if row is None or row.state == "running":  # its end is being written
                 raise errors.RunOver("the run is over")
             raise errors.RunOver(_over(row.state, row.end_reason))
@@ -456,7 +452,7 @@ class RunService(RunExpiry):
             self.live.pop(live.run_id, None)
             self.ended[live.run_id] = live
             try:
-                await self._db(
+                await self.db.transaction(
                     lambda s: finish_run(
                         s,
                         live.run_id,
@@ -482,15 +478,6 @@ class RunService(RunExpiry):
 
     def _deadline(self) -> dt.datetime:
         return self.clock.now() + dt.timedelta(seconds=self.challenge.limits.step_timeout_s)
-
-    async def _db(self, work: Callable[[Session], Answer]) -> Answer:
-        """Run ``work(session)`` in a thread, in one transaction."""
-
-        def run() -> Answer:
-            with self.db.sessions.begin() as session:
-                return work(session)
-
-        return await asyncio.to_thread(run)
 
     async def close(self) -> None:
         self.stopping = True  # what fails from now on is the stop, not the runs' fault

@@ -8,15 +8,17 @@ A plain path is taken as a SQLite file.
 
 from __future__ import annotations
 
+import asyncio
 import datetime as dt
 import hashlib
 import hmac
 import re
 import secrets
 import unicodedata
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from sqlalchemy import Engine, create_engine, event, func, make_url, select
 from sqlalchemy.exc import ArgumentError, OperationalError
@@ -24,6 +26,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from multion.config.errors import UsageError
 from multion.leaderboard.models import Run, SecretFingerprint, Team, Token, utcnow
+
+Answer = TypeVar("Answer")
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
 TOKEN_PREFIX = "mlb"
@@ -104,6 +108,15 @@ class Database:
         if migrate:
             upgrade(engine)
         return cls(engine, sessionmaker(engine, expire_on_commit=False))
+
+    async def transaction(self, work: Callable[[Session], Answer]) -> Answer:
+        """Run ``work(session)`` in a thread, in one transaction."""
+
+        def run() -> Answer:
+            with self.sessions.begin() as session:
+                return work(session)
+
+        return await asyncio.to_thread(run)
 
     @classmethod
     def open_existing(cls, url: str, hint: str = "") -> Database:
