@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from msgpack_calls import post
 
 from multion.api import worker_process
 from multion.api.app import create_app
@@ -40,7 +41,7 @@ from multion_agents.evaluate import EpisodeMismatchError
 from multion_agents.report.document import DocumentError
 from multion_agents.report.runs import RunError
 from multion_client import errors
-from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
+from multion_client.protocol import session_path
 
 SETTINGS = ServerSettings(workers=1, max_sessions=2, max_envs_per_session=2, idle_timeout_s=600)
 SECRET = "operands could not be broadcast together (a stand-in numpy bug)"
@@ -160,11 +161,6 @@ def test_a_builtin_error_in_the_env_is_a_bug_and_the_worker_goes_on(
 def api() -> Iterator[TestClient]:
     with TestClient(create_app(SETTINGS), raise_server_exceptions=False) as client:
         yield client
-
-
-def post(api: TestClient, path: str, body: Any) -> tuple[int, Any]:
-    answer = api.post(path, content=encode(body), headers={"content-type": CONTENT_TYPE})
-    return answer.status_code, decode(answer.content)
 
 
 def test_server_answers_4xx_for_bad_input_and_a_logged_500_for_a_builtin(

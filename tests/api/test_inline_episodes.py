@@ -15,6 +15,7 @@ import pytest
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from msgpack_calls import post as msgpack_post
 
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings
@@ -23,7 +24,7 @@ from multion.config.episode import Episode
 from multion.sim.simulator import Simulator
 from multion.task.errors import BadEpisodeError
 from multion.task.sampling import check_on_grid
-from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
+from multion_client.protocol import decode, session_path
 
 SETTINGS = ServerSettings(
     workers=1, max_sessions=3, max_envs_per_session=2, idle_timeout_s=600, worker_memory_mb=3072
@@ -39,9 +40,9 @@ def api() -> Iterator[TestClient]:
 
 
 def post(api: TestClient, path: str, body: Any) -> tuple[int, Any]:
-    answer = api.post(path, content=encode(body), headers={"content-type": CONTENT_TYPE})
-    assert answer.status_code < 500, (path, body, answer.content[:500])
-    return answer.status_code, decode(answer.content)
+    status, answer = msgpack_post(api, path, body)
+    assert status < 500, (path, body, answer)
+    return status, answer
 
 
 def create(api: TestClient, config: dict[str, Any], episode: Any) -> tuple[int, Any]:

@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from msgpack_calls import post
 
 from multion.api import worker_process
 from multion.api.app import create_app
@@ -14,7 +15,7 @@ from multion.api.settings import ServerSettings
 from multion.api.workers import Worker
 from multion.task.env import MultiONEnv
 from multion.task.errors import BadResetOptionError, EpisodeNotFoundError, TaskError
-from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
+from multion_client.protocol import session_path
 
 SETTINGS = ServerSettings(workers=1, max_sessions=2, max_envs_per_session=2, idle_timeout_s=600)
 SECRET = "password=hunter2 in /srv/secret"
@@ -24,11 +25,6 @@ SECRET = "password=hunter2 in /srv/secret"
 def api() -> Iterator[TestClient]:
     with TestClient(create_app(SETTINGS), raise_server_exceptions=False) as client:
         yield client
-
-
-def post(api: TestClient, path: str, body: Any) -> tuple[int, Any]:
-    answer = api.post(path, content=encode(body), headers={"content-type": CONTENT_TYPE})
-    return answer.status_code, decode(answer.content)
 
 
 def test_task_errors_keep_their_builtins() -> None:
