@@ -74,3 +74,22 @@ def test_auto_is_charged_as_gl_and_egl_as_the_plugin() -> None:
         return estimate_env_bytes(EnvConfig(camera=camera)) - estimate_env_bytes(EnvConfig())
 
     assert charge("auto") == charge("gl") == GL_WORLD_BYTES < EGL_WORLD_BYTES == charge("egl")
+
+
+READY = """
+import json
+from multion.api import worker_process
+from multion.sim.gl import context
+message = worker_process.ready_message()
+print(json.dumps({"renderer": message["renderer"], "context_open": context._context is not None}))
+"""
+
+
+def test_a_worker_reports_auto_without_holding_a_context(gl: None) -> None:
+    """The ready message's GL probe runs in a child process: a worker holds a context (~60 MiB
+    resident, ~280 MiB of address space) only once an env of its own renders with gl."""
+    output = subprocess.run(
+        [sys.executable, "-c", READY], capture_output=True, text=True, timeout=120, check=True
+    ).stdout
+    answer = json.loads(output.splitlines()[-1])
+    assert answer == {"renderer": {"auto": "gl", "gl_unavailable": None}, "context_open": False}

@@ -17,7 +17,7 @@ from typing import Any
 
 from multion.common.processes import give_back_memory, ignore_stop_signals, limit_address_space
 from multion.config.codec import session_config_from_dict
-from multion.sim.camera import resolve_renderer, why_not_gl
+from multion.sim.camera import auto_renderer_elsewhere, resolve_renderer
 from multion.task.env import MultiONEnv
 from multion_client import errors
 from multion_client.protocol import encode, encode_items, space_to_wire
@@ -71,9 +71,11 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
 
 def ready_message() -> dict[str, Any]:
     """What this worker tells the server once it has imported the simulator: its pid, what
-    ``camera.renderer = "auto"`` renders with here (opening a GL context once, as its envs
-    would), and the env's metadata (read by ``GET /v1/spec``, so the server needs no simulator)."""
-    renderer = {"auto": resolve_renderer("auto"), "gl_unavailable": why_not_gl()}
+    ``camera.renderer = "auto"`` renders with here (asked of a child process: a worker opens an
+    OpenGL context only for envs that render with gl), and the env's metadata (read by
+    ``GET /v1/spec``, so the server needs no simulator)."""
+    auto, gl_unavailable = auto_renderer_elsewhere()
+    renderer = {"auto": auto, "gl_unavailable": gl_unavailable}
     return {"ready": True, "pid": os.getpid(), "renderer": renderer, "env_metadata": env_metadata()}
 
 

@@ -29,7 +29,11 @@ from multion.config.errors import UsageError
 from multion.config.sim import RENDERERS, CameraConfig
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
-from multion.sim.gl.context import EGL_PACKAGES, gl_unavailable_reason
+from multion.sim.gl.context import (
+    EGL_PACKAGES,
+    gl_unavailable_reason,
+    gl_unavailable_reason_in_child,
+)
 from multion.sim.gl.renderer import GLRenderer, shifted_projection
 from multion_client.errors import InvalidConfig
 
@@ -211,6 +215,13 @@ def resolve_renderer(requested: str) -> str:
 def why_not_gl() -> str | None:
     """One line saying why ``auto`` falls back to TinyRenderer here, or None."""
     return gl_unavailable_reason()
+
+
+def auto_renderer_elsewhere() -> tuple[str, str | None]:
+    """What ``auto`` resolves to on this machine and why not gl (or None), found by a child
+    process: this one opens no OpenGL context unless an env of its own renders with gl."""
+    reason = gl_unavailable_reason_in_child()
+    return ("gl" if reason is None else "tiny"), reason
 
 
 def egl_plugin_loads() -> bool:

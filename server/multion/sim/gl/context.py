@@ -11,6 +11,8 @@ saying what to install, never a crash (:func:`gl_unavailable_reason`).
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -41,6 +43,26 @@ def gl_unavailable_reason() -> str | None:
     except GLUnavailableError as error:
         return str(error)
     return None
+
+
+def gl_unavailable_reason_in_child(timeout_s: float = 60.0) -> str | None:
+    """:func:`gl_unavailable_reason` answered by a short-lived child process, so that this one
+    keeps no context: a context holds ~60 MiB resident and ~280 MiB of address space for the
+    process's life, which a simulator worker that never renders with gl should not carry."""
+    if _context is not None or _failure is not None:  # known here already
+        return gl_unavailable_reason()
+    ask = "from multion.sim.gl.context import gl_unavailable_reason as r; print(r() or '')"
+    try:
+        child = subprocess.run(
+            [sys.executable, "-c", ask], capture_output=True, text=True, timeout=timeout_s
+        )
+    except subprocess.TimeoutExpired:
+        return f"camera.renderer 'gl': no answer from the OpenGL probe within {timeout_s:.0f} s"
+    lines = child.stdout.strip().splitlines()
+    if child.returncode != 0:
+        error = (child.stderr.strip().splitlines() or ["no message"])[-1]
+        return f"camera.renderer 'gl': the OpenGL probe failed ({error:.120})"
+    return (lines[-1] if lines else "") or None
 
 
 def _open() -> moderngl.Context:
