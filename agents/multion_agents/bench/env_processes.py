@@ -19,22 +19,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium.vector import AsyncVectorEnv, VectorEnv
 
 from multion_agents.agent import merge_overrides
+from multion_agents.learned.env_workers import SharedProcessVectorEnv
 from multion_agents.learned.models import model_spec
 from multion_agents.learned.rollout_envs import make_vector_env, training_env_config
 
 V3_OVERRIDES: dict[str, dict[str, Any]] = {"maps": {"ego_size": 25}, "task": {"slack_reward": 0.0}}
 
 
-def _children(pid: int) -> list[int]:
-    """The simulator workers among ``pid``'s children (not multiprocessing's resource tracker)."""
-    out = []
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        for child in (task / "children").read_text().split():
-            if b"resource_tracker" not in Path(f"/proc/{child}/cmdline").read_bytes():
-                out.append(int(child))
-    return out
+def _worker_pids(vector: VectorEnv) -> list[int]:
+    """This vector env's simulator processes: not the caller's other children (a test
+    suite's servers) nor multiprocessing's resource tracker."""
+    if isinstance(vector, SharedProcessVectorEnv):
+        return vector.worker_pids
+    if isinstance(vector, AsyncVectorEnv):
+        return [process.pid for process in vector.processes if process.pid is not None]
+    raise TypeError(f"{type(vector).__name__} runs no local simulator processes")
 
 
 def _memory_mib(pids: Sequence[int]) -> tuple[float, float]:
@@ -68,7 +70,7 @@ def measure(envs: int, per_process: int, steps: int) -> dict[str, float]:
         for _ in range(steps):
             vector.step(rng.choice(4, size=envs, p=odds))
         fps = steps * envs / (time.perf_counter() - tick)
-        workers = _children(os.getpid())
+        workers = _worker_pids(vector)
         rss, pss = _memory_mib(workers)
     finally:
         vector.close()

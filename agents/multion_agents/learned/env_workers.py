@@ -108,8 +108,9 @@ class SharedProcessVectorEnv(VectorEnv):
         self.metadata = {**metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
 
     @property
-    def process_count(self) -> int:
-        return len(self._processes)
+    def worker_pids(self) -> list[int]:
+        """The process ids of this vector env's simulator processes."""
+        return [process.pid for process in self._processes if process.pid is not None]
 
     def _receive_all(self) -> list[Any]:
         answers, errors = [], []
