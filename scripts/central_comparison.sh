@@ -13,6 +13,7 @@
 #   MULTION='python -m multion_agents.cli' ...             # another installation of the command
 #   PUBLISH=1 bash scripts/central_comparison.sh       # then docs/learned.md's tables (below)
 #   IMAGE_SIZE=128 RENDERER=gl bash scripts/central_comparison.sh   # issue 44's 128² variant
+#   ONLY="no-map oracle-map proj-neural-map" ...       # only these runs of the stages
 # IMAGE_SIZE (default 36) and RENDERER (camera.renderer of training and evaluation; default the
 # config's, tiny) make a variant with its own OUT (runs/central-128-gl above) and its own
 # published runs (docs/learned/central-128-gl): the 36² runs are never restored into it. Its
@@ -41,6 +42,7 @@ out=${OUT:-runs/central$variant}
 frames=${FRAMES:-720000}
 episodes=${EPISODES:-100}
 stages=${STAGES:-core shapes pretrain learned}
+only=${ONLY:-}  # run names; empty: every run of the stages
 multion=${MULTION:-.venv/bin/multion}
 camera=()
 [ -z "$renderer" ] || camera=(--set "camera.renderer=$renderer")
@@ -60,10 +62,14 @@ restore_published() {
   echo "restored: $1 (published in $kept)"
 }
 
+# wanted NAME: whether ONLY (if set) names this run
+wanted() { [ -z "$only" ] || [[ " $only " == *" $1 "* ]]; }
+
 # train_and_eval NAME AGENT [TRAIN ARGS...]: $out/NAME/checkpoint.pt, then $out/NAME/eval-val
 train_and_eval() {
   local name=$1 agent=$2 dir=$out/$1
   shift 2
+  wanted "$name" || return 0
   restore_published "$name"
   [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
   local resume=()
@@ -82,8 +88,8 @@ for stage in $stages; do
       train_and_eval oracle-map oracle-map
       train_and_eval no-map no-map
       train_and_eval oracle-ego-map oracle-ego-map
-      restore_published random-oracle-found
-      if [ ! -f "$out/random-oracle-found/eval-val/metrics.json" ]; then
+      wanted random-oracle-found && restore_published random-oracle-found
+      if wanted random-oracle-found && [ ! -f "$out/random-oracle-found/eval-val/metrics.json" ]; then
         $multion eval --agent random-oracle-found "${evaluation[@]}" \
           --out "$out/random-oracle-found/eval-val"
       fi ;;

@@ -144,6 +144,14 @@ def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None
     report = next(c for c in calls if c.startswith("report "))
     assert "docs/learned/central " in report and "--out runs/central-128-gl/report" in report
 
+    shutil.rmtree(tmp_path / "runs" / "central-128-gl")
+    only = {"IMAGE_SIZE": "128", "RENDERER": "gl", "ONLY": "no-map oracle-map"}
+    _, calls = _central_calls(tmp_path, only)
+    assert [c.split()[:3] for c in calls if not c.startswith("report ")] == [
+        ["train", "--agent", "oracle-map"], ["eval", "--agent", "oracle-map"],
+        ["train", "--agent", "no-map"], ["eval", "--agent", "no-map"],
+    ]  # fmt: skip
+
     stdout, calls = _central_calls(tmp_path, {})
     assert "restored: oracle-map" in stdout
     trains = [c for c in calls if c.startswith("train ")]
