@@ -205,11 +205,11 @@ def test_passable_cells_frontiers_and_plans_match_the_old_code(seed: int) -> Non
     assert fast._field is not None and old._field is not None
     assert np.array_equal(fast._field, old._field)
     for radius in (0.15, 0.5, 0.6, 1.0):
-        assert np.array_equal(fast._disc(position, radius), old._disc(position, radius))
+        assert np.array_equal(fast.discs.disc(position, radius), old._disc(position, radius))
         expected = bounding_box(old._disc(position, radius), 0)
         if old._disc(position, radius).any():
-            assert fast._disc_box(position, radius) == expected
-    fast._paint_disc(fast._given_up, position, 1.0, True)
+            assert fast.discs.box(position, radius) == expected
+    fast.discs.paint(fast._given_up, position, 1.0, True)
     old._give_up_near(position)
     assert np.array_equal(fast._given_up, old._given_up)
     end = position + rng.uniform(-1.0, 1.0, 2)

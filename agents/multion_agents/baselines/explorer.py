@@ -45,6 +45,7 @@ from scipy import ndimage
 from multion.config.ranges import bounded, check_fields, one_of
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, EnvConfigDict, Observation
 from multion_agents.baselines.field_steps import FieldSteps
+from multion_agents.baselines.grid_discs import GridDiscs, box_grown, box_union
 from multion_agents.baselines.mapping import (
     CameraModel,
     DepthProjector,
@@ -148,6 +149,7 @@ class ExplorerAgent(Agent):
     def reset(self) -> None:
         self.grid = StartFrameGrid(self.settings.map_size, self.settings.cell_size)
         self.map = SemanticMap(self.grid)
+        self.discs = GridDiscs(self.grid)
         self._projector: DepthProjector | None = None
         self._blocked = np.zeros((self.settings.map_size, self.settings.map_size), dtype=bool)
         self._steps = FieldSteps(self.grid, self.motion)  # refused headings, steps planned ahead
@@ -168,7 +170,6 @@ class ExplorerAgent(Agent):
         self._detour = 0  # steps left exploring elsewhere after getting stuck on the way to a goal
         self._arrivals: list[np.ndarray] = []  # where frontier plans ended
         self._tight = 0  # steps left planning without the margin round obstacles
-        self._disc_masks: dict[float, np.ndarray] = {}  # radius → disc of cells round (0, 0)
 
     @property
     def searches(self) -> int:
@@ -213,7 +214,7 @@ class ExplorerAgent(Agent):
         row, col = (int(v) for v in self.grid.to_cell(position))
         if not self._visited[row, col]:
             self._visited[row, col] = True
-            self._paint_disc(self._around_path, position, self.settings.close_range, True)
+            self.discs.paint(self._around_path, position, self.settings.close_range, True)
             self.map.changed = True
         self._still = 0 if moved else self._still + 1
         if self._still > 2 * self.motion.headings and self._spin == 0:
@@ -223,7 +224,7 @@ class ExplorerAgent(Agent):
             self._field = None
             # the refused steps from this very spot stay refused (``FieldSteps``): retrying
             # them took whole episodes at starts with few free headings
-            self._paint_disc(self._blocked, position, 0.5, False)
+            self.discs.paint(self._blocked, position, 0.5, False)
             self.map.changed = True
             if self._target == ("frontier", -1):
                 self._give_up_near(position)
@@ -324,8 +325,8 @@ class ExplorerAgent(Agent):
         known = self.map.explored_extent.bounds()
         for centre in (position, self._target_point):
             if centre is not None:
-                known = _union(known, self._disc_box(centre, 1.0))
-        box = _grown(known, 8, self.settings.map_size)
+                known = box_union(known, self.discs.box(centre, 1.0))
+        box = box_grown(known, 8, self.settings.map_size)
         self._since_plan = 0
         if self._target is None or self._target[0] != "goal":
             self._field = self._field_to(self._frontier(self._passable), box)
@@ -395,7 +396,7 @@ class ExplorerAgent(Agent):
 
     def _give_up_near(self, position: np.ndarray) -> None:
         """Stop aiming at frontier cells around a spot the agent keeps failing to reach."""
-        self._paint_disc(self._given_up, position, 1.0, True)
+        self.discs.paint(self._given_up, position, 1.0, True)
         self._stuck = 0
 
     def _moved(self, goal_at: np.ndarray) -> bool:
@@ -404,7 +405,7 @@ class ExplorerAgent(Agent):
     def _ring(self, centre: np.ndarray, radius: float) -> np.ndarray:
         """Cells within ``radius`` of a goal with a clear line to it: a wider ring must not
         reach round a wall to the far side, where the goal is near but the way to it long."""
-        ring = self._disc(centre, radius)
+        ring = self.discs.disc(centre, radius)
         rows, cols = np.nonzero(ring)
         cells = self.grid.to_xy(rows, cols)
         # from each cell towards the goal, stopping a cell short of the goal's own cell
@@ -452,70 +453,9 @@ class ExplorerAgent(Agent):
         points: np.ndarray = (1 - t) * start[None, :] + t * end[None, :]
         return points
 
-    def _disc(self, centre: np.ndarray, radius: float) -> np.ndarray:
-        mask = np.zeros((self.settings.map_size, self.settings.map_size), dtype=bool)
-        r0, r1, c0, c1, inside = self._disc_window(centre, radius)
-        mask[r0:r1, c0:c1] = inside
-        return mask
-
-    def _disc_window(
-        self, centre: np.ndarray, radius: float
-    ) -> tuple[int, int, int, int, np.ndarray]:
-        """The cells within ``radius`` of ``centre``'s cell, as a box (row0, row1, col0, col1)
-        on the map and the disc's mask inside it (clipped at the map's edges)."""
-        cells = int(math.ceil(radius / self.settings.cell_size))
-        whole = self._disc_masks.get(radius)
-        if whole is None:
-            rr, cc = np.mgrid[-cells : cells + 1, -cells : cells + 1]
-            whole = self._disc_masks[radius] = np.hypot(rr, cc) * self.settings.cell_size <= radius
-        row, col = (int(v) for v in self.grid.to_cell(centre))
-        r0, r1 = max(0, row - cells), min(self.settings.map_size, row + cells + 1)
-        c0, c1 = max(0, col - cells), min(self.settings.map_size, col + cells + 1)
-        r1, c1 = max(r0, r1), max(c0, c1)
-        mask = whole[r0 - row + cells : r1 - row + cells, c0 - col + cells : c1 - col + cells]
-        return r0, r1, c0, c1, mask
-
-    def _paint_disc(
-        self, layer: np.ndarray, centre: np.ndarray, radius: float, value: bool
-    ) -> None:
-        """Set the cells of a disc to ``value`` in ``layer``, touching only the disc's box."""
-        r0, r1, c0, c1, inside = self._disc_window(centre, radius)
-        layer[r0:r1, c0:c1][inside] = value
-
-    def _disc_box(self, centre: np.ndarray, radius: float) -> tuple[int, int, int, int]:
-        """The box (row0, row1, col0, col1) round the disc's cells; empty: row0 ≥ row1."""
-        r0, _, c0, _, inside = self._disc_window(centre, radius)
-        rows, cols = np.nonzero(inside)
-        if len(rows) == 0:
-            return self.settings.map_size, 0, self.settings.map_size, 0
-        return (
-            r0 + int(rows.min()),
-            r0 + int(rows.max()) + 1,
-            c0 + int(cols.min()),
-            c0 + int(cols.max()) + 1,
-        )
-
 
 def _close(a: np.ndarray, b: np.ndarray) -> bool:
     """``np.allclose(a, b, atol=1e-4)`` for two points, without its overhead per call."""
     return all(
         abs(x - y) <= 1e-4 + 1e-5 * abs(y) for x, y in zip(a.tolist(), b.tolist(), strict=True)
     )
-
-
-def _union(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
-    """The box round two boxes (row0, row1, col0, col1) with exclusive ends; empty ones ignored."""
-    if a[0] >= a[1]:
-        return b
-    if b[0] >= b[1]:
-        return a
-    return min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3])
-
-
-def _grown(box: tuple[int, int, int, int], margin: int, size: int) -> tuple[int, int, int, int]:
-    """``box`` grown by ``margin`` cells and clipped to the map, as
-    :func:`~.navigation.bounding_box` does (the whole map for an empty box)."""
-    r0, r1, c0, c1 = box
-    if r0 >= r1:
-        return 0, size, 0, size
-    return max(0, r0 - margin), min(size, r1 + margin), max(0, c0 - margin), min(size, c1 + margin)
