@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from multion.scenes import obj_export
+from multion.common import files as atomic_files
 from multion.scenes.house import generate_house
 from multion.scenes.obj_export import export_obj
 from multion.scenes.room import make_room
@@ -90,7 +90,7 @@ def test_failed_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch
     def broken_replace(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(obj_export.os, "replace", broken_replace)
+    monkeypatch.setattr(atomic_files.os, "replace", broken_replace)
     with pytest.raises(OSError, match="disk full"):
         export_obj(make_room(3, 3), path)
     assert path.read_text() == before

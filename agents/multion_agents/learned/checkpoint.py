@@ -6,15 +6,14 @@ interrupted save never leaves a half-written checkpoint behind.
 
 from __future__ import annotations
 
-import os
 import random
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from multion.common.files import replacing
 from multion.config.errors import UsageError
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.models import build_policy, model_spec
@@ -40,15 +39,8 @@ def save_checkpoint(path: Path, payload: dict[str, Any]) -> None:
             "python": random.getstate(),
         },
     }
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(handle)
-    try:
+    with replacing(path) as temporary:
         torch.save(payload, temporary)
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def load_checkpoint(path: str | Path) -> dict[str, Any]:

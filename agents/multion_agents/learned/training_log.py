@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from multion_agents.files import replacing
+from multion.common.files import replacing
 
 CURVE_METRICS = ("success", "progress", "spl", "ppl")
 
@@ -52,7 +52,7 @@ class TrainingLog:
     def rewind(self, update: int) -> None:
         """Drop the rows of ``progress.csv`` and ``eval.csv`` logged after ``update``: a run
         interrupted past its last checkpoint logged updates that its resumption makes again.
-        Each file is replaced whole (:func:`multion_agents.files.replacing`), so none is left
+        Each file is replaced whole (:func:`multion.common.files.replacing`), so none is left
         half written."""
         for name in ("progress", "eval"):
             path = self.out / f"{name}.csv"

@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from multion.common.files import replacing, write_atomically
 from multion.config.errors import UsageError
-from multion_agents.files import replacing, write_atomically
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.tables import (

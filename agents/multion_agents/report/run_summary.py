@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
+from multion.common.files import write_atomically
 from multion.config.datasets import task_name
 from multion_agents.evaluate import EpisodeRecord, EvalResult
-from multion_agents.files import write_atomically
 from multion_agents.report.stats import CI_METHOD, HEADLINE, bootstrap
 
 

@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import gzip
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from multion.common.files import replacing
 from multion.config.episode import Episode
 from multion.config.errors import UsageError
 from multion.config.ranges import ConfigError
@@ -202,15 +201,11 @@ def save_dataset(
         "generator": generator or {},
         "episodes": [e.to_dict() for e in episodes],
     }
-    fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as handle:
-            handle.write(json.dumps(payload, separators=(",", ":")).encode("utf-8"))
-        os.chmod(tmp, 0o644)  # mkstemp makes owner-only files; datasets are meant to be shared
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    text = json.dumps(payload, separators=(",", ":")).encode("utf-8")
+    # GzipFile with no name and no time: the bytes depend on the episodes alone
+    with replacing(path) as temporary, temporary.open("wb") as raw:
+        with gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as handle:
+            handle.write(text)
     return path
 
 

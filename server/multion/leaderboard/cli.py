@@ -27,11 +27,11 @@ import io
 import json
 import os
 import sys
-import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from multion.common.files import write_atomically
 from multion.config.errors import UsageError
 from multion.config.ranges import ConfigError
 from multion.leaderboard.challenge_file import load_challenge
@@ -432,7 +432,8 @@ def _export(args: argparse.Namespace) -> int:
                 raise ConfigError(f"--out must end in .csv or .json, got {args.out}")
     finally:
         db.close()
-    _write_atomically(args.out, text)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    write_atomically(args.out, text)
     print(f"wrote {len(rows)} runs to {args.out}")
     return 0
 
@@ -472,19 +473,6 @@ def _film(args: argparse.Namespace, challenge: Challenge) -> int:
     finally:
         db.close()
     return 0
-
-
-def _write_atomically(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            handle.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 _ACTIONS = {

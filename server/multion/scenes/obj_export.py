@@ -8,10 +8,9 @@ renamed, so a crash never leaves a half-written mesh behind.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
+from multion.common.files import write_atomically
 from multion.scenes.layout import Box, Rgba, SceneLayout, vec3
 
 # Corner k of a box: bit 0 picks x, bit 1 picks y (through _CORNERS), z from the second half.
@@ -31,19 +30,6 @@ def box_vertices(box: Box) -> list[tuple[float, float, float]]:
     """The 8 corners of ``box`` in the order the triangles above refer to."""
     lo, hi = box.min_corner, box.max_corner
     return [vec3(hi[a] if bit else lo[a] for a, bit in enumerate(c)) for c in _CORNERS]
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def export_obj(layout: SceneLayout, path: str | Path, include_ceiling: bool = True) -> Path:
@@ -84,6 +70,6 @@ def export_obj(layout: SceneLayout, path: str | Path, include_ceiling: bool = Tr
             obj += [f"f {first + i} {first + j} {first + k}" for i, j, k in _TRIANGLES]
             first += 8
 
-    _write_atomic(mtl_path, "\n".join(mtl) + "\n")
-    _write_atomic(path, "\n".join(obj) + "\n")
+    write_atomically(mtl_path, "\n".join(mtl) + "\n")
+    write_atomically(path, "\n".join(obj) + "\n")
     return path

@@ -9,12 +9,13 @@ pure function of (pattern, size), written once to a cache folder and shared by e
 
 from __future__ import annotations
 
-import os
 import tempfile
 import zlib
 from pathlib import Path
 
 import numpy as np
+
+from multion.common.files import replacing
 
 PATTERNS = ("planks", "tiles", "small_tiles", "carpet", "stripes", "plaster")
 PIXELS_PER_METRE = 40
@@ -79,12 +80,6 @@ def texture_file(pattern: str, size_u: float, size_v: float, folder: Path | None
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{pattern}-{u:.2f}x{v:.2f}.png"
     if not path.is_file():
-        fd, tmp = tempfile.mkstemp(suffix=".png", dir=folder)
-        os.close(fd)
-        try:
-            Image.fromarray(texture_image(pattern, u, v)).save(tmp)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        with replacing(path) as temporary:
+            Image.fromarray(texture_image(pattern, u, v)).save(temporary)
     return path

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 import re
 import tempfile
 import xml.etree.ElementTree as ElementTree
@@ -37,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import pybullet_data
 
+from multion.common.files import replacing
 from multion.sim.bullet import c_output_silenced
 from multion.sim.bullet import pybullet as p
 from multion_client.constants import (
@@ -147,12 +147,6 @@ def scaled_urdf(model: ObjectModel, folder: Path | None = None) -> Path:
                     element.set(key, _scaled(element.attrib[key], scale))
         if element.tag in ("mesh", "texture") and "filename" in element.attrib:
             element.set("filename", str(source.parent / element.attrib["filename"]))
-    fd, tmp = tempfile.mkstemp(suffix=".urdf", dir=folder)
-    os.close(fd)
-    try:
-        tree.write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with replacing(path) as temporary:
+        tree.write(temporary)
     return path

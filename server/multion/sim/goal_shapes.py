@@ -19,7 +19,6 @@ EGL plugin draws meshes from files only, not from vertices passed in memory.
 from __future__ import annotations
 
 import math
-import os
 import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from multion.common.files import write_atomically
 from multion_client.constants import SHAPE_CATEGORIES
 
 SEGMENTS = 24
@@ -176,12 +176,5 @@ def goal_mesh_file(
     lines = [f"# {name} goal, {size} m across, on a {support_height} m support", f"o {name}"]
     lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in mesh.vertices]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.indices.reshape(-1, 3)]
-    fd, tmp = tempfile.mkstemp(suffix=".obj", dir=folder)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write("\n".join(lines) + "\n")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    write_atomically(path, "\n".join(lines) + "\n")
     return path

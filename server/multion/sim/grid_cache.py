@@ -17,12 +17,12 @@ import hashlib
 import json
 import os
 import re
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from multion.common.files import replacing
 from multion.config.sim import NavGridConfig
 from multion.scenes.registry import (
     GENERATOR_VERSION,
@@ -80,22 +80,15 @@ def cache_path(directory: Path, scene_id: str, key: str) -> Path:
 def save(path: Path, grid: NavGrid, key: str) -> None:
     """Write ``grid`` to ``path`` atomically (temporary file in the same directory, rename)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez_compressed(
-                stream,
-                key=np.array(key),
-                origin=np.asarray(grid.origin, dtype=np.float64),
-                cell_size=np.float64(grid.cell_size),
-                floor_z=np.float64(grid.floor_z),
-                **{name: getattr(grid, name) for name in _ARRAYS},
-            )
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    with replacing(path) as temporary, temporary.open("wb") as stream:
+        np.savez_compressed(
+            stream,
+            key=np.array(key),
+            origin=np.asarray(grid.origin, dtype=np.float64),
+            cell_size=np.float64(grid.cell_size),
+            floor_z=np.float64(grid.floor_z),
+            **{name: getattr(grid, name) for name in _ARRAYS},
+        )
 
 
 def load(path: Path, key: str) -> NavGrid:

@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import tempfile
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from multion.common.files import replacing, write_atomically
 from multion.scenes.layout import Box
 from multion.scenes.textures import SIZE_STEP, texture_image
 
@@ -174,20 +173,8 @@ def merged_visual(boxes: tuple[Box, ...], folder: Path | None = None) -> MergedV
     mesh, atlas_path = folder / f"scene-{digest}.obj", folder / f"scene-{digest}.png"
     if not (mesh.is_file() and atlas_path.is_file()):
         atlas, regions = build_atlas(boxes)
-        _write_atomic(atlas_path, lambda tmp: Image.fromarray(atlas).save(tmp, format="PNG"))
+        with replacing(atlas_path) as temporary:
+            Image.fromarray(atlas).save(temporary, format="PNG")
         text = mesh_text(boxes, regions)
-        _write_atomic(mesh, lambda tmp: Path(tmp).write_text(text))
+        write_atomically(mesh, text)
     return MergedVisual(mesh=mesh, atlas=atlas_path, boxes=len(boxes))
-
-
-def _write_atomic(path: Path, write: Callable[[str], object]) -> None:
-    """``write(temporary_path)``, then the file is renamed to ``path`` (readers never see a
-    half-written file)."""
-    fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)

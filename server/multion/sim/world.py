@@ -7,14 +7,13 @@ rules and metrics live in the task; nothing here knows about episodes or network
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Callable, Hashable, Sequence
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from multion.common.files import replacing
 from multion.config.errors import UsageError
 from multion.scenes.layout import Box, SceneLayout
 from multion.scenes.textures import SIZE_STEP, texture_file
@@ -414,12 +413,6 @@ def convert_mesh(source: Path, target: Path, transform: np.ndarray | None = None
     if transform is not None:
         mesh.apply_transform(transform)
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".obj", dir=target.parent)
-    os.close(fd)
-    try:
-        mesh.export(tmp, file_type="obj")
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with replacing(target) as temporary:
+        mesh.export(temporary, file_type="obj")
     return target
