@@ -18,6 +18,7 @@ reached by the agent's own steps, distractors as before.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import threading
 import weakref
@@ -34,8 +35,7 @@ from multion.scenes.layout import Room
 from multion.scenes.registry import is_mesh_scene, layout_for
 from multion.sim.geodesic import FieldCache, distance_field
 from multion.sim.navgrid import NavGrid
-from multion.task.sampling import can_step, sample_distractors
-from multion.task.step_reach import steps_reach_goals
+from multion.task.sampling import finish_episode
 from multion_client.constants import NUM_CATEGORIES
 
 SITES_SEED = 44
@@ -367,33 +367,18 @@ def sample_site_episode(
             )
             for c, s in zip(categories, order, strict=True)
         )
-        distractors = (
-            sample_distractors(rng, house.cells(), goals, num_distractors, constraints, z)
-            if num_distractors
-            else ()
-        )
-        if distractors is None:
-            continue
         start = house.cells(np.array([start_cell]))[0]
-        start_xy = (round(float(start[0]), 4), round(float(start[1]), 4))
-        start_yaw = round(float(rng.uniform(-np.pi, np.pi)), 6)
-        if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
-            continue
-        goal_fields = [house.full_field(sites.values(house, s)) for s in order]
-        if constraints.step_paths and not steps_reach_goals(
-            grid, np.asarray(start_xy), start_yaw, goal_fields, constraints.reach
-        ):
+        goal_fields = functools.cache(  # made once: for the steps' check, then the env's cache
+            lambda order=order: [house.full_field(sites.values(house, s)) for s in order]
+        )
+        episode = finish_episode(
+            rng, grid, episode_id, scene_id, start, goals, measured, goal_fields, constraints,
+            num_distractors, house.cells,
+        )  # fmt: skip
+        if episode is None:
             continue
         if fields is not None:
-            for site, field in zip(order, goal_fields, strict=True):
+            for site, field in zip(order, goal_fields(), strict=True):
                 fields.put(grid, house.site_xy[site], sites.goal_radius, field)
-        return Episode(
-            episode_id=episode_id,
-            scene_id=scene_id,
-            start_position=(*start_xy, z),
-            start_yaw=start_yaw,
-            goals=goals,
-            geodesic_distances=tuple(measured),
-            distractors=distractors,
-        )
+        return episode
     return None

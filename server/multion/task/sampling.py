@@ -5,7 +5,8 @@ files it fills are read and written by the light :mod:`multion.config.datasets`.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+import functools
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -83,31 +84,56 @@ def sample_episode(
         )
         if not all(constraints.min_geodesic <= d <= constraints.max_geodesic for d in measured):
             continue  # the footprint distance can differ from the cell distance by a few cm
-        distractors = (
-            sample_distractors(rng, cells, goals, num_distractors, constraints, z)
-            if num_distractors
-            else ()
-        )
-        if distractors is None:
-            continue
-        start_xy = (round(float(start[0]), 4), round(float(start[1]), 4))
-        start_yaw = round(float(rng.uniform(-np.pi, np.pi)), 6)
-        if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
-            continue
-        if constraints.step_paths and not steps_reach_goals(
-            grid, np.asarray(start_xy), start_yaw, goal_fields, constraints.reach
-        ):
-            continue
-        return Episode(
-            episode_id=episode_id,
-            scene_id=scene_id,
-            start_position=(*start_xy, z),
-            start_yaw=start_yaw,
-            goals=goals,
-            geodesic_distances=tuple(measured),
-            distractors=distractors,
-        )
+        episode = finish_episode(
+            rng, grid, episode_id, scene_id, start, goals, measured,
+            functools.partial(list, goal_fields), constraints, num_distractors, lambda: cells,
+        )  # fmt: skip
+        if episode is not None:
+            return episode
     return None
+
+
+def finish_episode(
+    rng: np.random.Generator,
+    grid: NavGrid,
+    episode_id: str,
+    scene_id: str,
+    start: np.ndarray,
+    goals: tuple[Goal, ...],
+    measured: Sequence[float],
+    goal_fields: Callable[[], Sequence[np.ndarray]],
+    constraints: EpisodeConstraints,
+    num_distractors: int,
+    cells: Callable[[], np.ndarray],
+) -> Episode | None:
+    """The end both samplers share (this one and :mod:`.goal_sites`), drawing from ``rng`` in
+    the same order: distractors among ``cells()``, the start's heading; then the start must be
+    able to step and the agent's steps must reach every goal (``goal_fields()``, the goals'
+    fields, is called only then). None where a draw or a check fails."""
+    distractors = (
+        sample_distractors(rng, cells(), goals, num_distractors, constraints, grid.floor_z)
+        if num_distractors
+        else ()
+    )
+    if distractors is None:
+        return None
+    start_xy = (round(float(start[0]), 4), round(float(start[1]), 4))
+    start_yaw = round(float(rng.uniform(-np.pi, np.pi)), 6)
+    if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
+        return None
+    if constraints.step_paths and not steps_reach_goals(
+        grid, np.asarray(start_xy), start_yaw, list(goal_fields()), constraints.reach
+    ):
+        return None
+    return Episode(
+        episode_id=episode_id,
+        scene_id=scene_id,
+        start_position=(*start_xy, grid.floor_z),
+        start_yaw=start_yaw,
+        goals=goals,
+        geodesic_distances=tuple(measured),
+        distractors=distractors,
+    )
 
 
 def can_step(grid: NavGrid, xy: np.ndarray, yaw: float, agent: AgentConfig = AgentConfig()) -> bool:
