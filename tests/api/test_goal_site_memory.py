@@ -1,17 +1,21 @@
-"""A worker reserves the goal-site field cache once, however many train envs draw from it
-(issue 44): its envs share one cache per process (:mod:`multion.task.goal_sites`)."""
+"""A worker reserves what its envs share once, however many envs use it: the goal-site field
+cache of train envs (issue 44, :mod:`multion.task.goal_sites`) and the OpenGL context of gl
+envs (issue 43, :mod:`multion.sim.gl`)."""
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings
 from multion.api.workers import WORKER_RESERVED_BYTES
 from multion.config.codec import session_config_from_dict
-from multion.task.memory import estimate_env_bytes, goal_sites_bytes, mib
+from multion.sim.gl.context import gl_unavailable_reason_in_child
+from multion.task.memory import GL_CONTEXT_BYTES, estimate_env_bytes, goal_sites_bytes, mib
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
 
 TRAIN = {
@@ -63,8 +67,8 @@ def test_sixteen_train_envs_reserve_the_site_cache_once_on_their_worker() -> Non
         status, refused = create(api, TRAIN, 1)
         assert status == 429 and refused["error"]["code"] == "memory_budget_exceeded"
         assert (
-            f"plus {mib(cache_bytes)} MiB once per worker for the goal-site field cache"
-            in refused["error"]["message"]
+            f"plus {mib(cache_bytes)} MiB for the goal-site field cache "
+            "(task.goal_site_cache_mib) once per worker" in refused["error"]["message"]
         )
         call(api, "DELETE", session_path(body["session_id"]))
 
@@ -87,7 +91,10 @@ def test_a_cache_no_worker_can_hold_is_refused_naming_its_field() -> None:
         status, body = create(api, config, 1)
         assert status == 422 and body["error"]["code"] == "invalid_config"
         message = body["error"]["message"]
-        assert "plus 4096 MiB for its worker's goal-site field cache" in message
+        assert (
+            "plus 4096 MiB for the goal-site field cache (task.goal_site_cache_mib) of its worker"
+            in message
+        )
         assert "a smaller task.goal_site_cache_mib" in message
         assert reserved_mib(api) == 0
 
@@ -113,3 +120,39 @@ def test_plain_sessions_count_the_cache_once_in_their_share() -> None:
         for session_id in opened:
             call(api, "DELETE", session_path(session_id))
         assert reserved_mib(api) == 0
+
+
+GL = {"camera": {"width": 32, "height": 32, "renderer": "gl"}, "sensors": ["rgb", "depth", "goal"]}
+GL_ENVS = 12
+
+
+def test_gl_envs_reserve_their_worker_s_context_once() -> None:
+    """12 gl envs fit a worker with room for one context and 12 envs' buffers; charged a
+    context each (the old charge), they would need 12. A train session beside them adds its
+    cache but no second context, and the context goes with the last gl env."""
+    reason = gl_unavailable_reason_in_child()
+    if reason is not None:
+        if os.environ.get("MULTION_REQUIRE_EGL") == "1":
+            pytest.fail(f"MULTION_REQUIRE_EGL=1 but {reason}")
+        pytest.skip(reason)
+    gl_env = estimate_env_bytes(session_config_from_dict(GL)[0])
+    train = session_config_from_dict(TRAIN)[0]
+    train_env, cache = estimate_env_bytes(train), goal_sites_bytes(train)
+    room = GL_ENVS * gl_env + GL_CONTEXT_BYTES + train_env + cache
+    worker_mb = mib(room + WORKER_RESERVED_BYTES) + 16
+    assert GL_ENVS * (gl_env + GL_CONTEXT_BYTES) > worker_mb * 2**20  # the old charge: refused
+    settings = ServerSettings(workers=1, worker_memory_mb=worker_mb, max_envs_per_session=64)
+    with TestClient(create_app(settings), raise_server_exceptions=False) as api:
+        status, body = create(api, GL, GL_ENVS)
+        assert status == 201, body
+        gl_session = body["session_id"]
+        assert reserved_mib(api) == mib(GL_ENVS * gl_env + GL_CONTEXT_BYTES)
+        # the envs render under the worker's address-space limit: one context for all
+        status, _ = call(api, "POST", session_path(gl_session, "reset"), {"seeds": [5] * GL_ENVS})
+        assert status == 200
+
+        status, body = create(api, TRAIN, 1)
+        assert status == 201, body
+        assert reserved_mib(api) == mib(GL_ENVS * gl_env + GL_CONTEXT_BYTES + train_env + cache)
+        call(api, "DELETE", session_path(gl_session))
+        assert reserved_mib(api) == mib(train_env + cache)

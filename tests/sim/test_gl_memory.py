@@ -1,5 +1,6 @@
 """What a ``gl`` world costs (issue 43): the memory estimate charges the project's OpenGL
-renderer what it holds, measured here, not the EGL plugin's 768 MiB."""
+renderer what it holds, measured here: its context once per process and a little per env, not
+the EGL plugin's 768 MiB per env."""
 
 from __future__ import annotations
 
@@ -13,13 +14,15 @@ from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
 from multion.task.memory import (
     EGL_WORLD_BYTES,
-    GL_WORLD_BYTES,
+    GL_CONTEXT_BYTES,
+    GL_ENV_BYTES,
     estimate_env_bytes,
     estimate_process_bytes,
+    process_share,
 )
 
 MiB = 2**20
-NUM_ENVS = 2
+NUM_ENVS = 3
 PROBE = """
 import json, sys
 from multion.config.sim import CameraConfig
@@ -59,13 +62,15 @@ def test_the_gl_charge_bounds_and_fits_what_gl_worlds_hold(gl: None, size: int) 
     print(f"{size}²: gl {gl_grown}, tiny {tiny_grown} (bytes, {NUM_ENVS} envs)")
     # the whole estimate bounds the process's growth, in address space too (workers' limit)
     assert gl_grown["address_space"] <= estimate_process_bytes(config, NUM_ENVS)
-    # the renderer's charge bounds what gl adds over tiny, and is not the EGL plugin's: within
-    # 1.5 times what gl adds to a process's first env (its context and that env's buffers)
+    # the renderer's charge (one context, then each env's part) bounds what gl adds over tiny,
+    # and is within 1.5 times it
     gl_extra = max(gl_grown[k] - tiny_grown[k] for k in ("rss", "address_space"))
-    assert gl_extra <= NUM_ENVS * GL_WORLD_BYTES
-    assert GL_WORLD_BYTES <= 1.5 * gl_extra
+    charge = GL_CONTEXT_BYTES + NUM_ENVS * GL_ENV_BYTES
+    assert gl_extra <= charge <= 1.5 * gl_extra
     tiny_config = EnvConfig(camera=CameraConfig(width=size, height=size), sensors=config.sensors)
-    assert estimate_env_bytes(config) - estimate_env_bytes(tiny_config) == GL_WORLD_BYTES
+    assert estimate_env_bytes(config) - estimate_env_bytes(tiny_config) == GL_ENV_BYTES
+    assert process_share(config).gl_context == GL_CONTEXT_BYTES
+    assert process_share(tiny_config).gl_context == 0
 
 
 def test_auto_is_charged_as_gl_and_egl_as_the_plugin() -> None:
@@ -73,7 +78,10 @@ def test_auto_is_charged_as_gl_and_egl_as_the_plugin() -> None:
         camera = CameraConfig(renderer=renderer)
         return estimate_env_bytes(EnvConfig(camera=camera)) - estimate_env_bytes(EnvConfig())
 
-    assert charge("auto") == charge("gl") == GL_WORLD_BYTES < EGL_WORLD_BYTES == charge("egl")
+    assert charge("auto") == charge("gl") == GL_ENV_BYTES < EGL_WORLD_BYTES == charge("egl")
+    contexts = {r: process_share(EnvConfig(camera=CameraConfig(renderer=r))).gl_context
+                for r in ("tiny", "gl", "auto", "egl")}  # fmt: skip
+    assert contexts == {"tiny": 0, "gl": GL_CONTEXT_BYTES, "auto": GL_CONTEXT_BYTES, "egl": 0}
 
 
 READY = """

@@ -22,7 +22,7 @@ from multion.api.workers import Reply, Worker, WorkerPool
 from multion.config.codec import session_config_from_dict
 from multion.task.episode_checks import check_caller_episodes, check_reset_options
 from multion.task.errors import BadResetOptionError
-from multion.task.memory import estimate_env_bytes, goal_sites_bytes, mib
+from multion.task.memory import ProcessShare, estimate_env_bytes, mib, process_share
 from multion_client import errors
 from multion_client.constants import ACTIONS_TEXT, action_id
 from multion_client.protocol import (
@@ -109,11 +109,12 @@ class SessionRegistry:
         marks a leaderboard run's session, which may use the share kept for runs."""
         # Fail fast, before any worker is involved (a ConfigError is a 422 InvalidConfig).
         config, episodes = session_config_from_dict(message.config)
-        env_bytes, cache_bytes = estimate_env_bytes(config), goal_sites_bytes(config)
-        if env_bytes + cache_bytes > self.pool.capacity_bytes:
+        env_bytes, share = estimate_env_bytes(config), process_share(config)
+        if env_bytes + share.total > self.pool.capacity_bytes:
             need, smaller = f"{mib(env_bytes)} MiB", " or a smaller maps.ego_size"
-            if cache_bytes:  # one cache per worker process, shared by its envs
-                need += f" plus {mib(cache_bytes)} MiB for its worker's goal-site field cache"
+            if share.total:  # once per worker process, shared by its envs
+                need += f" plus {share.describe()} of its worker"
+            if share.site_cache:
                 smaller = ", a smaller maps.ego_size or a smaller task.goal_site_cache_mib"
             raise errors.InvalidConfig(
                 f"one environment of this config may need up to {need}, more than a simulator "
@@ -147,7 +148,7 @@ class SessionRegistry:
         if owner is not None:
             self._pending_owners[owner] = self._pending_owners.get(owner, 0) + 1
         try:
-            return await _shielded(self._create(message, env_bytes, cache_bytes, owner, for_run))
+            return await _shielded(self._create(message, env_bytes, share, owner, for_run))
         finally:
             self._pending_sessions -= 1
             self._pending_envs -= n
@@ -322,7 +323,7 @@ class SessionRegistry:
         self,
         message: CreateSession,
         env_bytes: int,
-        cache_bytes: int,
+        share: ProcessShare,
         owner: str | None,
         for_run: bool,
     ) -> Session:
@@ -331,11 +332,11 @@ class SessionRegistry:
         plain_cap = None
         if not for_run and self.run_reserve > 0:
             plain_cap = int(self.pool.capacity_bytes * (1 - self.run_reserve))
-        chosen = self.pool.choose(message.num_envs, env_bytes, cache_bytes, plain_cap)
+        chosen = self.pool.choose(message.num_envs, env_bytes, share, plain_cap)
         for k, (worker, count) in enumerate(chosen):
             shard = Shard(worker, f"{session_id}/{k}", start, count, env_bytes, not for_run)
             shards.append(shard)
-            worker.hold(shard.shard_id, count, env_bytes, cache_bytes, shard.plain)
+            worker.hold(shard.shard_id, count, env_bytes, share, shard.plain)
             start += count
         payload = {"config": message.config, "auto_reset": message.auto_reset}
         payloads = [{**payload, "num_envs": sh.count} for sh in shards]

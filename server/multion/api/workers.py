@@ -26,7 +26,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from multion.api.worker_entry import run_worker
-from multion.task.memory import mib
+from multion.task.memory import ProcessShare, mib
 from multion_client.errors import MemoryBudgetExceeded, WorkerFailed
 from multion_client.protocol import decode
 
@@ -81,9 +81,9 @@ class Worker:
         """The memory estimates of the environments this worker holds, each its own."""
         self.plain_env_bytes = 0
         """… of which those of plain sessions (not leaderboard runs)."""
-        self.site_cache_claims: dict[str, tuple[int, bool]] = {}
-        """Per shard drawing train episodes from goal sites: the goal-site cache budget it asks
-        for and whether it is a plain session's. The process has one cache for all its envs."""
+        self.share_claims: dict[str, tuple[ProcessShare, bool]] = {}
+        """Per shard that shares something with the process's other envs (a goal-site cache,
+        an OpenGL context): what, and whether it is a plain session's."""
         self.alive = True
         self.failure = ""
         self._loop = asyncio.get_running_loop()
@@ -111,43 +111,46 @@ class Worker:
     def pid(self) -> int | None:
         return self.process.pid
 
-    def site_cache_bytes(self, plain_only: bool = False) -> int:
-        """This process's goal-site cache: the largest budget its shards ask for (the cache
-        takes the largest of its users', :class:`multion.task.goal_sites.SiteFieldCache`);
-        ``plain_only``: of plain sessions' shards."""
-        claims = self.site_cache_claims.values()
-        return max((size for size, plain in claims if plain or not plain_only), default=0)
+    def share(self, plain_only: bool = False) -> ProcessShare:
+        """What this process's envs share (one goal-site cache, sized for the largest budget
+        its shards ask for, :class:`multion.task.goal_sites.SiteFieldCache`; one OpenGL
+        context); ``plain_only``: for plain sessions' shards."""
+        share = ProcessShare()
+        for claim, plain in self.share_claims.values():
+            if plain or not plain_only:
+                share = share.merged(claim)
+        return share
 
     @property
     def reserved_bytes(self) -> int:
-        """The memory estimates of what this worker holds: its environments and, once, the
-        goal-site cache they share."""
-        return self.env_bytes + self.site_cache_bytes()
+        """The memory estimates of what this worker holds: its environments and, once, what
+        they share."""
+        return self.env_bytes + self.share().total
 
     @property
     def plain_bytes(self) -> int:
-        """… of which plain sessions' (the cache counts where a plain session uses it)."""
-        return self.plain_env_bytes + self.site_cache_bytes(plain_only=True)
+        """… of which plain sessions' (a shared part counts where a plain session uses it)."""
+        return self.plain_env_bytes + self.share(plain_only=True).total
 
     def hold(
-        self, shard_id: str, count: int, env_bytes: int, cache_bytes: int, plain: bool
+        self, shard_id: str, count: int, env_bytes: int, share: ProcessShare, plain: bool
     ) -> None:
-        """Reserve a shard of ``count`` environments of ``env_bytes`` each, drawing from a
-        goal-site cache of ``cache_bytes`` (0: none)."""
+        """Reserve a shard of ``count`` environments of ``env_bytes`` each, sharing ``share``
+        with the process's other envs."""
         self.env_count += count
         self.env_bytes += count * env_bytes
         if plain:
             self.plain_env_bytes += count * env_bytes
-        if cache_bytes:
-            self.site_cache_claims[shard_id] = (cache_bytes, plain)
+        if share.total:
+            self.share_claims[shard_id] = (share, plain)
 
     def release(self, shard_id: str, count: int, env_bytes: int, plain: bool) -> None:
-        """Undo :meth:`hold` (the cache is freed with the last shard using it)."""
+        """Undo :meth:`hold` (a shared part is freed with the last shard using it)."""
         self.env_count -= count
         self.env_bytes -= count * env_bytes
         if plain:
             self.plain_env_bytes -= count * env_bytes
-        self.site_cache_claims.pop(shard_id, None)
+        self.share_claims.pop(shard_id, None)
 
     @property
     def free_bytes(self) -> int:
@@ -290,14 +293,14 @@ class WorkerPool:
         self,
         num_envs: int,
         env_bytes: int,
-        cache_bytes: int = 0,
+        share: ProcessShare = ProcessShare(),
         plain_cap_bytes: int | None = None,
     ) -> list[tuple[Worker, int]]:
         """Spread ``num_envs`` environments of ``env_bytes`` each over the least loaded live
         workers with memory to spare: [(worker, count), ...]; raises
-        :class:`MemoryBudgetExceeded` when they do not fit now. ``cache_bytes``: the goal-site
-        cache they draw from, one per worker process, so a worker reserves it (or what it
-        lacks of it) with its first environment of this session. With ``plain_cap_bytes`` (a
+        :class:`MemoryBudgetExceeded` when they do not fit now. ``share``: what they share
+        with the other envs of their process (a goal-site cache, an OpenGL context), so a
+        worker reserves it (or what it lacks of it) with its first environment of this session. With ``plain_cap_bytes`` (a
         plain session on a server that keeps room for runs) a worker's plain sessions may
         reserve no more than that in all."""
         live = [w for w in self.workers if w.alive]
@@ -305,12 +308,10 @@ class WorkerPool:
             raise WorkerFailed("no simulator worker is running")
         load = {id(w): w.env_count for w in live}
         free = {id(w): w.free_bytes for w in live}
-        cache_lacking = {id(w): max(0, cache_bytes - w.site_cache_bytes()) for w in live}
+        cache_lacking = {id(w): _lacking(w.share(), share) for w in live}
         if plain_cap_bytes is not None:
             plain_free = {id(w): plain_cap_bytes - w.plain_bytes for w in live}
-            plain_lacking = {
-                id(w): max(0, cache_bytes - w.site_cache_bytes(plain_only=True)) for w in live
-            }
+            plain_lacking = {id(w): _lacking(w.share(plain_only=True), share) for w in live}
         counts: dict[int, int] = {}
 
         def fits(w: Worker) -> bool:
@@ -332,12 +333,7 @@ class WorkerPool:
         spare = free if plain_cap_bytes is None else {k: min(free[k], plain_free[k]) for k in free}
         initial = ", ".join(f"{mib(max(0, spare[id(w)]))} MiB" for w in live)
         kept = "" if plain_cap_bytes is None else " for plain sessions: the rest is kept for runs"
-        cache = (
-            f", plus {mib(cache_bytes)} MiB once per worker for the goal-site field cache they "
-            "share (task.goal_site_cache_mib)"
-            if cache_bytes
-            else ""
-        )
+        cache = f", plus {share.describe()} once per worker" if share.total else ""
         for placed in range(num_envs):
             room = [w for w in live if fits(w)]
             if not room:
@@ -365,3 +361,8 @@ class WorkerPool:
             self.workers[worker.slot] = Worker(
                 worker.slot, worker.generation + 1, self._exited, self.memory_limit_bytes
             )
+
+
+def _lacking(held: ProcessShare, wanted: ProcessShare) -> int:
+    """What a process that shares ``held`` must add to share ``wanted`` as well."""
+    return held.merged(wanted).total - held.total

@@ -10,6 +10,8 @@ project's simulator (``multion bench --only memory`` prints measured against est
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from multion.config.task import EnvConfig
 from multion.scenes.registry import MAX_ROOM_SIDE_M
 from multion.task.sensors import sensors_working_bytes
@@ -27,26 +29,29 @@ SCRATCH_FIELDS = 4
 EGL_WORLD_BYTES = 768 * MiB
 """A world rendered through PyBullet's EGL plugin (measured with Mesa: ~360 MiB resident, ~720
 MiB of address space); counted for ``egl``."""
-GL_WORLD_BYTES = 400 * MiB
-"""A world rendered by the project's OpenGL renderer (``gl``, and ``auto``, which picks gl or
-tiny). Measured with Mesa's llvmpipe, gl minus tiny at 36², 128² and 256² alike: the process's
-one OpenGL context ~99 MiB resident and ~365 MiB of address space (workers are limited in
-address space), then ~8 MiB per env, resident and address space. The context is opened once per
-process but the pool reserves per env, so each env carries it (tight for one env per worker)."""
-RENDERER_BYTES = {"tiny": 0, "gl": GL_WORLD_BYTES, "auto": GL_WORLD_BYTES, "egl": EGL_WORLD_BYTES}
+GL_CONTEXT_BYTES = 384 * MiB
+"""The one OpenGL context of a process rendering with the project's renderer (``gl``, and
+``auto``, which picks gl or tiny), counted once per worker process (:class:`ProcessShare`).
+Measured with Mesa's llvmpipe, gl minus tiny at 36², 128² and 256² alike: ~99 MiB resident and
+~365 MiB of address space (workers are limited in address space) for the context, then ~8 MiB
+per env (:data:`GL_ENV_BYTES`)."""
+GL_ENV_BYTES = 16 * MiB
+"""What each env adds to the context: its scene's buffers on the GL side (measured ~8 MiB)."""
+GL_RENDERERS = ("gl", "auto")
+RENDERER_ENV_BYTES = {"tiny": 0, "gl": GL_ENV_BYTES, "auto": GL_ENV_BYTES, "egl": EGL_WORLD_BYTES}
 MAX_SCENE_SIDE_M = MAX_ROOM_SIDE_M
 """The largest scene side a session may reach (procedural houses are smaller)."""
 
 
 def estimate_env_bytes(config: EnvConfig) -> int:
     """An upper bound on the memory one environment of ``config`` holds at its peak, besides
-    its process's goal-site cache (:func:`goal_sites_bytes`, counted once per process)."""
+    what it shares with the other envs of its process (:func:`process_share`)."""
     pixels = config.camera.width * config.camera.height
     side_cells = MAX_SCENE_SIDE_M / config.navgrid.cell_size + 1
     fields = config.task.num_goals + config.task.num_distractors + SCRATCH_FIELDS
     grid = int(side_cells**2) * fields * BYTES_PER_GRID_CELL_AND_FIELD
     sensors = sensors_working_bytes(config)  # the oracle map's crop, when a sensor reads it
-    renderer = RENDERER_BYTES[config.camera.renderer]
+    renderer = RENDERER_ENV_BYTES[config.camera.renderer]
     return ENV_BASE_BYTES + pixels * BYTES_PER_PIXEL + grid + sensors + renderer
 
 
@@ -60,10 +65,47 @@ def goal_sites_bytes(config: EnvConfig) -> int:
     return config.task.goal_site_cache_mib * MiB if drawn_from_sites else 0
 
 
+@dataclass(frozen=True)
+class ProcessShare:
+    """What the environments of one worker process share, reserved once per process."""
+
+    site_cache: int = 0
+    """The goal-site field cache: the largest budget of the envs drawing from it."""
+    gl_context: int = 0
+    """The process's one OpenGL context."""
+
+    @property
+    def total(self) -> int:
+        return self.site_cache + self.gl_context
+
+    def merged(self, other: ProcessShare) -> ProcessShare:
+        """What a process holding the envs of both needs (one cache, sized for the largest
+        budget, and one context)."""
+        return ProcessShare(
+            max(self.site_cache, other.site_cache), max(self.gl_context, other.gl_context)
+        )
+
+    def describe(self) -> str:
+        """The parts, for messages: "800 MiB for the goal-site field cache (…) and …"."""
+        parts = []
+        if self.site_cache:
+            parts.append(f"{mib(self.site_cache)} MiB for the goal-site field cache "
+                         "(task.goal_site_cache_mib)")  # fmt: skip
+        if self.gl_context:
+            parts.append(f"{mib(self.gl_context)} MiB for the OpenGL context (camera.renderer)")
+        return " and ".join(parts)
+
+
+def process_share(config: EnvConfig) -> ProcessShare:
+    """What an env of ``config`` shares with the other envs of its process."""
+    context = GL_CONTEXT_BYTES if config.camera.renderer in GL_RENDERERS else 0
+    return ProcessShare(site_cache=goal_sites_bytes(config), gl_context=context)
+
+
 def estimate_process_bytes(config: EnvConfig, num_envs: int) -> int:
     """An upper bound on what ``num_envs`` environments of ``config`` in one process hold:
-    each env's own memory and, once, the process's goal-site cache."""
-    return num_envs * estimate_env_bytes(config) + goal_sites_bytes(config)
+    each env's own memory and, once, what they share."""
+    return num_envs * estimate_env_bytes(config) + process_share(config).total
 
 
 def mib(size: int) -> int:
