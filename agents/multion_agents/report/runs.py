@@ -52,8 +52,9 @@ class Run:
     goal_set: str
     """``task.goal_set`` of the environment the agent played in (``colours``, ``shapes``, ...):
     the agent's own config (a checkpoint trained on shapes) or ``--set``."""
-    other_settings: str
-    """Everything else that changes the task, as ``field=value, ...`` ('' when nothing)."""
+    settings: dict[str, str]
+    """Everything else that changes the task, ``{"field": "value"}`` (the camera's size and
+    renderer among them)."""
     seed: int
     multion_version: str
     episodes: tuple[EpisodeResult, ...]
@@ -85,6 +86,23 @@ class Run:
             "goal set": self.goal_set,
             "settings": self.other_settings or "default",
         }
+
+    @property
+    def other_settings(self) -> str:
+        """:attr:`settings` as ``field=value, ...`` ('' when nothing)."""
+        return _joined(self.settings)
+
+    @property
+    def camera(self) -> str:
+        """The camera's size and renderer: "36² (tiny)", "128² (gl)"."""
+        width = self.settings.get("camera.width", "?")
+        return f"{width}² ({self.settings.get('camera.renderer', 'tiny')})"
+
+    def conditions_besides_camera(self) -> dict[str, str]:
+        """:meth:`conditions` with the camera's settings left out (runs that differ only in
+        image size or renderer)."""
+        others = {k: v for k, v in self.settings.items() if not k.startswith("camera.")}
+        return {**self.conditions(), "settings": _joined(others) or "default"}
 
     def values(self, metric: str, episode_ids: Sequence[str] | None = None) -> np.ndarray:
         """Per-episode values of a metric, in episode order or in the order of ``episode_ids``."""
@@ -162,7 +180,7 @@ def load_run(path: Path) -> Run:
         dataset=_dataset_label(run),
         found_budget=int(task.get("found_budget", DEFAULT_FOUND_BUDGET)),
         goal_set=str(task.get("goal_set", DEFAULT_GOAL_SET)),
-        other_settings=_other_settings(run),
+        settings=_settings(run),
         seed=int(run.get("seed", 0)),
         multion_version=str((run.get("versions") or {}).get("multion", "unknown")),
         episodes=episodes,
@@ -232,7 +250,7 @@ def _training_log(path: Path) -> Path | None:
     return None
 
 
-def _other_settings(run: dict[str, Any]) -> str:
+def _settings(run: dict[str, Any]) -> dict[str, str]:
     """The run's task-changing options besides the split, dataset, found budget and goal set."""
     changed: dict[str, Any] = {}
     for section, values in (run.get("env_overrides") or {}).items():
@@ -249,4 +267,8 @@ def _other_settings(run: dict[str, Any]) -> str:
     width = run["image_size"] if "image_size" in run else (sent.get("camera") or {}).get("width")
     if width is not None:
         changed["camera.width"] = width
-    return ", ".join(f"{key}={value}" for key, value in sorted(changed.items()))
+    return {key: str(value) for key, value in sorted(changed.items())}
+
+
+def _joined(settings: dict[str, str]) -> str:
+    return ", ".join(f"{key}={value}" for key, value in sorted(settings.items()))

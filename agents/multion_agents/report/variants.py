@@ -1,6 +1,7 @@
 """Tables of runs that differ in one condition only: the found budget (the supplement's
-tab:found-budget) and the goal set (its tab:color_vs_shape: NoMap with coloured cylinders
-against NoMap with red shapes)."""
+tab:found-budget), the goal set (its tab:color_vs_shape: NoMap with coloured cylinders
+against NoMap with red shapes) and the camera (an agent trained and evaluated at another image
+size or with another renderer: issue 44's 128² runs against the 36² ones)."""
 
 from __future__ import annotations
 
@@ -160,6 +161,66 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
             "in absolute terms: other buildings, other simulator, test set."
         )
     return table
+
+
+def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """Runs of one agent and task that differ only in the camera's size or renderer (each its
+    own checkpoint when learned), side by side, then each larger image's paired difference from
+    the smaller on the episodes both played."""
+    groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
+    for i in display_order(runs, labels, paper):
+        run = runs[i]
+        group = (run.agent, str(run.num_goals), *run.conditions_besides_camera().values())
+        groups[group].append(i)
+    names = [name for _, name in HEADLINE]
+    table = Table(
+        "cameras",
+        "Image size: one agent trained and evaluated with another camera (%)",
+        ["agent", "task", "camera", "episodes", *(f"{n} %" for n in names)],
+    )
+    for members in groups.values():
+        if len({runs[i].camera for i in members}) < 2:
+            continue
+        members = sorted(members, key=lambda i: _pixels(runs[i]))
+        for i in members:
+            run = runs[i]
+            cells, fields = headline_cells(run, None)
+            table.rows.append([labels[i], task_label(run), run.camera, str(run.count), *cells])
+            record: dict[str, Any] = {"agent": labels[i], "task": task_name(run.num_goals)}
+            record.update(camera=run.camera, run=run.name, episodes=run.count, **fields)
+            table.records.append(record)
+        for position, i in enumerate(members):
+            for j in members[position + 1 :]:
+                larger, smaller = runs[j], runs[i]
+                if larger.camera == smaller.camera:
+                    continue
+                paired = paired_headline(larger, smaller)
+                if paired is None:
+                    table.notes.append(f"{larger.name} and {smaller.name} share no episodes.")
+                    continue
+                common, differences = paired
+                name = f"{larger.camera} − {smaller.camera} (paired)"
+                cells = [signed(differences[key]) for key, _ in HEADLINE]
+                table.rows.append(["", task_label(larger), name, str(common), *cells])
+                record = {"agent": larger.agent, "task": task_name(larger.num_goals)}
+                record.update(camera=name, run=f"{larger.name} − {smaller.name}", episodes=common)
+                for key, _ in HEADLINE:
+                    record.update(estimate_record(differences[key], f"diff_{key}"))
+                table.records.append(record)
+    if not table.rows:
+        return None
+    table.notes.append(
+        "Rows of one agent and task whose runs differ only in the camera (`--image-size`, "
+        "`--set camera.renderer=...`; a learned agent is trained at its size). A row "
+        "`A − B (paired)` is the mean difference over the episodes both played with a 95% "
+        f"paired bootstrap interval; **bold**: it excludes 0. Other intervals: {CI_METHOD}."
+    )
+    return table
+
+
+def _pixels(run: Run) -> tuple[int, str]:
+    width = run.settings.get("camera.width", "0")
+    return (int(width) if width.isdigit() else 0, run.camera)
 
 
 def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults) -> None:
