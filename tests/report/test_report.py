@@ -307,13 +307,17 @@ def test_the_recorded_command_names_paths_from_the_working_directory(
 
 
 def _with_camera(source: Path, target: Path, size: int, renderer: str | None) -> Path:
-    """A copy of a run as if it had been played at ``size``² with ``renderer``."""
-    run = copy_run(source, target, image_size=size)
+    """A copy of a run as if it had been played at ``size``² with ``renderer`` (as `multion
+    eval` records it: the resolved camera, and the renderer among the overrides when set)."""
+    run = copy_run(source, target)
+    payload = json.loads((run / "metrics.json").read_text())
+    camera = payload["run"]["resolved_config"]["camera"]
+    camera.update(width=size, height=size, renderer=renderer or "tiny")
     if renderer is not None:
-        payload = json.loads((run / "metrics.json").read_text())
-        overrides = payload["run"].setdefault("env_overrides", {})
-        overrides.setdefault("camera", {})["renderer"] = renderer
-        (run / "metrics.json").write_text(json.dumps(payload))
+        payload["run"].setdefault("env_overrides", {}).setdefault("camera", {})["renderer"] = (
+            renderer
+        )
+    (run / "metrics.json").write_text(json.dumps(payload))
     return run
 
 

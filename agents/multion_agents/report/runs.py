@@ -53,8 +53,13 @@ class Run:
     """``task.goal_set`` of the environment the agent played in (``colours``, ``shapes``, ...):
     the agent's own config (a checkpoint trained on shapes) or ``--set``."""
     settings: dict[str, str]
-    """Everything else that changes the task, ``{"field": "value"}`` (the camera's size and
-    renderer among them)."""
+    """Everything else that changes the task, ``{"field": "value"}`` (``camera.width`` where
+    ``--image-size`` was given, ``camera.renderer`` where set)."""
+    camera_width: int
+    """The images' width the agent saw, from the resolved config (a learned agent's is its
+    checkpoint's, whether or not ``--image-size`` was given); 0 where no record says."""
+    renderer: str
+    """The renderer that drew them (``camera.renderer`` resolved; ``tiny`` for old runs)."""
     seed: int
     multion_version: str
     episodes: tuple[EpisodeResult, ...]
@@ -88,15 +93,14 @@ class Run:
         }
 
     @property
+    def camera(self) -> str:
+        """The camera, for tables: "36² (tiny)", "128² (gl)"."""
+        return f"{self.camera_width or '?'}² ({self.renderer})"
+
+    @property
     def other_settings(self) -> str:
         """:attr:`settings` as ``field=value, ...`` ('' when nothing)."""
         return _joined(self.settings)
-
-    @property
-    def camera(self) -> str:
-        """The camera's size and renderer: "36² (tiny)", "128² (gl)"."""
-        width = self.settings.get("camera.width", "?")
-        return f"{width}² ({self.settings.get('camera.renderer', 'tiny')})"
 
     def conditions_besides_camera(self) -> dict[str, str]:
         """:meth:`conditions` with the camera's settings left out (runs that differ only in
@@ -172,6 +176,7 @@ def load_run(path: Path) -> Run:
         )
     resolved = run.get("resolved_config") or {}
     task = {**(run.get("env_config") or {}).get("task", {}), **resolved.get("task", {})}
+    camera = {**(run.get("env_config") or {}).get("camera", {}), **resolved.get("camera", {})}
     return Run(
         path=path,
         agent=run["agent"],
@@ -181,6 +186,8 @@ def load_run(path: Path) -> Run:
         found_budget=int(task.get("found_budget", DEFAULT_FOUND_BUDGET)),
         goal_set=str(task.get("goal_set", DEFAULT_GOAL_SET)),
         settings=_settings(run),
+        camera_width=int(camera.get("width") or 0),
+        renderer=str(camera.get("renderer") or "tiny"),
         seed=int(run.get("seed", 0)),
         multion_version=str((run.get("versions") or {}).get("multion", "unknown")),
         episodes=episodes,

@@ -181,7 +181,7 @@ def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> 
     for members in groups.values():
         if len({runs[i].camera for i in members}) < 2:
             continue
-        members = sorted(members, key=lambda i: _pixels(runs[i]))
+        members = sorted(members, key=lambda i: (runs[i].camera_width, runs[i].renderer))
         for i in members:
             run = runs[i]
             cells, fields = headline_cells(run, None)
@@ -216,11 +216,6 @@ def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> 
         f"paired bootstrap interval; **bold**: it excludes 0. Other intervals: {CI_METHOD}."
     )
     return table
-
-
-def _pixels(run: Run) -> tuple[int, str]:
-    width = run.settings.get("camera.width", "0")
-    return (int(width) if width.isdigit() else 0, run.camera)
 
 
 def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults) -> None:
