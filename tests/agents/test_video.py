@@ -68,7 +68,7 @@ def test_eval_records_the_actions_and_films_the_first_episodes(filmed_run: Path)
         assert len(record["actions"]) == record["metrics"]["steps"]
     videos = sorted(filmed_run.glob("*.mp4"))
     assert [v.name for v in videos] == [f"episode-{r['episode_id']}.mp4" for r in records[:2]]
-    assert not list(filmed_run.glob("*.partial"))
+    assert not list(filmed_run.glob(".*"))  # no temporary file left
     for video, record in zip(videos, records, strict=False):
         actions = record["actions"]
         expected = 1 + len(actions) + actions.count("0") * (FOUND_HOLD - 1) + END_HOLD
@@ -132,7 +132,7 @@ def test_a_replay_that_does_not_reproduce_the_metrics_is_refused(
     assert _video([str(tampered), "--episode", episode_id, "--out", str(out)]) == 2
     error = capsys.readouterr().err
     assert "does not reproduce the recorded metrics" in error and "path_length" in error
-    assert not out.exists() and not list(tampered.glob("*.partial"))
+    assert not out.exists() and not list(tampered.glob(".*"))  # nor a temporary file
 
 
 def test_bad_video_requests_get_clear_errors(
@@ -232,3 +232,32 @@ def test_a_still_is_the_frame_of_its_step(
     assert f"--still must be a step in [0, {len(actions)}]" in capsys.readouterr().err
     assert _video([*argv, "--out", str(tmp_path / "still.mp4")]) == 2
     assert "a --still is a PNG file" in capsys.readouterr().err
+
+
+def test_two_filmers_of_one_episode_into_one_file_both_succeed(
+    filmed_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two leaderboard replicas share a video folder and may film one episode at once (CI saw
+    it: the first to finish moved a shared `.partial` file away under the other). Here a second
+    film of the same episode starts and ends just before the first writes its trailer."""
+    from multion.video import film as server_film
+    from multion_agents.video.film import film_episode
+
+    run = read_run(filmed_run)
+    recorded = sorted(run.episodes, key=lambda e: e.index)[0]
+    out = tmp_path / "episode.mp4"
+    nested: list[int] = []
+    started: list[bool] = []
+
+    class InterruptedWriter(server_film.Mp4Writer):
+        def close(self) -> None:  # the second film runs just before the first's trailer
+            if not started:
+                started.append(True)
+                nested.append(film_episode(run, recorded, out).frames)
+            super().close()
+
+    monkeypatch.setattr(server_film, "Mp4Writer", InterruptedWriter)
+    first = film_episode(run, recorded, out)
+    assert nested == [first.frames]
+    assert len(read_frames(out)) == first.frames
+    assert [p.name for p in tmp_path.iterdir()] == ["episode.mp4"]  # no temporary left

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from multion.common.files import replacing, write_atomically
 from multion.task.env import MultiONEnv
 from multion.video.captions import CaptionTrack
 from multion.video.encoder import FPS, Mp4Writer
@@ -52,15 +53,19 @@ def film_episode(
 ) -> Film:
     """Write the video of ``stored`` to ``out`` (and its WebVTT captions to ``captions``),
     replayed in ``env`` (any config of the episode's track with :data:`FILMED_SENSORS`).
-    Nothing is left at ``out`` or ``captions`` on failure."""
+    Nothing is left at ``out`` or ``captions`` on failure. Both are written through temporary
+    files of their own, so two processes filming one episode at once (two replicas of a
+    leaderboard, one video folder) each replace it whole."""
     check_length(stored.actions, stored.label)
     started = time.perf_counter()
-    partial = out.with_name(out.name + ".partial")
     track = CaptionTrack(FPS)
     try:
         steps = composed_frames(env, stored)
         view, frame, lines = next(steps)
-        with Mp4Writer(partial, frame.shape[1], frame.shape[0]) as writer:
+        with (
+            replacing(out) as partial,
+            Mp4Writer(partial, frame.shape[1], frame.shape[0]) as writer,
+        ):
             writer.write(frame)
             track.add(0, 1, (stored.title, *lines))  # the first cue says what is shown
             for view, frame, lines in steps:
@@ -72,15 +77,12 @@ def film_episode(
             for _ in range(END_HOLD):
                 writer.write(frame)
             frames = writer.frames
-        if captions is not None:
-            captions.write_text(track.text(), encoding="utf-8")
-        partial.replace(out)
+            if captions is not None:  # before the video is in place: it is what readers look for
+                write_atomically(captions, track.text())
     except BaseException:
         if captions is not None:
             captions.unlink(missing_ok=True)
         raise
-    finally:
-        partial.unlink(missing_ok=True)
     return Film(out, frames, time.perf_counter() - started, captions)
 
 
