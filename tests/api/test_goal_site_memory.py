@@ -15,7 +15,7 @@ from multion.api.settings import ServerSettings
 from multion.api.workers import WORKER_RESERVED_BYTES
 from multion.config.codec import session_config_from_dict
 from multion.sim.gl.context import gl_unavailable_reason_in_child
-from multion.task.memory import GL_CONTEXT_BYTES, estimate_env_bytes, goal_sites_bytes, mib
+from multion.task.memory import estimate_env_bytes, goal_sites_bytes, mib, process_share
 from multion_client.protocol import CONTENT_TYPE, decode, encode, session_path
 
 TRAIN = {
@@ -135,24 +135,25 @@ def test_gl_envs_reserve_their_worker_s_context_once() -> None:
         if os.environ.get("MULTION_REQUIRE_EGL") == "1":
             pytest.fail(f"MULTION_REQUIRE_EGL=1 but {reason}")
         pytest.skip(reason)
-    gl_env = estimate_env_bytes(session_config_from_dict(GL)[0])
+    gl_config = session_config_from_dict(GL)[0]
+    gl_env, context = estimate_env_bytes(gl_config), process_share(gl_config).gl_context
     train = session_config_from_dict(TRAIN)[0]
     train_env, cache = estimate_env_bytes(train), goal_sites_bytes(train)
-    room = GL_ENVS * gl_env + GL_CONTEXT_BYTES + train_env + cache
+    room = GL_ENVS * gl_env + context + train_env + cache
     worker_mb = mib(room + WORKER_RESERVED_BYTES) + 16
-    assert GL_ENVS * (gl_env + GL_CONTEXT_BYTES) > worker_mb * 2**20  # the old charge: refused
+    assert GL_ENVS * (gl_env + context) > worker_mb * 2**20  # a context per env: refused
     settings = ServerSettings(workers=1, worker_memory_mb=worker_mb, max_envs_per_session=64)
     with TestClient(create_app(settings), raise_server_exceptions=False) as api:
         status, body = create(api, GL, GL_ENVS)
         assert status == 201, body
         gl_session = body["session_id"]
-        assert reserved_mib(api) == mib(GL_ENVS * gl_env + GL_CONTEXT_BYTES)
+        assert reserved_mib(api) == mib(GL_ENVS * gl_env + context)
         # the envs render under the worker's address-space limit: one context for all
         status, _ = call(api, "POST", session_path(gl_session, "reset"), {"seeds": [5] * GL_ENVS})
         assert status == 200
 
         status, body = create(api, TRAIN, 1)
         assert status == 201, body
-        assert reserved_mib(api) == mib(GL_ENVS * gl_env + GL_CONTEXT_BYTES + train_env + cache)
+        assert reserved_mib(api) == mib(GL_ENVS * gl_env + context + train_env + cache)
         call(api, "DELETE", session_path(gl_session))
         assert reserved_mib(api) == mib(train_env + cache)

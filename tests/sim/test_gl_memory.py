@@ -5,6 +5,7 @@ the EGL plugin's 768 MiB per env."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -16,6 +17,7 @@ from multion.task.memory import (
     EGL_WORLD_BYTES,
     GL_CONTEXT_BYTES,
     GL_ENV_BYTES,
+    GL_THREAD_BYTES,
     estimate_env_bytes,
     estimate_process_bytes,
     process_share,
@@ -43,34 +45,54 @@ print(json.dumps({"rss": status("VmRSS") - rss, "address_space": status("VmSize"
 """
 
 
-def grown(renderer: str, size: int) -> dict[str, int]:
-    """Resident and address-space growth of a fresh process opening NUM_ENVS envs."""
+def grown(renderer: str, size: int, threads: str) -> dict[str, int]:
+    """Resident and address-space growth of a fresh process opening NUM_ENVS envs, Mesa
+    drawing with ``threads`` rendering threads."""
     output = subprocess.run(
         ["prlimit", f"--as={4 * 2**30}", sys.executable, "-c", PROBE, renderer, str(size),
          str(NUM_ENVS)],
         capture_output=True, text=True, timeout=300, check=True,
+        env={**os.environ, "LP_NUM_THREADS": threads},
     ).stdout  # fmt: skip
     result: dict[str, int] = json.loads(output.splitlines()[-1])
     return result
 
 
-@pytest.mark.parametrize("size", [36, 128])
-def test_the_gl_charge_bounds_and_fits_what_gl_worlds_hold(gl: None, size: int) -> None:
+@pytest.mark.parametrize(("size", "threads"), [(36, "0"), (128, "0"), (36, "1"), (36, "2")])
+def test_the_gl_charge_bounds_and_fits_what_gl_worlds_hold(
+    gl: None, size: int, threads: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each rendering thread adds ~144 MiB of address space to a context: the full suite ran
+    this probe with LP_NUM_THREADS=1 (set by an earlier EGL test) and the old charge, made for
+    0 threads, no longer bounded it."""
+    monkeypatch.setenv("LP_NUM_THREADS", threads)
     camera = CameraConfig(width=size, height=size, renderer="gl")
     config = EnvConfig(camera=camera, sensors=("rgb", "depth", "goal"))
-    gl_grown, tiny_grown = grown("gl", size), grown("tiny", size)
-    print(f"{size}²: gl {gl_grown}, tiny {tiny_grown} (bytes, {NUM_ENVS} envs)")
+    gl_grown, tiny_grown = grown("gl", size, threads), grown("tiny", size, threads)
+    print(f"{size}², {threads} threads: gl {gl_grown}, tiny {tiny_grown} ({NUM_ENVS} envs)")
     # the whole estimate bounds the process's growth, in address space too (workers' limit)
     assert gl_grown["address_space"] <= estimate_process_bytes(config, NUM_ENVS)
     # the renderer's charge (one context, then each env's part) bounds what gl adds over tiny,
     # and is within 1.5 times it
     gl_extra = max(gl_grown[k] - tiny_grown[k] for k in ("rss", "address_space"))
-    charge = GL_CONTEXT_BYTES + NUM_ENVS * GL_ENV_BYTES
+    charge = process_share(config).gl_context + NUM_ENVS * GL_ENV_BYTES
     assert gl_extra <= charge <= 1.5 * gl_extra
+    assert process_share(config).gl_context == GL_CONTEXT_BYTES + int(threads) * GL_THREAD_BYTES
     tiny_config = EnvConfig(camera=CameraConfig(width=size, height=size), sensors=config.sensors)
     assert estimate_env_bytes(config) - estimate_env_bytes(tiny_config) == GL_ENV_BYTES
-    assert process_share(config).gl_context == GL_CONTEXT_BYTES
     assert process_share(tiny_config).gl_context == 0
+
+
+def test_without_lp_num_threads_a_context_is_charged_one_thread(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The gl renderer sets 0 threads, PyBullet's EGL plugin 1, whichever a worker opens
+    first: unset, the charge takes the larger."""
+    gl_config = EnvConfig(camera=CameraConfig(renderer="gl"))
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    assert process_share(gl_config).gl_context == GL_CONTEXT_BYTES + GL_THREAD_BYTES
+    monkeypatch.setenv("LP_NUM_THREADS", "nonsense")
+    assert process_share(gl_config).gl_context == GL_CONTEXT_BYTES + GL_THREAD_BYTES
 
 
 def test_auto_is_charged_as_gl_and_egl_as_the_plugin() -> None:
@@ -81,7 +103,8 @@ def test_auto_is_charged_as_gl_and_egl_as_the_plugin() -> None:
     assert charge("auto") == charge("gl") == GL_ENV_BYTES < EGL_WORLD_BYTES == charge("egl")
     contexts = {r: process_share(EnvConfig(camera=CameraConfig(renderer=r))).gl_context
                 for r in ("tiny", "gl", "auto", "egl")}  # fmt: skip
-    assert contexts == {"tiny": 0, "gl": GL_CONTEXT_BYTES, "auto": GL_CONTEXT_BYTES, "egl": 0}
+    gl_context = contexts["gl"]
+    assert contexts == {"tiny": 0, "gl": gl_context, "auto": gl_context, "egl": 0}
 
 
 READY = """

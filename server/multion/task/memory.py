@@ -10,6 +10,7 @@ project's simulator (``multion bench --only memory`` prints measured against est
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 from multion.config.task import EnvConfig
@@ -33,8 +34,13 @@ GL_CONTEXT_BYTES = 384 * MiB
 """The one OpenGL context of a process rendering with the project's renderer (``gl``, and
 ``auto``, which picks gl or tiny), counted once per worker process (:class:`ProcessShare`).
 Measured with Mesa's llvmpipe, gl minus tiny at 36², 128² and 256² alike: ~99 MiB resident and
-~365 MiB of address space (workers are limited in address space) for the context, then ~8 MiB
-per env (:data:`GL_ENV_BYTES`)."""
+~365 MiB of address space (workers are limited in address space) for the context drawing in
+the calling thread (``LP_NUM_THREADS=0``), more per rendering thread (:data:`GL_THREAD_BYTES`),
+then ~8 MiB per env (:data:`GL_ENV_BYTES`)."""
+GL_THREAD_BYTES = 160 * MiB
+"""Each of Mesa's llvmpipe rendering threads (``LP_NUM_THREADS``) adds to a context: measured
++144 MiB of address space apiece (a thread's stack and malloc arenas), no resident memory to
+speak of (:func:`llvmpipe_threads`)."""
 GL_ENV_BYTES = 16 * MiB
 """What each env adds to the context: its scene's buffers on the GL side (measured ~8 MiB)."""
 GL_RENDERERS = ("gl", "auto")
@@ -96,9 +102,19 @@ class ProcessShare:
         return " and ".join(parts)
 
 
+def llvmpipe_threads() -> int:
+    """Mesa's rendering threads per context in a worker: ``LP_NUM_THREADS`` where the server's
+    environment sets it (workers inherit it), else 1, the most the project sets itself (the gl
+    renderer sets 0, PyBullet's EGL plugin 1, whichever a process opens first)."""
+    value = os.environ.get("LP_NUM_THREADS", "1")
+    return max(0, int(value)) if value.strip().isdigit() else 1
+
+
 def process_share(config: EnvConfig) -> ProcessShare:
     """What an env of ``config`` shares with the other envs of its process."""
-    context = GL_CONTEXT_BYTES if config.camera.renderer in GL_RENDERERS else 0
+    context = 0
+    if config.camera.renderer in GL_RENDERERS:
+        context = GL_CONTEXT_BYTES + llvmpipe_threads() * GL_THREAD_BYTES
     return ProcessShare(site_cache=goal_sites_bytes(config), gl_context=context)
 
 
