@@ -145,8 +145,11 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
             table.records.append(record)
         for position, i in enumerate(members):
             for j in members[position + 1 :]:
-                if runs[i].goal_set != runs[j].goal_set:
-                    _difference_row(table, runs[j], runs[i], paper)
+                later, earlier = runs[j], runs[i]
+                if later.goal_set != earlier.goal_set:
+                    name = f"{later.goal_set} − {earlier.goal_set} (paired)"
+                    paper_cell = _paper_goal_set_difference(paper, later, earlier)
+                    _difference_row(table, later, earlier, "goal_set", name, paper_cell)
     if not table.rows:
         return None
     table.notes.append(
@@ -192,21 +195,9 @@ def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> 
         for position, i in enumerate(members):
             for j in members[position + 1 :]:
                 larger, smaller = runs[j], runs[i]
-                if larger.camera == smaller.camera:
-                    continue
-                paired = paired_headline(larger, smaller)
-                if paired is None:
-                    table.notes.append(f"{larger.name} and {smaller.name} share no episodes.")
-                    continue
-                common, differences = paired
-                name = f"{larger.camera} − {smaller.camera} (paired)"
-                cells = [signed(differences[key]) for key, _ in HEADLINE]
-                table.rows.append(["", task_label(larger), name, str(common), *cells])
-                record = {"agent": larger.agent, "task": task_name(larger.num_goals)}
-                record.update(camera=name, run=f"{larger.name} − {smaller.name}", episodes=common)
-                for key, _ in HEADLINE:
-                    record.update(estimate_record(differences[key], f"diff_{key}"))
-                table.records.append(record)
+                if larger.camera != smaller.camera:
+                    name = f"{larger.camera} − {smaller.camera} (paired)"
+                    _difference_row(table, larger, smaller, "camera", name)
     if not table.rows:
         return None
     table.notes.append(
@@ -218,38 +209,29 @@ def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> 
     return table
 
 
-def _difference_row(table: Table, later: Run, earlier: Run, paper: PaperResults) -> None:
-    """``later − earlier`` on their common episodes, with the paper's difference if it has both."""
-    name = f"{later.goal_set} − {earlier.goal_set} (paired)"
+def _paper_goal_set_difference(paper: PaperResults, later: Run, earlier: Run) -> str:
+    """The paper's ``later − earlier`` of the two goal sets' rows, '' where it lacks one."""
+    theirs_later = paper.goal_set_row(later.agent, later.num_goals, later.goal_set)
+    theirs_earlier = paper.goal_set_row(earlier.agent, earlier.num_goals, earlier.goal_set)
+    if not (theirs_later and theirs_earlier):
+        return ""
+    return " / ".join(f"{theirs_later[key] - theirs_earlier[key]:+.0f}" for key, _ in HEADLINE)
+
+
+def _difference_row(
+    table: Table, later: Run, earlier: Run, column: str, name: str, *after: str
+) -> None:
+    """The row ``name`` of ``later − earlier`` on their common episodes (95% paired bootstrap
+    intervals), its record naming the pair under ``column``, with the cells ``after`` last."""
     paired = paired_headline(later, earlier)
     if paired is None:
         table.notes.append(f"{later.name} and {earlier.name} share no episodes: not compared.")
         return
     common, differences = paired
-    theirs_later = paper.goal_set_row(later.agent, later.num_goals, later.goal_set)
-    theirs_earlier = paper.goal_set_row(earlier.agent, earlier.num_goals, earlier.goal_set)
-    paper_cell = ""
-    if theirs_later and theirs_earlier:
-        paper_cell = " / ".join(
-            f"{theirs_later[key] - theirs_earlier[key]:+.0f}" for key, _ in HEADLINE
-        )
-    table.rows.append(
-        [
-            "",
-            task_label(later),
-            name,
-            str(common),
-            *(signed(differences[key]) for key, _ in HEADLINE),
-            paper_cell,
-        ]
-    )
-    record: dict[str, Any] = {
-        "agent": later.agent,
-        "task": task_name(later.num_goals),
-        "goal_set": name,
-        "run": f"{later.name} − {earlier.name}",
-        "episodes": common,
-    }
+    cells = [signed(differences[key]) for key, _ in HEADLINE]
+    table.rows.append(["", task_label(later), name, str(common), *cells, *after])
+    record: dict[str, Any] = {"agent": later.agent, "task": task_name(later.num_goals)}
+    record.update({column: name, "run": f"{later.name} − {earlier.name}", "episodes": common})
     for key, _ in HEADLINE:
         record.update(estimate_record(differences[key], f"diff_{key}"))
     table.records.append(record)
