@@ -300,46 +300,46 @@ class WorkerPool:
         workers with memory to spare: [(worker, count), ...]; raises
         :class:`MemoryBudgetExceeded` when they do not fit now. ``share``: what they share
         with the other envs of their process (a goal-site cache, an OpenGL context), so a
-        worker reserves it (or what it lacks of it) with its first environment of this session. With ``plain_cap_bytes`` (a
-        plain session on a server that keeps room for runs) a worker's plain sessions may
-        reserve no more than that in all."""
+        worker reserves it (or what it lacks of it) with its first environment of this
+        session. With ``plain_cap_bytes`` (a plain session on a server that keeps room for
+        runs) a worker's plain sessions may reserve no more than that in all."""
         live = [w for w in self.workers if w.alive]
         if not live:
             raise WorkerFailed("no simulator worker is running")
         load = {id(w): w.env_count for w in live}
         free = {id(w): w.free_bytes for w in live}
-        cache_lacking = {id(w): _lacking(w.share(), share) for w in live}
+        share_lacking = {id(w): _lacking(w.share(), share) for w in live}
         if plain_cap_bytes is not None:
             plain_free = {id(w): plain_cap_bytes - w.plain_bytes for w in live}
-            plain_lacking = {id(w): _lacking(w.share(plain_only=True), share) for w in live}
+            plain_share_lacking = {id(w): _lacking(w.share(plain_only=True), share) for w in live}
         counts: dict[int, int] = {}
 
         def fits(w: Worker) -> bool:
             first = id(w) not in counts
-            if free[id(w)] < env_bytes + (cache_lacking[id(w)] if first else 0):
+            if free[id(w)] < env_bytes + (share_lacking[id(w)] if first else 0):
                 return False
             if plain_cap_bytes is None:
                 return True
-            return plain_free[id(w)] >= env_bytes + (plain_lacking[id(w)] if first else 0)
+            return plain_free[id(w)] >= env_bytes + (plain_share_lacking[id(w)] if first else 0)
 
         def take(w: Worker) -> None:
             first = id(w) not in counts
             load[id(w)] += 1
-            free[id(w)] -= env_bytes + (cache_lacking[id(w)] if first else 0)
+            free[id(w)] -= env_bytes + (share_lacking[id(w)] if first else 0)
             if plain_cap_bytes is not None:
-                plain_free[id(w)] -= env_bytes + (plain_lacking[id(w)] if first else 0)
+                plain_free[id(w)] -= env_bytes + (plain_share_lacking[id(w)] if first else 0)
             counts[id(w)] = counts.get(id(w), 0) + 1
 
         spare = free if plain_cap_bytes is None else {k: min(free[k], plain_free[k]) for k in free}
         initial = ", ".join(f"{mib(max(0, spare[id(w)]))} MiB" for w in live)
         kept = "" if plain_cap_bytes is None else " for plain sessions: the rest is kept for runs"
-        cache = f", plus {share.describe()} once per worker" if share.total else ""
+        shared = f", plus {share.describe()} once per worker" if share.total else ""
         for placed in range(num_envs):
             room = [w for w in live if fits(w)]
             if not room:
                 raise MemoryBudgetExceeded(
                     f"{num_envs} environment(s) of this config need up to {mib(env_bytes)} MiB "
-                    f"each{cache}; the simulator workers have room for {placed} now ({initial} "
+                    f"each{shared}; the simulator workers have room for {placed} now ({initial} "
                     f"free{kept}). Close sessions, retry later, or use fewer environments, "
                     "smaller images or a coarser navgrid.cell_size"
                 )

@@ -2,7 +2,8 @@
 
 Every file the project writes for others to read (datasets, caches of meshes and grids,
 results, checkpoints, exports) goes through :func:`replacing`: the writer fills a temporary
-file beside the target, which then replaces the target in one rename. Two processes filling
+file beside the target, which is synced to disk and then replaces the target in one rename (so
+a crash, even of the machine, leaves the old file or the new one). Two processes filling
 the same cache write different temporary files, and the last rename wins whole.
 """
 
@@ -25,6 +26,8 @@ def replacing(path: Path) -> Iterator[Path]:
     try:
         yield temporary
         os.chmod(temporary, 0o644)  # mkstemp makes owner-only files; these are for sharing
+        with temporary.open("rb") as written:  # on disk before the rename makes it the file
+            os.fsync(written.fileno())
         os.replace(temporary, path)
     finally:
         temporary.unlink(missing_ok=True)

@@ -122,7 +122,7 @@ def finish_episode(
     if constraints.mobile_start and not can_step(grid, np.asarray(start_xy), start_yaw):
         return None
     if constraints.step_paths and not steps_reach_goals(
-        grid, np.asarray(start_xy), start_yaw, list(goal_fields()), constraints.reach
+        grid, np.asarray(start_xy), start_yaw, goal_fields(), constraints.reach
     ):
         return None
     return Episode(
