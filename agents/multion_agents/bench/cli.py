@@ -35,6 +35,7 @@ from multion.task.env import MultiONEnv
 from multion.task.generate import generate_episodes
 from multion_agents.bench.explorer import run_explorer_bench
 from multion_agents.bench.gl import bench_gl
+from multion_agents.bench.goal_pixels import run_goal_pixels_bench
 from multion_agents.bench.http import run_http_bench
 from multion_agents.bench.lanes import run_lanes_bench
 from multion_agents.bench.leaderboard import run_leaderboard_bench
@@ -56,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=[
             *("sim", "cache", "http", "train", "memory", "leaderboard", "lanes", "pages"),
             *("explorer", "reset", "diversity", "site-memory", "participants", "learner"),
-            "env-processes",
+            *("env-processes", "goal-pixels"),
         ],
         action="append",
         help="run only these parts (repeatable; default: sim, cache and http)",
@@ -165,6 +166,8 @@ def run(args: argparse.Namespace) -> int:
         run_diversity_bench()
     if "site-memory" in parts:
         run_site_memory_bench()
+    if "goal-pixels" in parts:
+        run_goal_pixels_bench(renderer=args.renderer)
     if "env-processes" in parts:
         from multion_agents.bench.env_processes import run_env_processes_bench
 
