@@ -352,3 +352,30 @@ def test_runs_differing_only_in_the_camera_are_paired_by_camera(
     assert by_hand > 0
     pairs = {(r["run_a"], r["run_b"]) for r in read_csv(out / "paired.csv")}
     assert pairs == {("b-128", "a-128")} or pairs == {("a-128", "b-128")}
+
+
+def test_checkpoints_of_differently_named_training_runs_are_not_paired_by_camera(
+    report_runs: Path, tmp_path: Path
+) -> None:
+    """A 36² run of another recipe (``oracle-map-pretrained`` beside ``oracle-map``) is another
+    agent: only the training runs of one name are compared across cameras."""
+    source = report_runs / "random-oracle-found-2on"
+    runs = {
+        name: _with_camera(source, tmp_path / "runs" / name, size, renderer)
+        for name, size, renderer in (
+            ("x-36", 36, None), ("x-128", 128, "gl"), ("x-pretrained-36", 36, None),
+        )
+    }  # fmt: skip
+    for name, run in runs.items():
+        payload = json.loads((run / "metrics.json").read_text())
+        trained = "x-pretrained" if "pretrained" in name else "x"
+        payload["run"]["checkpoint"] = f"runs/{trained}/checkpoint.pt"
+        (run / "metrics.json").write_text(json.dumps(payload))
+    out = tmp_path / "out"
+    assert report([*map(str, runs.values()), "--out", str(out), "--no-figures"]) == 0
+    rows = read_csv(out / "cameras.csv")
+    assert [(r["run"], r["camera"]) for r in rows] == [
+        ("x-36", "36² (tiny)"),
+        ("x-128", "128² (gl)"),
+        ("x-128 − x-36", "128² (gl) − 36² (tiny) (paired)"),
+    ]

@@ -167,13 +167,15 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
 
 
 def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
-    """Runs of one agent and task that differ only in the camera's size or renderer (each its
-    own checkpoint when learned), side by side, then each larger image's paired difference from
+    """Runs of one agent and task that differ only in the camera's size or renderer (a learned
+    agent's checkpoints from training runs of one name), side by side, then each larger image's paired difference from
     the smaller on the episodes both played."""
     groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
     for i in display_order(runs, labels, paper):
         run = runs[i]
-        group = (run.agent, str(run.num_goals), *run.conditions_besides_camera().values())
+        # one training run's checkpoint name at each size: another recipe (pretraining) is
+        # another agent here
+        group = (run.agent_label, str(run.num_goals), *run.conditions_besides_camera().values())
         groups[group].append(i)
     names = [name for _, name in HEADLINE]
     table = Table(
