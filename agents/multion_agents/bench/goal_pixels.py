@@ -38,6 +38,10 @@ class BandPixels:
     median_pixels: float
     """Over the poses where the goal shows; nan where it shows in none."""
 
+    @property
+    def shown_share(self) -> float:
+        return self.shown / max(self.poses, 1)
+
 
 def poses_facing(
     grid: NavGrid, goal: np.ndarray, band: tuple[float, float], count: int, seed: int
@@ -125,9 +129,9 @@ def run_goal_pixels_bench(
             row = summarise(counts[size][band])
             name = f"{band[0]:g}-{band[1]:g}m_{size}"
             results[f"goal_pixels_median_{name}"] = row.median_pixels
-            results[f"goal_shown_share_{name}"] = row.shown / max(row.poses, 1)
+            results[f"goal_shown_share_{name}"] = row.shown_share
             print(
                 f"{band[0]:g}–{band[1]:g} m {size:>5}² {row.poses:>6} "
-                f"{100 * row.shown / max(row.poses, 1):>6.0f}% {row.median_pixels:>14.1f}"
+                f"{100 * row.shown_share:>6.0f}% {row.median_pixels:>14.1f}"
             )
     return results

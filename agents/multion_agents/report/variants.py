@@ -168,8 +168,8 @@ def goal_sets(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -
 
 def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
     """Runs of one agent and task that differ only in the camera's size or renderer (a learned
-    agent's checkpoints from training runs of one name), side by side, then each larger image's paired difference from
-    the smaller on the episodes both played."""
+    agent's checkpoints from training runs of one name), side by side, then each larger
+    image's paired difference from the smaller on the episodes both played."""
     groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
     for i in display_order(runs, labels, paper):
         run = runs[i]
