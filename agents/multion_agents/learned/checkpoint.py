@@ -7,6 +7,7 @@ interrupted save never leaves a half-written checkpoint behind.
 from __future__ import annotations
 
 import random
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ from multion.config.errors import UsageError
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
+from multion_agents.learned.train_settings import Args
 
 FORMAT_VERSION = 1
 
@@ -90,6 +92,15 @@ def with_legacy_fields(env_config: dict[str, Any]) -> dict[str, Any]:
     return config
 
 
+TRAINING_ONLY_MODULES = ("goal_heads.",)
+"""Weights that only training reads (``--goal-heads``): left out of a policy loaded to act."""
+
+
+def acting_weights(weights: dict[str, Any]) -> dict[str, Any]:
+    """``weights`` without the training-only heads."""
+    return {k: v for k, v in weights.items() if not k.startswith(TRAINING_ONLY_MODULES)}
+
+
 def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str]:
     """The trained policy in ``path``, the env overrides it needs (camera size, model
     overrides) and its model name. The checkpoint's own config is used (a checkpoint records
@@ -101,9 +112,9 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         hidden_size = hidden_size_of(payload["model"])
     except ValueError as error:
         raise CheckpointError(f"{path}: {error}") from None
-    policy = build_policy(payload["agent"], config, hidden_size)
+    policy = build_policy(payload["agent"], config, hidden_size)  # without training heads
     try:
-        policy.load_state_dict(payload["model"])
+        policy.load_state_dict(acting_weights(payload["model"]))
     except RuntimeError as error:
         raise CheckpointError(
             f"{path}: weights do not fit model {payload['agent']!r}: {error}"
@@ -119,3 +130,27 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         shaping["task"] = {"goal_set": goal_set}  # so the agent can still join a track)
     overrides = merge_overrides(shaping, model_spec(payload["agent"]).config_overrides)
     return policy, overrides, payload["agent"]
+
+
+RECIPE_OPTIONS = ("goal_heads", "found_curriculum", "pretrain_vision", "pretrain_map")
+"""Training options that make a different recipe: a run resumes only with the values its
+checkpoint recorded (a checkpoint that predates an option was trained with it off)."""
+
+
+def check_recipe_options(path: Path, recorded: dict[str, Any], args: Args) -> None:
+    """A ``CheckpointError`` naming each recipe option whose value differs from the one the
+    checkpoint at ``path`` recorded (``recorded``: its ``args``; an option, or a field of one,
+    that it predates counts as its default)."""
+    defaults, current = asdict(Args()), asdict(args)
+    wrong = []
+    for name in RECIPE_OPTIONS:
+        default, value = defaults[name], recorded.get(name, defaults[name])
+        if isinstance(default, dict) and isinstance(value, dict):
+            value = {**default, **value}
+        if value != current[name]:
+            flag = "--" + name.replace("_", "-")
+            wrong.append(f"{flag} {value!r} (this run asks for {current[name]!r})")
+    if wrong:
+        raise CheckpointError(
+            f"{path} was trained with " + "; ".join(wrong) + ": resume with the same options"
+        )

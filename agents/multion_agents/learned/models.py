@@ -58,12 +58,19 @@ class ModelSpec:
         observation_space: spaces.Dict,
         geometry: MapGeometry | None = None,
         hidden_size: int = HIDDEN_SIZE,
+        goal_heads: bool = False,
     ) -> RecurrentPolicy:
         """The policy for an env with ``observation_space`` whose config gives ``geometry``
-        (None: the default env config's, for tests), with a GRU of ``hidden_size`` units."""
+        (None: the default env config's, for tests), with a GRU of ``hidden_size`` units and,
+        with ``goal_heads``, the auxiliary goal heads (:mod:`.goal_heads`)."""
         memory = self.build_memory(observation_space, geometry or default_geometry(), hidden_size)
         return RecurrentPolicy(
-            observation_space, memory, self.use_rgb, self.use_depth, hidden_size=hidden_size
+            observation_space,
+            memory,
+            self.use_rgb,
+            self.use_depth,
+            hidden_size=hidden_size,
+            goal_heads=goal_heads,
         )
 
 
@@ -166,12 +173,16 @@ def model_spec(name: str) -> ModelSpec:
 
 
 def build_policy(
-    agent: str, env_config: EnvConfig | Mapping[str, Any], hidden_size: int = HIDDEN_SIZE
+    agent: str,
+    env_config: EnvConfig | Mapping[str, Any],
+    hidden_size: int = HIDDEN_SIZE,
+    goal_heads: bool = False,
 ) -> RecurrentPolicy:
     """The (untrained) policy of model ``agent`` for environments configured by ``env_config``
     (or its wire form, nested dicts), with a GRU of ``hidden_size`` units (768, the
-    reference's, by default)."""
+    reference's, by default) and, with ``goal_heads``, the auxiliary goal heads."""
     if not isinstance(env_config, EnvConfig):
         env_config = env_config_from_dict(env_config)
     space = build_observation_space(env_config)
-    return model_spec(agent).build(space, MapGeometry.from_env_config(env_config), hidden_size)
+    geometry = MapGeometry.from_env_config(env_config)
+    return model_spec(agent).build(space, geometry, hidden_size, goal_heads)

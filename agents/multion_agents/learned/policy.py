@@ -27,6 +27,7 @@ from torch import Tensor, nn
 from torch.distributions import Categorical
 
 from multion_agents.learned.encoders import ImageEncoder
+from multion_agents.learned.goal_heads import GOAL_VECTOR, GoalHeads, GoalLosses
 from multion_agents.learned.gru import MaskedGRU
 from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
 
@@ -108,6 +109,9 @@ class PolicyOutput:
     value: Tensor  # (T, B)
     state: State
     auxiliary_loss: Tensor | None
+    goal_losses: GoalLosses | None = None
+    """The auxiliary goal heads' losses, where the policy has them and ``goal_vector`` is in
+    the frames (training); None otherwise."""
 
 
 @dataclass
@@ -119,10 +123,14 @@ class Replay:
     value: Tensor
     auxiliary_loss: Tensor | None
     logits: Tensor  # (T, B, A), for losses on other actions (imitation)
+    goal_losses: GoalLosses | None = None
 
 
 class RecurrentPolicy(nn.Module):
-    """Actor-critic over RGB-D, goal, previous action and a :class:`Memory` (None: no map)."""
+    """Actor-critic over RGB-D, goal, previous action and a :class:`Memory` (None: no map).
+
+    ``goal_heads``: auxiliary heads on the GRU output trained from the ``goal_vector`` sensor
+    (:mod:`.goal_heads`); a training aid that a policy loaded for evaluation is built without."""
 
     def __init__(
         self,
@@ -131,6 +139,7 @@ class RecurrentPolicy(nn.Module):
         use_rgb: bool = True,
         use_depth: bool = True,
         hidden_size: int = HIDDEN_SIZE,
+        goal_heads: bool = False,
     ) -> None:
         super().__init__()
         if not 1 <= hidden_size <= MAX_HIDDEN_SIZE:
@@ -155,6 +164,7 @@ class RecurrentPolicy(nn.Module):
         self.gru = nn.GRU(self.query_dim + memory_dim, hidden_size)
         self.actor = _layer(nn.Linear(hidden_size, NUM_ACTIONS), std=0.01)
         self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
+        self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -167,7 +177,8 @@ class RecurrentPolicy(nn.Module):
     def train_sensors(self) -> tuple[str, ...]:
         """Observation keys needed while training (acting sensors plus supervision)."""
         extra = self.memory.train_sensors if self.memory is not None else ()
-        return tuple(dict.fromkeys(self.sensors + extra))
+        heads = (GOAL_VECTOR,) if self.goal_heads is not None else ()
+        return tuple(dict.fromkeys(self.sensors + extra + heads))
 
     @property
     def device(self) -> torch.device:
@@ -248,11 +259,15 @@ class RecurrentPolicy(nn.Module):
             core, hidden = self._recurrent(torch.cat([query, v_ms], dim=2), episode_start, hidden)
         new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
         auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
+        goal_losses = None
+        if self.goal_heads is not None and GOAL_VECTOR in flat:
+            goal_losses = self.goal_heads.losses(core.flatten(0, 1), flat[GOAL_VECTOR])
         return PolicyOutput(
             logits=self.actor(core),
             value=self.critic(core).squeeze(-1),
             state=new_state,
             auxiliary_loss=auxiliary,
+            goal_losses=goal_losses,
         )
 
     def _recurrent(
@@ -322,7 +337,12 @@ class RecurrentPolicy(nn.Module):
         out = self(frames, prev_action, episode_start, state)
         dist = Categorical(logits=out.logits)
         return Replay(
-            dist.log_prob(actions), dist.entropy(), out.value, out.auxiliary_loss, out.logits
+            dist.log_prob(actions),
+            dist.entropy(),
+            out.value,
+            out.auxiliary_loss,
+            out.logits,
+            out.goal_losses,
         )
 
 

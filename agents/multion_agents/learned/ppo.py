@@ -141,6 +141,9 @@ def ppo_loss(
     loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy_mean
     if aux is not None:
         loss = loss + args.aux_coef * aux
+    heads = replay.goal_losses
+    if heads is not None:
+        loss = loss + args.goal_head_coef * heads.total
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
         labelled = batch.expert_actions != NO_LABEL
@@ -156,4 +159,8 @@ def ppo_loss(
         "aux_loss": aux.detach() if aux is not None else None,
         "imitation_loss": imitation.detach() if imitation is not None else None,
         "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
+        "goal_seen_loss": heads.seen.detach() if heads is not None else None,
+        "goal_direction_loss": heads.direction.detach() if heads is not None else None,
+        "goal_distance_loss": heads.distance.detach() if heads is not None else None,
+        "goal_seen_share": heads.seen_share.detach() if heads is not None else None,
     }

@@ -24,7 +24,11 @@ from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
-from multion_agents.learned.train_options import Curriculum
+from multion_agents.learned.train_options import (
+    FOUND_BUDGET_UNLIMITED,
+    Curriculum,
+    FoundCurriculum,
+)
 from multion_client.vector import RemoteVectorEnv
 
 SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
@@ -71,8 +75,22 @@ def check_curriculum(curriculum: Curriculum, env_config: EnvConfig) -> None:
         stage_config(env_config, curriculum, until - 1)  # each stage's range checked
 
 
-def stage_config(env_config: EnvConfig, curriculum: Curriculum, frames: int) -> EnvConfig:
-    """The env config to train with once ``frames`` frames are done."""
+def stage_config(
+    env_config: EnvConfig,
+    curriculum: Curriculum,
+    frames: int,
+    found: FoundCurriculum | None = None,
+) -> EnvConfig:
+    """The env config to train with once ``frames`` frames are done: the distance curriculum's
+    stage, and during the FOUND curriculum (``found``) wrong FOUNDs that cost its penalty and
+    end no episode."""
+    if found is not None and frames < found.frames:
+        task = replace(
+            env_config.task,
+            found_budget=FOUND_BUDGET_UNLIMITED,
+            wrong_found_penalty=found.penalty,
+        )
+        env_config = replace(env_config, task=task)
     for until, metres in curriculum:
         if frames < until:
             return replace(env_config, online_max_geodesic=metres)

@@ -58,3 +58,68 @@ class MapPretraining:
 
     def __post_init__(self) -> None:
         check_fields(self, "pretrain_map")
+
+
+FOUND_BUDGET_UNLIMITED = 100_000
+"""``task.found_budget`` during the FOUND curriculum: wrong FOUNDs never end an episode (the
+config's maximum)."""
+
+
+@dataclass(frozen=True)
+class FoundCurriculum:
+    """``--found-curriculum FRAMES:PENALTY``: until ``frames`` frames of the run, a wrong FOUND
+    costs ``penalty`` but does not end the training episode; after, the task's own rule (the
+    first wrong FOUND ends it, no penalty in the paper's task). ``frames`` = 0: off, the paper's
+    recipe. Why: while an agent cannot find its goal, ending the episode by a wrong FOUND is
+    its best policy (docs/learned.md), which is what the agents that must see learned."""
+
+    frames: int = bounded(0, 0, 10**9)
+    penalty: float = bounded(0.0, 0.0, 1000.0)
+    """Subtracted from a wrong FOUND's reward during the curriculum (the reference code's
+    ``FALSE_FOUND_PENALTY_VALUE`` is 2.5: saimwani/multiON ``ppo_multinav.yaml`` l. 23)."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "found_curriculum")
+
+    @property
+    def active(self) -> bool:
+        return self.frames > 0
+
+
+def parse_found_curriculum(text: str) -> FoundCurriculum:
+    """``"200000:2.5"`` → ``FoundCurriculum(200000, 2.5)``; a ``ConfigError`` naming the option
+    otherwise (a value out of range names the field and its range)."""
+    frames, sep, penalty = text.partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        parsed = (int(frames), float(penalty))
+    except ValueError:
+        raise ConfigError(
+            f"--found-curriculum {text!r} is not FRAMES:PENALTY (e.g. 200000:2.5)"
+        ) from None
+    try:
+        return FoundCurriculum(*parsed)
+    except ValueError as error:
+        raise ConfigError(f"--found-curriculum: {error}") from None
+
+
+@dataclass(frozen=True)
+class VisionPretraining:
+    """How ``--pretrain-vision`` pretrains the image encoder (``steps`` = 0: not at all)."""
+
+    steps: int = bounded(0, 0, 50_000)
+    """Gradient steps."""
+    samples: int = bounded(8_000, 200, 100_000)
+    """Training frames, rendered once (half with the goal in view: class-balanced)."""
+    held_out: int = bounded(1_000, 100, 10_000)
+    """Frames of val houses to report recall and precision on."""
+    batch_size: int = bounded(64, 1, 1_024)
+    learning_rate: float = bounded(2.5e-4, 0.0, 1.0, low_open=True)
+    max_distance: float = bounded(6.0, 1.0, 20.0)
+    """Poses facing a goal keep it within this straight-line distance, metres."""
+    poses_per_scene: int = bounded(40, 1, 1_000)
+    seed: int = bounded(0, 0, 2**31 - 1)
+
+    def __post_init__(self) -> None:
+        check_fields(self, "pretrain_vision")

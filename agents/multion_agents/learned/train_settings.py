@@ -13,7 +13,14 @@ from multion_agents.cli_fields import Option, check_settings, setting
 from multion_agents.config_overrides import parse_env_overrides
 from multion_agents.learned.policy import HIDDEN_SIZE, MAX_HIDDEN_SIZE
 from multion_agents.learned.precision import PRECISIONS
-from multion_agents.learned.train_options import Curriculum, MapPretraining, parse_curriculum
+from multion_agents.learned.train_options import (
+    Curriculum,
+    FoundCurriculum,
+    MapPretraining,
+    VisionPretraining,
+    parse_curriculum,
+    parse_found_curriculum,
+)
 
 PPO = "PPO schedule (defaults follow the reference code, ppo_multinav.yaml)"
 
@@ -28,6 +35,16 @@ def _pretraining(steps: int) -> MapPretraining:
         return MapPretraining(steps=steps)
     except ValueError as error:
         raise ConfigError(f"--pretrain-map: {error}") from None
+
+
+def _vision_pretraining(steps: int) -> VisionPretraining:
+    try:
+        return VisionPretraining(steps=steps)
+    except ValueError as error:
+        raise ConfigError(f"--pretrain-vision: {error}") from None
+
+
+BEYOND_PAPER = "beyond the paper's recipe (each off by default; issue 51, docs/learned.md)"
 
 
 @dataclass(frozen=True)
@@ -145,6 +162,48 @@ class Args:
         ),
     )
     """Each stage starts fresh environments and episodes (``rollout_envs.stage_config``)."""
+    found_curriculum: FoundCurriculum = setting(
+        default_factory=FoundCurriculum,
+        cli=Option(
+            "until FRAMES frames, a wrong FOUND costs PENALTY but does not end the training "
+            "episode; then the task's rule (e.g. 200000:2.5; default off)",
+            metavar="FRAMES:PENALTY",
+            parse=parse_found_curriculum,
+            group=BEYOND_PAPER,
+        ),
+    )
+    """Switching starts fresh environments and episodes, as a curriculum stage does."""
+    goal_heads: bool = setting(
+        False,
+        cli=Option(
+            "auxiliary heads on the GRU state: has the goal been seen, its direction and "
+            "distance (Marza et al. 2022), trained from the goal_vector sensor, dropped at "
+            "evaluation",
+            toggle=True,
+            group=BEYOND_PAPER,
+        ),
+    )
+    goal_head_coef: float = setting(
+        0.25,
+        low=0,
+        cli=Option(
+            "weight of each goal head's loss (default %(default)s, Marza et al.'s)",
+            group=BEYOND_PAPER,
+        ),
+    )
+    pretrain_vision: VisionPretraining = setting(
+        default_factory=VisionPretraining,
+        cli=Option(
+            "before PPO, train the image encoder STEPS supervised steps to tell which goal "
+            "objects are in view and where, on rendered frames labelled by goal_mask, half of "
+            "them showing a goal (0-50000; default 0, none)",
+            metavar="STEPS",
+            kind=int,
+            parse=_vision_pretraining,
+            group=BEYOND_PAPER,
+        ),
+    )
+    """``learned/vision_pretrain.py``; skipped on ``resume`` (the checkpoint holds it)."""
     threads: int = setting(
         1,
         low=1,

@@ -31,6 +31,7 @@ from multion.config.task import EnvConfig
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.checkpoint import (
     CheckpointError,
+    check_recipe_options,
     load_checkpoint,
     restore_random_states,
     save_checkpoint,
@@ -45,6 +46,7 @@ from multion_agents.learned.distributed import (
     weights_digest,
 )
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
+from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
 from multion_agents.learned.ppo import ppo_update, schedule, set_found_prior
@@ -59,6 +61,7 @@ from multion_agents.learned.rollout_envs import (
 )
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_log import TrainingLog, plot_learning_curve
+from multion_agents.learned.vision_pretrain import check_vision_pretraining, pretrain_vision
 
 Evaluation = Callable[[RecurrentPolicy, EnvConfig], dict[str, float]]
 """The periodic val evaluation: the mean val metrics of the policy trained in ``EnvConfig``
@@ -109,7 +112,7 @@ class TrainingRun:
         self.window: deque[dict[str, float]] = deque(maxlen=100)
         rank, world = placement.rank, placement.world
         self._servers = tuple(args.servers[rank::world]) or tuple(args.servers)
-        self.stage = stage_config(env_config, args.curriculum, frames)
+        self.stage = stage_config(env_config, args.curriculum, frames, args.found_curriculum)
         self.envs = self._make_envs(self.stage)
         self.log: TrainingLog | None = None
         self.hooks: list[AfterUpdate] = []
@@ -140,8 +143,14 @@ class TrainingRun:
         """A new run: a fresh policy (seeded by ``args.seed``), pretrained on map crops
         first when ``args.pretrain_map`` asks (and checkpointed before any update)."""
         env_config, policy, optimizer, placement = _prepare(args, evaluation)
-        if args.pretrain_map.steps > 0 and placement.rank == 0:
-            pretrain_map(policy, env_config, args.pretrain_map, Path(args.out), args.progress)
+        pretrains = args.pretrain_map.steps > 0 or args.pretrain_vision.steps > 0
+        if pretrains and placement.rank == 0:
+            if args.pretrain_vision.steps > 0:
+                pretrain_vision(
+                    policy, env_config, args.pretrain_vision, Path(args.out), args.progress
+                )
+            if args.pretrain_map.steps > 0:
+                pretrain_map(policy, env_config, args.pretrain_map, Path(args.out), args.progress)
             fresh = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
             checkpoint = Path(args.out) / "checkpoint.pt"
             save_run_checkpoint(checkpoint, policy, fresh, args, env_config, 0, 0)
@@ -154,6 +163,7 @@ class TrainingRun:
         env_config, policy, optimizer, placement = _prepare(args, evaluation)
         path = Path(args.out) / "checkpoint.pt"
         payload = load_checkpoint(path)
+        check_recipe_options(path, payload.get("args", {}), args)
         stored = env_config_from_dict(with_legacy_fields(payload["env_config"]))
         if payload["agent"] != args.agent or stored != env_config:
             raise CheckpointError(
@@ -230,6 +240,7 @@ class TrainingRun:
             "learning_rate": learning_rate,
             "clip": clip,
             "max_geodesic": self.stage.online_max_geodesic,
+            "found_budget": self.stage.task.found_budget,
             **_window_means(self.window, placement.device),
             "expert_agreement": _agreement(rollout),
             **stats,
@@ -300,7 +311,8 @@ class TrainingRun:
 
     def _next_stage_when_due(self) -> None:
         """The curriculum's next stage: new environments, fresh episodes and memories."""
-        wanted = stage_config(self.env_config, self.args.curriculum, self.frames)
+        args = self.args
+        wanted = stage_config(self.env_config, args.curriculum, self.frames, args.found_curriculum)
         if wanted == self.stage:
             return
         self.envs.close()
@@ -374,9 +386,10 @@ def run_env_config(args: Args) -> EnvConfig:
     """The env config of the run ``args`` asks for, every field spelled out (the checkpoint
     then fixes the map geometry, crop size and camera even if the env's defaults change)."""
     spec = model_spec(args.agent)
+    sensors = spec.train_sensors + ((GOAL_VECTOR,) if args.goal_heads else ())
     config = training_env_config(
         parse_task(args.task),
-        spec.train_sensors,
+        sensors,
         args.image_size,
         "train",
         spec.config_overrides,
@@ -432,8 +445,9 @@ def _prepare(
     env_config = run_env_config(args)
     check_curriculum(args.curriculum, env_config)
     check_map_pretraining(args.pretrain_map, args.agent, model_spec(args.agent).sensors)
+    check_vision_pretraining(args.pretrain_vision, args.agent, model_spec(args.agent).sensors)
     torch.manual_seed(args.seed)
-    policy = build_policy(args.agent, env_config, args.hidden_size).to(device)
+    policy = build_policy(args.agent, env_config, args.hidden_size, args.goal_heads).to(device)
     if args.found_prior is not None:
         set_found_prior(policy, args.found_prior)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)

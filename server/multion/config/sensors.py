@@ -16,9 +16,17 @@ SensorAccess = Literal["standard", "oracle", "training"]
 """Who may receive a sensor in a challenge: every track (``standard``), oracle tracks only
 (``oracle``: privileged knowledge of the map or the geodesic distance), or no track
 (``training``: ground-truth labels for supervising a recogniser)."""
-SensorSource = Literal["camera", "goal", "pose", "geodesic", "oracle_map"]
+SensorSource = Literal["camera", "goal", "pose", "geodesic", "oracle_map", "goal_pose"]
 """What a sensor reads: the rendered frame, the current goal, the agent's pose relative to its
-start, the geodesic distance field, or the oracle map of the scene."""
+start, the geodesic distance field, the oracle map of the scene, or where the current goal is
+from the agent (and whether it has been in view)."""
+
+GOAL_VECTOR_SEEN_DISTANCE = 6.0
+"""``goal_vector``'s "seen" flag: the goal has been within this many metres, in the camera's
+field of view with a clear line of sight. 6 m is the fog-of-war map's visibility distance from
+which Marza et al. (IROS 2022) label their "seen" auxiliary task
+(PierreMarza/teaching_agents_how_to_map ``habitat/config/default.py`` l. 169); the oracle ego
+map reveals 5 m (``maps.view_distance``, the supplement's)."""
 
 
 @dataclass(frozen=True)
@@ -47,6 +55,12 @@ SENSOR_SPECS: tuple[SensorSpec, ...] = (
     SensorSpec("oracle_ego_map", "oracle", "oracle_map", "(S, S, 2) the crop, where seen so far"),
     SensorSpec("goal_mask", "training", "camera", "(H, W) uint8 goal category + 1 per pixel"),
     SensorSpec("goal_distance", "oracle", "geodesic", "(1,) geodesic metres to the goal"),
+    SensorSpec(
+        "goal_vector",
+        "training",
+        "goal_pose",
+        "(3,) float32: current goal seen yet (0/1), its bearing (rad, left +), metres to it",
+    ),
 )
 """Every sensor, registered once; their order is the order the spec and messages list them."""
 

@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 from multion.config.datasets import load_dataset, packaged_dataset_path, variant_name
 from multion.config.episode import Episode
+from multion.config.sensors import GOAL_VECTOR_SEEN_DISTANCE
 from multion.config.task import EnvConfig, EpisodeConstraints, TaskConfig
 from multion.scenes.registry import SceneIdError, scene_ids
 from multion.sim.geodesic import FieldCache, distance_field
@@ -121,6 +122,10 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         )
         self._goal_sites: GoalSites | None = None
         """Its view of the process's goal-site cache, made at its first episode from sites."""
+        self._tracks_goal_pose = uses_source(configured_sensors(self.config), "goal_pose")
+        self._goals_seen: list[bool] = []
+        """Per goal, whether it has been within ``GOAL_VECTOR_SEEN_DISTANCE`` in view (kept only
+        for ``goal_vector``)."""
 
     # ------------------------------------------------------------------ episodes
     def _default_episodes(self) -> list[Episode] | None:
@@ -280,6 +285,7 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
             first_seen_step=[None] * m,
             current_since_step=[0] + [None] * (m - 1),
         )
+        self._goals_seen = [False] * m
         self._update_seen()
         self.measures.reset(self.state)
         if uses_source(configured_sensors(self.config), "oracle_map"):
@@ -333,6 +339,17 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         self.measures.update(state)
         self._done = terminated or truncated
         return self._observe(), float(reward), terminated, truncated, self._info()
+
+    def observe_pose(self, position: np.ndarray, yaw: float) -> dict[str, np.ndarray]:
+        """The observation from another pose in this episode's house, for offline data (vision
+        pretraining, probes of a policy's features). The agent is moved there without a step
+        and the episode is over: it is neither stepped nor scored from a pose it did not walk
+        to."""
+        if self.state is None:
+            raise EpisodeOverError("no episode: call reset() before observe_pose()")
+        self.sim.set_agent(np.asarray(position, dtype=np.float64)[:2], float(yaw))
+        self._done = True
+        return self._observe()
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
@@ -394,6 +411,15 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
                 self.config.maps.view_distance,
             ):
                 state.first_seen_step[index] = state.step
+            if self._tracks_goal_pose and not self._goals_seen[index]:
+                self._goals_seen[index] = can_see(
+                    grid,
+                    self.sim.position,
+                    self.sim.yaw,
+                    np.asarray(goal.position[:2]),
+                    self.config.camera.hfov_deg,
+                    GOAL_VECTOR_SEEN_DISTANCE,
+                )
 
     def _info(self) -> dict[str, Any]:
         assert self.episode is not None
@@ -418,15 +444,20 @@ class MultiONEnv(gym.Env[dict[str, np.ndarray], int]):
         if self._oracle is not None and uses_source(sensors, "oracle_map"):
             assert self._reveal is not None
             crops = PoseCrops(self._oracle, self._reveal, self.sim.position, self.sim.yaw)
+        current = min(state.goals_found, episode.num_goals - 1)
         inputs = SensorInputs(
             frame=frame,
-            goal_category=episode.goals[min(state.goals_found, episode.num_goals - 1)].category,
+            goal_category=episode.goals[current].category,
             distance_to_goal=state.distance_to_goal,
             position=self.sim.position,
             yaw=self.sim.yaw,
             start_position=np.asarray(episode.start_position[:2]),
             start_yaw=episode.start_yaw,
             oracle=crops,
+            goal_position=np.asarray(episode.goals[current].position[:2], dtype=np.float64)
+            if self._tracks_goal_pose
+            else None,
+            goal_seen=self._tracks_goal_pose and self._goals_seen[current],
         )
         return {sensor.spec.name: sensor.observe(inputs) for sensor in sensors}
 

@@ -58,6 +58,10 @@ class SensorInputs:
     start_yaw: float
     oracle: OracleCrops | None
     """None when no oracle map sensor is configured."""
+    goal_position: np.ndarray | None = None
+    """The current goal's (x, y), world metres; None when no ``goal_pose`` sensor is configured."""
+    goal_seen: bool = False
+    """Whether the current goal has been in view this episode (``goal_vector``'s first value)."""
 
 
 class Sensor(ABC):
@@ -207,6 +211,27 @@ class GoalDistance(Sensor):
         return np.array([min(inputs.distance_to_goal, 1e6)], dtype=np.float32)
 
 
+class GoalVector(Sensor):
+    """Ground truth for auxiliary heads (Marza et al., IROS 2022): has the current goal been in
+    view this episode (within ``GOAL_VECTOR_SEEN_DISTANCE``), its bearing from the agent's
+    heading (radians in [-pi, pi), counter-clockwise, so left is positive) and its straight-line
+    distance (metres)."""
+
+    spec = sensor_spec("goal_vector")
+
+    def space(self, config: EnvConfig) -> spaces.Space[Any]:
+        low = np.array([0.0, -np.pi, 0.0], dtype=np.float32)
+        high = np.array([1.0, np.pi, np.inf], dtype=np.float32)
+        return spaces.Box(low, high, (3,), np.float32)
+
+    def observe(self, inputs: SensorInputs) -> np.ndarray:
+        assert inputs.goal_position is not None, "the env passes the goal for goal_vector"
+        dx, dy = inputs.goal_position[:2] - inputs.position[:2]
+        bearing = math.remainder(math.atan2(dy, dx) - inputs.yaw, 2 * math.pi)
+        bearing = -math.pi if bearing >= math.pi else bearing  # [-pi, pi): float32-safe
+        return np.array([float(inputs.goal_seen), bearing, math.hypot(dx, dy)], dtype=np.float32)
+
+
 SENSOR_CLASSES: dict[str, Sensor] = {
     sensor.spec.name: sensor
     for sensor in (
@@ -220,6 +245,7 @@ SENSOR_CLASSES: dict[str, Sensor] = {
         OracleEgoMapSensor(),
         GoalMask(),
         GoalDistance(),
+        GoalVector(),
     )
 }
 """Every sensor by name, in the light registry's order (a test checks they match)."""
@@ -235,6 +261,7 @@ OBSERVATION_ORDER = (
     "compass",
     "oracle_map",
     "oracle_ego_map",
+    "goal_vector",
 )
 """The order of an observation's keys, whatever the config's order: the order they have always
 had (clients and recorded runs see it on the wire)."""
