@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Issue 51's pilot: which training options make `no-map` learn? The central comparison's recipe
+# (scripts/central_comparison.sh: 1-ON, 8 envs, 36², training episodes of 500 steps, no slack
+# penalty, FOUND prior 0.02, seed 1) at 500k frames, once as the paper's recipe and once with
+# each option beyond it alone and all together, then 100 val episodes each (sampled actions,
+# seed 0) and a paired report. Resumable like the central comparison: run it again and finished
+# runs are skipped, an interrupted training continues from its checkpoint.
+#   bash scripts/recipe_pilot.sh                       # every run, in the order below
+#   ONLY="no-map-all no-map-paper" bash scripts/recipe_pilot.sh
+#   OUT=runs/pilot FRAMES=500000 AGENT=no-map bash scripts/recipe_pilot.sh
+#   PUBLISH=1 bash scripts/recipe_pilot.sh             # keep the runs in docs/learned/pilot
+# To keep working in the tree while it runs, run it from a copy (see central_comparison.sh).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${OUT:-runs/pilot}
+frames=${FRAMES:-500000}
+agent=${AGENT:-no-map}
+episodes=${EPISODES:-100}
+only=${ONLY:-}
+multion=${MULTION:-.venv/bin/multion}
+published=docs/learned/pilot
+# the FOUND curriculum covers the first 40 % of the run, at the reference's penalty (2.5)
+found_frames=$((frames * 2 / 5))
+recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
+  --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard --quiet)
+evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0)
+
+wanted() { [ -z "$only" ] || [[ " $only " == *" $1 "* ]]; }
+
+# pilot NAME [OPTIONS...]: $out/NAME/checkpoint.pt, then $out/NAME/eval-val
+pilot() {
+  local name=$1 dir=$out/$1
+  shift
+  wanted "$name" || return 0
+  [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
+  local resume=()
+  [ -f "$dir/checkpoint.pt" ] && resume=(--resume)
+  echo "== train $name ($agent, $frames frames) $(date -u +%FT%TZ)"
+  $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "$@"
+  echo "== eval $name $(date -u +%FT%TZ)"
+  rm -rf "$dir/eval-val"
+  $multion eval --agent "$agent" --checkpoint "$dir/checkpoint.pt" "${evaluation[@]}" \
+    --out "$dir/eval-val"
+}
+
+pilot "$agent-all" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000
+pilot "$agent-paper"
+pilot "$agent-heads" --goal-heads
+pilot "$agent-found" --found-curriculum "$found_frames:2.5"
+pilot "$agent-vision" --pretrain-vision 2000
+
+mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)
+[ "${#runs[@]}" -gt 0 ] && $multion report "${runs[@]}" --out "$out/report"
+if [ "${PUBLISH:-0}" = 1 ]; then
+  for run in "${runs[@]}"; do
+    name=$(basename "$(dirname "$run")") kept=$published/$name
+    mkdir -p "$kept"
+    cp "$run/metrics.json" "$run/episodes.jsonl" "$kept/"
+    for log in progress.csv pretrain_vision.csv; do
+      if [ -f "$run/../$log" ]; then cp "$run/../$log" "$kept/"; fi
+    done
+  done
+  mapfile -t kept_runs < <(find "$published" -name metrics.json -printf '%h\n' | sort)
+  $multion report "${kept_runs[@]}" --out "$published/report"
+fi
