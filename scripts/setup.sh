@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Set up a virtual environment in .venv with MultiON installed (editable).
 #   bash scripts/setup.sh          # simulator, server, client, baseline agents, report figures
-#   bash scripts/setup.sh --dev    # + torch (CPU build), training extras, videos, pytest and ruff
+#   bash scripts/setup.sh --dev    # + torch (CPU build), training extras, videos, pytest and ruff, the docs site (mkdocs)
 # Safe to run again: it reuses .venv and only installs what is missing.
 # Then `source .venv/bin/activate` (or call .venv/bin/multion, .venv/bin/python).
 #
@@ -55,7 +55,7 @@ EOF
     echo "setup.sh: $torch_cpu_index cannot be reached; torch comes from the default index" >&2
     "${PIP[@]}" install "torch==2.13.0"
   fi
-  extras="[train,report,video,dev]"
+  extras="[train,report,video,dev,docs]"
 fi
 "${PIP[@]}" install -e ./client -e ".${extras}"
 echo "MultiON installed in $(pwd)/.venv: source .venv/bin/activate (or call .venv/bin/multion)"
