@@ -1,5 +1,5 @@
-"""The ``multion`` command line: serve, datasets, scenes, bench, eval, video, train, submit,
-leaderboard.
+"""The ``multion`` command line: serve, datasets, scenes, bench, eval, video, train, diagnose,
+submit, leaderboard.
 
 This is the composition root: it sits in the top package and reaches down into the server's
 layers (``multion.leaderboard``, ``multion.api``, ``multion.task`` …), never the reverse.
@@ -40,6 +40,10 @@ COMMANDS: dict[str, Command] = {
         "multion_agents.cli_video", "film an episode of an eval run from its recorded actions"
     ),
     "train": Command("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
+    "diagnose": Command(
+        "multion_agents.cli_diagnose",
+        "what a learned checkpoint sees and does: goal recall by distance, FOUND calls, endings",
+    ),
     "report": Command(
         "multion_agents.cli_report", "tables and figures of the paper from eval runs"
     ),

@@ -57,6 +57,7 @@ def observation_digests(
 
 OLD_ORDER = ["rgb", "depth", "goal_mask", "goal", "goal_onehot", "goal_distance", "gps", "compass",
              "oracle_map", "oracle_ego_map"]  # fmt: skip
+ADDED_SINCE = ("goal_vector",)
 SMALL = CameraConfig(width=32, height=24)
 ROOM_EPISODE = Episode(
     "room", "room-6x4", (1.0, 2.0, 0.0), 0.0,
@@ -99,7 +100,11 @@ def test_observations_are_bit_for_bit_those_before_the_sensor_classes(case: str)
         task = TaskConfig(num_goals=2, num_distractors=1)
         config = EnvConfig(task=task, camera=camera, sensors=SENSORS)
         digests = observation_digests(config, 0, [ROOM_EPISODE])
-    assert digests == BEFORE[case]
+    # sensors added since (issue 51's goal_vector) come last and change none of the others
+    assert digests["order"][: len(OLD_ORDER)] == OLD_ORDER
+    assert digests["order"][len(OLD_ORDER) :] == list(ADDED_SINCE)
+    old = {key: value for key, value in digests.items() if key not in ADDED_SINCE}
+    assert old == {**BEFORE[case], "order": digests["order"]}
 
 
 def test_one_class_per_registered_sensor_in_registry_order() -> None:
@@ -123,10 +128,12 @@ def test_each_space_is_its_class_space() -> None:
 
 def test_privileged_sensors_decide_the_tracks() -> None:
     privileged = {spec.name for spec in SENSOR_SPECS if spec.privileged}
-    assert privileged == {"oracle_map", "oracle_ego_map", "goal_distance", "goal_mask"}
+    assert privileged == {
+        "oracle_map", "oracle_ego_map", "goal_distance", "goal_mask", "goal_vector"
+    }  # fmt: skip
     assert STANDARD_SENSORS == ("rgb", "depth", "goal", "goal_onehot", "gps", "compass")
     assert ORACLE_SENSORS == (*STANDARD_SENSORS, "oracle_map", "oracle_ego_map", "goal_distance")
-    assert sensors_with_access(("training",)) == ("goal_mask",)
+    assert sensors_with_access(("training",)) == ("goal_mask", "goal_vector")
 
 
 @pytest.mark.parametrize(

@@ -36,7 +36,8 @@ from multion_client.constants import NUM_CATEGORIES
 PLACES = 4
 """Per category: 0 not in view, 1 left, 2 centre, 3 right third of the image."""
 DISTANCE_BANDS = ((0.0, 1.5), (1.5, 3.0), (3.0, 6.0), (6.0, math.inf))
-"""Metres from the goal a frame faces, for recall and precision by band (1.5 m: FOUND's)."""
+"""Metres from the goal a frame is drawn around, for recall and precision by band (1.5 m:
+FOUND's reach; 6 m: ``max_distance``'s default, and the goal heads' "seen")."""
 
 
 SIGHT_TRIES = 30
@@ -183,7 +184,8 @@ def _embed(
 ) -> Tensor:
     rgb = torch.as_tensor(frames.rgb[index], device=device)
     depth = torch.as_tensor(frames.depth[index], device=device)
-    return encoder(rgb, depth)[1]
+    embedding: Tensor = encoder(rgb, depth)[1]
+    return embedding
 
 
 @dataclass(frozen=True)
@@ -238,7 +240,8 @@ def predict_goal_in_view(
 
 def goal_in_view(frames: VisionFrames) -> np.ndarray:
     """Per frame: whether the goal category it faces shows (its label)."""
-    return frames.labels[np.arange(len(frames)), frames.goal] > 0
+    shown: np.ndarray = frames.labels[np.arange(len(frames)), frames.goal] > 0
+    return shown
 
 
 def fit_head(
@@ -314,8 +317,10 @@ def pretrain_vision(
     if encoder is None:
         raise ConfigError("--pretrain-vision: this policy has no image encoder")
     train = sample_frames(env_config, settings.samples, settings.seed, settings, "train", progress)
+    # val houses; other episodes of the file when training on a dataset file (tests, custom sets)
+    held_split = "train" if env_config.dataset is not None else "val"
     held_out = sample_frames(
-        env_config, settings.held_out, settings.seed + 1, settings, "val", progress
+        env_config, settings.held_out, settings.seed + 1, settings, held_split, progress
     )
     head = PlaceHead(encoder.out_dim).to(policy.device)
     log = TrainingLog(out, tensorboard=False)

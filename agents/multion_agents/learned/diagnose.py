@@ -1,0 +1,160 @@
+"""What a trained checkpoint sees and does (``multion diagnose``; issue 51 item 1).
+
+Three measurements, each aimed at one reason an agent that must see its goal may not learn:
+
+* **seeing**: does the image encoder tell when the episode's goal shows? A linear probe (the
+  head of :mod:`.vision_pretrain`) is trained on the checkpoint's frozen image embedding with
+  frames of train houses, then scored on frames of val houses: recall and precision of "the
+  goal shows", by distance band. ObjRecogMap's own recogniser is scored on the same frames.
+* **calling FOUND**: the policy's probability of FOUND at steps within the success distance of
+  the goal against steps farther away, on val episodes it plays (sampled actions).
+* **endings**: how those episodes end (success, wrong FOUND, step limit).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from multion.config.codec import env_config_from_dict
+from multion.config.task import EnvConfig
+from multion.task.env import MultiONEnv
+from multion_agents.agent import ConfigOverrides, merge_overrides
+from multion_agents.learned.learned_maps import ObjRecogMap
+from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
+from multion_agents.learned.train_options import VisionPretraining
+from multion_agents.learned.vision_pretrain import (
+    BandScores,
+    PlaceHead,
+    VisionFrames,
+    band_scores,
+    fit_head,
+    goal_in_view,
+    predict_goal_in_view,
+    sample_frames,
+)
+from multion_client.constants import Action
+
+FOUND = int(Action.FOUND)
+
+
+@dataclass(frozen=True)
+class FoundCalls:
+    """FOUND's probability on the steps of played episodes, near the goal and farther."""
+
+    near_steps: int
+    near_probability: float
+    """Mean probability of FOUND where the goal is within the success distance (nan: none)."""
+    far_steps: int
+    far_probability: float
+    endings: dict[str, int] = field(default_factory=dict)
+    """Episodes by how they ended (``end_reason``)."""
+
+
+def diagnosis_config(overrides: ConfigOverrides, sensors: tuple[str, ...]) -> EnvConfig:
+    """A 1-ON val env config with the checkpoint's camera and maps (``overrides``)."""
+    base: dict[str, Any] = {"task": {"num_goals": 1}, "split": "val", "sensors": list(sensors)}
+    return env_config_from_dict(merge_overrides(base, overrides))
+
+
+def found_calls(
+    policy: RecurrentPolicy, config: EnvConfig, episodes: int, seed: int, progress: bool = False
+) -> FoundCalls:
+    """Play the first ``episodes`` val episodes of ``config`` with ``policy`` (actions sampled
+    with ``seed``), recording FOUND's probability at every step."""
+    config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, "goal_distance"))))
+    reach = config.task.success_distance
+    rng = np.random.default_rng(seed)
+    near: list[float] = []
+    far: list[float] = []
+    endings: Counter[str] = Counter()
+    env = MultiONEnv(config)
+    device = policy.device
+    policy.eval()
+    try:
+        for index in tqdm(range(episodes), desc="episodes", disable=not progress):
+            observation, _ = env.reset(seed=index)
+            state, previous, start, done = policy.initial_state(1), 0, True, False
+            info: dict[str, Any] = {}
+            while not done:
+                frame = frames_to_tensors(observation, policy.sensors)
+                with torch.no_grad():
+                    out = policy.step(
+                        {k: v.unsqueeze(0).to(device) for k, v in frame.items()},
+                        torch.tensor([previous], device=device),
+                        torch.tensor([float(start)], device=device),
+                        state,
+                    )
+                state, start = out.state, False
+                probabilities = torch.softmax(out.logits[0, 0].double(), 0).cpu().numpy()
+                distance = float(observation["goal_distance"][0])
+                (near if distance <= reach else far).append(float(probabilities[FOUND]))
+                previous = int(
+                    rng.choice(len(probabilities), p=probabilities / probabilities.sum())
+                )
+                observation, _, terminated, truncated, info = env.step(previous)
+                done = terminated or truncated
+            endings[str(info["metrics"]["end_reason"])] += 1
+    finally:
+        env.close()
+    return FoundCalls(
+        near_steps=len(near),
+        near_probability=float(np.mean(near)) if near else math.nan,
+        far_steps=len(far),
+        far_probability=float(np.mean(far)) if far else math.nan,
+        endings=dict(endings),
+    )
+
+
+def probe_scores(
+    policy: RecurrentPolicy,
+    train: VisionFrames,
+    held_out: VisionFrames,
+    settings: VisionPretraining,
+) -> list[BandScores]:
+    """A linear probe of the frozen image embedding: trained on ``train``, scored by band on
+    ``held_out`` (the encoder is left as it was)."""
+    encoder = policy.image_encoder
+    assert encoder is not None
+    head = PlaceHead(encoder.out_dim).to(policy.device)
+    fit_head(encoder, head, train, settings, train_encoder=False)
+    predicted = predict_goal_in_view(encoder, head, held_out)
+    return band_scores(predicted, goal_in_view(held_out), held_out.distance)
+
+
+def recogniser_scores(policy: RecurrentPolicy, held_out: VisionFrames) -> list[BandScores] | None:
+    """ObjRecogMap's recogniser on ``held_out``: "the goal shows" where it names the frame's
+    goal category (None for an agent without one). Its training label was narrower: the
+    nearest goal within 2.5 m."""
+    memory, encoder = policy.memory, policy.image_encoder
+    if not isinstance(memory, ObjRecogMap) or encoder is None:
+        return None
+    device = policy.device
+    predicted = []
+    with torch.no_grad():
+        for start in range(0, len(held_out), 256):
+            rows = slice(start, min(start + 256, len(held_out)))
+            features, _ = encoder(
+                torch.as_tensor(held_out.rgb[rows], device=device),
+                torch.as_tensor(held_out.depth[rows], device=device),
+            )
+            names = memory.classifier(features).argmax(1).cpu().numpy()
+            predicted.append(names == held_out.goal[rows] + 1)
+    return band_scores(np.concatenate(predicted), goal_in_view(held_out), held_out.distance)
+
+
+def view_frames(
+    config: EnvConfig, settings: VisionPretraining, progress: bool = False
+) -> tuple[VisionFrames, VisionFrames]:
+    """Probe frames: ``settings.samples`` of train houses, ``settings.held_out`` of val."""
+    train = replace(config, split="train")
+    return (
+        sample_frames(train, settings.samples, settings.seed, settings, "train", progress),
+        sample_frames(config, settings.held_out, settings.seed + 1, settings, "val", progress),
+    )
