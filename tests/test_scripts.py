@@ -159,3 +159,40 @@ def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None
     for call in trains:
         assert "--image-size 36 " in call and "camera.renderer" not in call, call
         assert "--out runs/central/" in call, call
+
+
+def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) -> None:
+    """scripts/recipe_pilot.sh (issue 51) with the stand-in command: five no-map runs at the
+    central comparison's recipe, the FOUND curriculum over the first 40 % of the frames, each
+    then evaluated; run again, it skips what is done."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "recipe_pilot.sh", tmp_path / "scripts")
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    calls = tmp_path / "calls.txt"
+    env = {**os.environ, "FRAMES": "1000", "CALLS": str(calls), "MULTION": f"bash {fake}"}
+    script = ["bash", "scripts/recipe_pilot.sh"]
+    done = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    trains = [line for line in calls.read_text().splitlines() if line.startswith("train")]
+    by_run = {line.split("--out ")[1].split()[0].rsplit("/", 1)[1]: line for line in trains}
+    assert sorted(by_run) == sorted(
+        ["no-map-all", "no-map-paper", "no-map-heads", "no-map-found", "no-map-vision"]
+    )
+    for line in trains:
+        assert "--frames 1000" in line and "--found-prior 0.02" in line
+    extras = ("--goal-heads", "--found-curriculum", "--pretrain-vision")
+    assert not any(flag in by_run["no-map-paper"] for flag in extras)
+    assert all(flag in by_run["no-map-all"] for flag in extras)
+    assert "--found-curriculum 400:2.5" in by_run["no-map-found"]
+    assert "--goal-heads" in by_run["no-map-heads"]
+    assert "--found-curriculum" not in by_run["no-map-heads"]
+    assert "--pretrain-vision 2000" in by_run["no-map-vision"]
+    evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
+    assert len(evals) == 5 and all("--split val --episodes 100" in line for line in evals)
+    calls.unlink()
+    again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
+                           timeout=60)  # fmt: skip
+    assert again.returncode == 0 and "done: no-map-all" in again.stdout
+    assert not any(line.startswith(("train", "eval")) for line in calls.read_text().splitlines())
