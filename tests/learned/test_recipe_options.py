@@ -370,3 +370,23 @@ def test_diagnose_names_a_bad_option_or_file(
 
     assert main(["diagnose", str(tmp_path / "missing.pt"), *flags]) == 2
     assert re.search(message, capsys.readouterr().err)
+
+
+# ---------------------------------------------------------------- balanced recognition
+def test_balancing_weights_give_each_present_class_the_same_total() -> None:
+    from multion_agents.learned.learned_maps import balancing_weights
+
+    label = torch.tensor([0, 0, 0, 0, 0, 0, 3, 3])
+    weights = balancing_weights(label, 9)
+    assert weights[0] * 6 == pytest.approx(float(weights[3] * 2))
+    assert float(weights[label].mean()) == pytest.approx(1.0)
+    assert float(weights[1]) == 0.0
+
+
+def test_balanced_recognition_trains_obj_recog_map_only(tmp_path: Path, room_dataset: Path) -> None:
+    args = tiny_args(tmp_path, room_dataset, agent="obj-recog-map", frames=128)
+    train(dataclasses.replace(args, balanced_recognition=True))
+    recorded = load_checkpoint(tmp_path / "run" / "checkpoint.pt")["args"]
+    assert recorded["balanced_recognition"] is True
+    with pytest.raises(ValueError, match="--balanced-recognition weighs ObjRecogMap's"):
+        train(tiny_args(tmp_path / "other", room_dataset, balanced_recognition=True))

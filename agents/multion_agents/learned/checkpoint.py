@@ -132,7 +132,13 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
     return policy, overrides, payload["agent"]
 
 
-RECIPE_OPTIONS = ("goal_heads", "found_curriculum", "pretrain_vision", "pretrain_map")
+RECIPE_OPTIONS = (
+    "goal_heads",
+    "found_curriculum",
+    "pretrain_vision",
+    "pretrain_map",
+    "balanced_recognition",
+)
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""
 

@@ -204,6 +204,15 @@ class Args:
         ),
     )
     """``learned/vision_pretrain.py``; skipped on ``resume`` (the checkpoint holds it)."""
+    balanced_recognition: bool = setting(
+        False,
+        cli=Option(
+            "weigh ObjRecogMap's recogniser classes equally in each batch (most frames show "
+            "no goal)",
+            toggle=True,
+            group=BEYOND_PAPER,
+        ),
+    )
     threads: int = setting(
         1,
         low=1,

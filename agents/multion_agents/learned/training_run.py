@@ -27,6 +27,7 @@ from tqdm import tqdm
 
 from multion.config.codec import env_config_from_dict, env_config_to_dict
 from multion.config.datasets import parse_task
+from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.checkpoint import (
@@ -47,6 +48,7 @@ from multion_agents.learned.distributed import (
 )
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
 from multion_agents.learned.goal_heads import GOAL_VECTOR
+from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
 from multion_agents.learned.ppo import ppo_update, schedule, set_found_prior
@@ -448,6 +450,12 @@ def _prepare(
     check_vision_pretraining(args.pretrain_vision, args.agent, model_spec(args.agent).sensors)
     torch.manual_seed(args.seed)
     policy = build_policy(args.agent, env_config, args.hidden_size, args.goal_heads).to(device)
+    if args.balanced_recognition:
+        if not isinstance(policy.memory, ObjRecogMap):
+            raise ConfigError(
+                f"--balanced-recognition weighs ObjRecogMap's recogniser; {args.agent} has none"
+            )
+        policy.memory.balanced = True
     if args.found_prior is not None:
         set_found_prior(policy, args.found_prior)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
