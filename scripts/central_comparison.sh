@@ -14,6 +14,7 @@
 #   PUBLISH=1 bash scripts/central_comparison.sh       # then docs/learned.md's tables (below)
 #   IMAGE_SIZE=128 RENDERER=gl bash scripts/central_comparison.sh   # issue 44's 128² variant
 #   ONLY="no-map oracle-map proj-neural-map" ...       # only these runs of the stages
+#   RECIPE=learn-to-see STAGES="core learned" ...      # issue 51's recipe, beyond the paper
 # IMAGE_SIZE (default 36) and RENDERER (camera.renderer of training and evaluation; default the
 # config's, tiny) make a variant with its own OUT (runs/central-128-gl above) and its own
 # published runs (docs/learned/central-128-gl): the 36² runs are never restored into it. Its
@@ -29,17 +30,31 @@
 #   git worktree add --detach ../central-tree HEAD && cd ../central-tree &&
 #   PYTHONPATH=$PWD/server:$PWD/client:$PWD/agents MULTION=$OLDPWD/.venv/bin/multion \
 #     OUT=$OLDPWD/runs/central bash scripts/central_comparison.sh
+# RECIPE (default paper) picks the training options: `paper`, the paper's PPO; `learn-to-see`,
+# issue 51's options beyond the paper for every agent (the goal heads, the FOUND curriculum over
+# the first 40 % of the frames at the reference's 2.5 penalty, vision pretraining, and the
+# balanced recogniser for obj-recog-map), 3M frames by default; a recipe other than the paper's
+# is a variant of its own (runs/central-learn-to-see, docs/learned/central-learn-to-see).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+recipe_name=${RECIPE:-paper}
+options=()
+case $recipe_name in
+  paper) frames=${FRAMES:-720000} ;;
+  learn-to-see)
+    frames=${FRAMES:-3000000}
+    options=(--goal-heads --found-curriculum "$((frames * 2 / 5)):2.5" --pretrain-vision 2000) ;;
+  *) echo "unknown RECIPE $recipe_name (paper, learn-to-see)" >&2; exit 2 ;;
+esac
 image_size=${IMAGE_SIZE:-36}
 renderer=${RENDERER:-}
 # the published 36² runs are the comparison's reference; any other size or renderer is a variant
 variant=""
 [ "$image_size" = 36 ] || variant="-$image_size"
 [ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
+[ "$recipe_name" = paper ] || variant="$variant-$recipe_name"
 published=docs/learned/central$variant
 out=${OUT:-runs/central$variant}
-frames=${FRAMES:-720000}
 episodes=${EPISODES:-100}
 stages=${STAGES:-core shapes pretrain learned}
 only=${ONLY:-}  # run names; empty: every run of the stages
@@ -75,7 +90,11 @@ train_and_eval() {
   local resume=()
   [ -f "$dir/checkpoint.pt" ] && resume=(--resume)
   echo "== train $name ($agent, $frames frames) $(date -u +%FT%TZ)"
-  $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "$@"
+  local extra=("${options[@]}")
+  if [ "$recipe_name" != paper ] && [ "$agent" = obj-recog-map ]; then
+    extra+=(--balanced-recognition)
+  fi
+  $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "${extra[@]}" "$@"
   echo "== eval $name $(date -u +%FT%TZ)"
   rm -rf "$dir/eval-val"
   $multion eval --agent "$agent" --checkpoint "$dir/checkpoint.pt" "${evaluation[@]}" \

@@ -196,3 +196,28 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
                            timeout=60)  # fmt: skip
     assert again.returncode == 0 and "done: no-map-all" in again.stdout
     assert not any(line.startswith(("train", "eval")) for line in calls.read_text().splitlines())
+
+
+def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -> None:
+    """RECIPE=learn-to-see trains every agent with the options beyond the paper at 3M frames
+    (the FOUND curriculum over the first 1.2M), obj-recog-map with its balanced recogniser, into
+    runs/central-learn-to-see, reported beside the paper's published runs; an unknown recipe is
+    refused."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
+    (tmp_path / "docs" / "learned" / "central").mkdir(parents=True)
+    variables = {"RECIPE": "learn-to-see", "STAGES": "core learned", "FRAMES": ""}
+    _, calls = _central_calls(tmp_path, variables)
+    trains = {c.split()[2]: c for c in calls if c.startswith("train ")}
+    assert sorted(trains) == ["no-map", "obj-recog-map", "oracle-ego-map", "oracle-map",
+                              "proj-neural-map"]  # fmt: skip
+    for agent, call in trains.items():
+        assert "--frames 3000000 " in call and "--out runs/central-learn-to-see/" in call
+        assert "--goal-heads --found-curriculum 1200000:2.5 --pretrain-vision 2000" in call
+        assert ("--balanced-recognition" in call) == (agent == "obj-recog-map"), call
+    report = next(c for c in calls if c.startswith("report "))
+    assert "docs/learned/central " in report
+    paper = subprocess.run(["bash", "scripts/central_comparison.sh"], cwd=tmp_path,
+                           env={**os.environ, "RECIPE": "mine"}, capture_output=True, text=True,
+                           timeout=60)  # fmt: skip
+    assert paper.returncode == 2 and "unknown RECIPE mine (paper, learn-to-see)" in paper.stderr
