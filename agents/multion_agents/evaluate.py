@@ -8,7 +8,8 @@ from agents that did not ask for it.
 Which episodes: the packaged dataset of the task and split (or ``dataset``), read locally to know
 its ids and start poses; ``episodes=N`` takes N evenly spaced ones, so every scene is visited.
 Each episode is reset by id on the server, and the agent's random stream is re-seeded from
-``(seed, episode index)``: results do not depend on the number of workers or their order.
+``(seed, episode id)`` (:mod:`multion_agents.seeding`): results do not depend on the number of
+workers or their order, and an episode draws the same in every run that holds it.
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ from multion.scenes.viz import gps_to_world
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
 from multion_agents.eval_settings import EvalSettings
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
+from multion_agents.seeding import SEED_SCHEME, scheme_seed
+from multion_agents.seeding import episode_seed as episode_seed
 from multion_client.client import Client
 from multion_client.env import RemoteEnv
 
@@ -99,6 +102,8 @@ class EvalResult:
     """Fingerprint of the dataset file the episodes came from."""
     agent_settings: dict[str, Any] = field(default_factory=dict)
     """The agent's own tunables (``Agent.recorded_settings``); empty for agents without any."""
+    seed_scheme: str = SEED_SCHEME
+    """How each episode's agent was seeded (:mod:`multion_agents.seeding`)."""
 
 
 # ---------------------------------------------------------------------- episodes and config
@@ -208,11 +213,6 @@ def _learned_class(agent: str, checkpoint: str, deterministic: bool) -> type[Age
     return cls
 
 
-def episode_seed(seed: int, index: int) -> int:
-    """The agent's seed for episode ``index``: independent streams for every episode."""
-    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
-
-
 # ---------------------------------------------------------------------- playing
 def run_episode(
     env: gym.Env,
@@ -258,7 +258,7 @@ def run_episode(
 def scene_order(episodes: Sequence[Episode]) -> list[int]:
     """Episode indices grouped by scene (scenes in order of first appearance, episodes in
     order within a scene): each environment then builds each house once. Results do not
-    depend on the order (agents are seeded per episode index)."""
+    depend on the order (agents are seeded per episode id)."""
     first: dict[str, int] = {}
     for index, episode in enumerate(episodes):
         first.setdefault(episode.scene_id, index)
@@ -292,8 +292,9 @@ def play_all(
             with lock:
                 opened.append(env)
         try:
-            agent.seed(episode_seed(settings.seed, index))
-            return run_episode(env, agent, episodes[index], index)
+            episode = episodes[index]
+            agent.seed(scheme_seed(SEED_SCHEME, settings.seed, index, episode.episode_id))
+            return run_episode(env, agent, episode, index)
         finally:
             idle.put((env, agent))
 

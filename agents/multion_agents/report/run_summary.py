@@ -6,7 +6,7 @@ episodes they are wide; that is the honest answer.
 Files written to the output directory:
 
 * ``metrics.json``: the aggregates and the run's configuration (agent, task, split, episodes,
-  seed, server, the agent's own settings, the ``--set`` overrides, the environment config as sent and with every default
+  seed and how each episode's agent was seeded from it (``seed_scheme``), server, the agent's own settings, the ``--set`` overrides, the environment config as sent and with every default
   filled in, the dataset file's SHA-256, package versions);
 * ``episodes.jsonl``: one JSON object per episode (id, scene, the server's metrics, timings, the
   actions played: what ``multion video`` replays);
@@ -110,6 +110,7 @@ def write_report(result: EvalResult, out: Path, pictures: int = 3) -> list[Path]
         "episodes": len(result.records),
         "episodes_requested": s.episodes,
         "seed": s.seed,
+        "seed_scheme": result.seed_scheme,  # absent before issue 53: "index"
         "workers": s.workers,
         "dataset": s.dataset,
         "checkpoint": s.checkpoint,

@@ -2,7 +2,8 @@
 
 A :class:`Run` is one agent on one task under one set of *conditions*: the things that must be
 equal for two runs to be compared (split, dataset file, found budget, goal set, other ``--set``
-changes, step limit, camera size). Runs written before ``multion eval`` recorded a field get its default.
+changes, step limit, camera size). Runs written before ``multion eval`` recorded a field get its default;
+a run without ``seed_scheme`` seeded its agents by episode index (:mod:`multion_agents.seeding`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from multion.config.datasets import parse_task
 from multion.config.errors import UsageError
 from multion.config.task import TaskConfig
 from multion_agents.report.stats import HEADLINE
+from multion_agents.seeding import OLD_SEED_SCHEME, SEED_SCHEMES, scheme_seed
 from multion_client.constants import DEFAULT_GOAL_SET
 
 METRICS_FILE = "metrics.json"
@@ -36,6 +38,9 @@ class EpisodeResult:
     episode_id: str
     scene_id: str
     metrics: dict[str, Any]
+    index: int = 0
+    """The episode's position in the run's evaluated list (``index`` in ``episodes.jsonl``; its
+    line number for runs without it): what the ``"index"`` seed scheme seeded from."""
 
 
 @dataclass(frozen=True)
@@ -68,6 +73,11 @@ class Run:
     training_log: Path | None = None
     """A learned agent's ``progress.csv`` (``multion train``), in the run directory or beside it
     (``multion train --out X`` then ``multion eval --out X/eval-val``), if there is one."""
+    seed_scheme: str = OLD_SEED_SCHEME
+    """How each episode's agent was seeded from :attr:`seed` (``run.seed_scheme``;
+    ``"index"`` for runs written before the field)."""
+    seed_scheme_recorded: bool = True
+    """False for a run whose ``metrics.json`` has no ``seed_scheme`` (written before issue 53)."""
 
     @property
     def name(self) -> str:
@@ -120,6 +130,40 @@ class Run:
     def episode_ids(self) -> list[str]:
         return [e.episode_id for e in self.episodes]
 
+    @property
+    def seeding(self) -> str:
+        """The seed and its scheme, for tables: "0 (episode id)", "0 (index, unrecorded)"."""
+        scheme = self.seed_scheme.replace("_", " ")
+        return f"{self.seed} ({scheme}{'' if self.seed_scheme_recorded else ', unrecorded'})"
+
+    def agent_seeds(self, episode_ids: Sequence[str]) -> list[int]:
+        """The seed each of ``episode_ids`` gave its agent in this run."""
+        by_id = {e.episode_id: e for e in self.episodes}
+        return [scheme_seed(self.seed_scheme, self.seed, by_id[i].index, i) for i in episode_ids]
+
+
+def seeding_difference(a: Run, b: Run, episode_ids: Sequence[str]) -> str | None:
+    """Why the agents of ``a`` and ``b`` drew from different seeds on some of ``episode_ids``
+    (the episodes both played), or None when every one was seeded alike. Runs of deterministic
+    agents play the same whatever their seeds; the report cannot tell which agents are."""
+    differing = sum(
+        x != y for x, y in zip(a.agent_seeds(episode_ids), b.agent_seeds(episode_ids), strict=True)
+    )
+    if not differing:
+        return None
+    reasons = []
+    if a.seed != b.seed:
+        reasons.append(f"seeds {a.seed} and {b.seed}")
+    if a.seed_scheme != b.seed_scheme:
+        reasons.append(f"seed schemes {a.seeding} and {b.seeding}")
+    elif a.seed_scheme == OLD_SEED_SCHEME and a.seed == b.seed:
+        reasons.append("seeded by position in the list, and the episodes stand at other positions")
+    return (
+        f"{a.name} and {b.name} seeded their agents differently on {differing} of "
+        f"{len(episode_ids)} shared episodes ({'; '.join(reasons)}): a stochastic agent drew "
+        "other random numbers there."
+    )
+
 
 def expand_run_dirs(paths: Sequence[Path]) -> list[Path]:
     """Run directories among ``paths``: a path holding no run itself but run subdirectories
@@ -169,6 +213,11 @@ def load_run(path: Path) -> Run:
     except ValueError as error:
         raise RunError(f"{metrics_path}: {error}") from None
     episodes = _read_episodes(episodes_path, num_goals)
+    scheme = run.get("seed_scheme", OLD_SEED_SCHEME)
+    if scheme not in SEED_SCHEMES:
+        raise RunError(
+            f"{metrics_path}: 'run.seed_scheme' is {scheme!r}, not one of {', '.join(SEED_SCHEMES)}"
+        )
     if isinstance(run.get("episodes"), int) and run["episodes"] != len(episodes):
         raise RunError(
             f"{path}: metrics.json says {run['episodes']} episodes but {EPISODES_FILE} has "
@@ -193,6 +242,8 @@ def load_run(path: Path) -> Run:
         episodes=episodes,
         checkpoint=_checkpoint_label(run),
         training_log=_training_log(path) if run.get("checkpoint") else None,
+        seed_scheme=str(scheme),
+        seed_scheme_recorded="seed_scheme" in run,
     )
 
 
@@ -230,7 +281,12 @@ def _read_episodes(path: Path, num_goals: int) -> tuple[EpisodeResult, ...]:
         if item["episode_id"] in seen:
             raise RunError(f"{path}, line {number}: episode {item['episode_id']} appears twice")
         seen.add(item["episode_id"])
-        episodes.append(EpisodeResult(item["episode_id"], str(item.get("scene_id", "")), metrics))
+        index = item.get("index", len(episodes))
+        if not isinstance(index, int):
+            raise RunError(f"{path}, line {number}: index {index!r} is not an integer")
+        episodes.append(
+            EpisodeResult(item["episode_id"], str(item.get("scene_id", "")), metrics, index)
+        )
     if not episodes:
         raise RunError(f"{path}: no episodes")
     return tuple(episodes)

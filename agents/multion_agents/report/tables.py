@@ -18,7 +18,7 @@ from typing import Any
 from multion.config.datasets import task_name
 from multion.task import measures
 from multion_agents.report.paper import PaperResults
-from multion_agents.report.runs import Run
+from multion_agents.report.runs import Run, seeding_difference
 from multion_agents.report.stats import (
     CI_METHOD,
     HEADLINE,
@@ -123,6 +123,34 @@ def paired_headline(a: Run, b: Run) -> tuple[int, dict[str, Estimate]] | None:
         key: paired_difference(a.values(key, common), b.values(key, common)) for key, _ in HEADLINE
     }
     return len(common), differences
+
+
+def seeding_note(a: Run, b: Run) -> str | None:
+    """A note when the agents of ``a`` and ``b`` drew from different seeds on an episode both
+    played (:func:`~multion_agents.report.runs.seeding_difference`), None otherwise."""
+    in_b = set(b.episode_ids())
+    return seeding_difference(a, b, [e for e in a.episode_ids() if e in in_b])
+
+
+def seed_scheme_note(runs: Sequence[Run]) -> str:
+    """How the runs seeded each episode's agent from their seed: by episode id (the same draws in
+    every run that holds the episode) or by index (its position in the run's list; every run
+    written before ``metrics.json`` recorded the scheme)."""
+    by_scheme: dict[str, list[str]] = defaultdict(list)
+    for run in runs:
+        by_scheme[run.seeding.split(" ", 1)[1].strip("()")].append(run.name)
+    if len(by_scheme) == 1:
+        (scheme,) = by_scheme
+        which = f"every run seeded each episode's agent from its seed by {scheme}"
+    else:
+        which = "the runs seeded each episode's agent from their seed " + "; ".join(
+            f"by {scheme}: {', '.join(names)}" for scheme, names in by_scheme.items()
+        )
+    return (
+        f"seed: {which} (episode id: the same draws in every run that holds the episode; index: "
+        "by its position in the run's list, so other draws in a run of other episodes; "
+        "unrecorded: written before `metrics.json` recorded the scheme)."
+    )
 
 
 def headline_cells(run: Run, theirs: dict[str, float] | None) -> tuple[list[str], dict[str, Any]]:
@@ -335,6 +363,9 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
                     table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
                     continue
                 common, differences = paired
+                note = seeding_note(a, b)
+                if note is not None:
+                    table.notes.append(note)
                 table.rows.append(
                     [
                         labels[i],
@@ -351,6 +382,7 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
                     "run_a": a.name,
                     "run_b": b.name,
                     "common_episodes": common,
+                    "seeded_alike": note is None,
                 }
                 for key, _ in HEADLINE:
                     record.update(estimate_record(differences[key], f"diff_{key}"))
@@ -362,7 +394,9 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
         "settings), compared on the episodes both played. Each cell is the mean of A − B over those "
         "episodes with a 95% paired bootstrap interval (episodes resampled jointly for A and B); "
         "**bold**: the interval excludes 0, i.e. the difference is significant at about the 5% "
-        "level (one interval per cell, not corrected for the number of comparisons)."
+        "level (one interval per cell, not corrected for the number of comparisons). "
+        "A note names each pair whose agents were seeded differently on a shared episode "
+        "(`seeded_alike` in the CSV)."
     ]
     return table
 
@@ -404,4 +438,5 @@ def run_list(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         table.rows.append(row)
         table.records.append(dict(zip(table.header, row, strict=True)))
     table.notes.append("dataset: the first 12 hex digits of the dataset file's SHA-256 (per task).")
+    table.notes.append(seed_scheme_note([runs[i] for i in display_order(runs, labels, paper)]))
     return table

@@ -20,6 +20,7 @@ from multion_agents.report.tables import (
     headline_cells,
     paired_headline,
     percent,
+    seeding_note,
     signed,
     task_label,
 )
@@ -230,6 +231,9 @@ def _difference_row(
         table.notes.append(f"{later.name} and {earlier.name} share no episodes: not compared.")
         return
     common, differences = paired
+    note = seeding_note(later, earlier)
+    if note is not None:
+        table.notes.append(note)
     cells = [signed(differences[key]) for key, _ in HEADLINE]
     table.rows.append(["", task_label(later), name, str(common), *cells, *after])
     record: dict[str, Any] = {"agent": later.agent, "task": task_name(later.num_goals)}
