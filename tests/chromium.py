@@ -52,3 +52,27 @@ def chromium() -> Iterator[Any]:
             yield browser
         finally:
             browser.close()
+
+
+def axe_core_script() -> str | None:
+    """axe-core's script, if installed (optional): ``$MULTION_AXE_CORE``, or ``npm install
+    axe-core`` at the repository's root (as .ci/run does)."""
+    from pathlib import Path
+
+    for candidate in (
+        os.environ.get("MULTION_AXE_CORE", ""),
+        str(Path(__file__).resolve().parents[1] / "node_modules" / "axe-core" / "axe.min.js"),
+    ):
+        if candidate and Path(candidate).is_file():
+            return Path(candidate).read_text(encoding="utf-8")
+    return None
+
+
+def require_axe_core() -> str:
+    """axe-core's script; skips without it, or fails under ``MULTION_REQUIRE_AXE=1``."""
+    script = axe_core_script()
+    if script is None:
+        if os.environ.get("MULTION_REQUIRE_AXE") == "1":  # set by .ci/run
+            pytest.fail("MULTION_REQUIRE_AXE=1 but axe-core is missing: npm install axe-core@4")
+        pytest.skip("axe-core is optional: npm install axe-core@4 (or set MULTION_AXE_CORE)")
+    return script

@@ -42,7 +42,11 @@ def test_the_participants_bench_plays_every_run_to_its_end() -> None:
 
 
 def test_the_reset_bench_times_both_samplers_and_splits_out_the_fast_marching(capsys):
-    results = run_reset_bench(resets=3, tasks=(1,), warm=False)
+    results = run_reset_bench(resets=3, tasks=(1,), warm=False, plain=26)
+    # the plain env: 25 episodes per house, so the 26 resets after the first switch house once
+    assert results["1on_plain_switches"] == 1
+    assert 0 < results["1on_plain_same_house_median_ms"] < results["1on_plain_switch_median_ms"]
+    assert results["1on_plain_mean_ms"] >= results["1on_plain_same_house_median_ms"] * 0.5
     # online: the start's field and the goal's every time; sites: at most the goal's
     assert results["1on_online_fields_median"] >= 2
     assert results["1on_sites_fields_median"] <= 1

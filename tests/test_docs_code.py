@@ -81,7 +81,7 @@ def test_kinds_of_blocks() -> None:
     assert kind("bash") == "run" and kind("python") == "run"
     assert kind('python title="my_agent.py"') == "file"
     assert kind('bash title="Not run by the tests: hours of training"') == "not run"
-    for unmarked in ("", "bash title=\"Not run by the tests: \"", "console", "py", 'bash title="x"'):
+    for unmarked in ("", 'bash title="Not run by the tests: "', "console", "py", 'bash title="x"'):
         with pytest.raises(ValueError):
             kind(unmarked)
     # mktestdocs runs exactly the blocks marked `bash` / `python`, none of the others
@@ -119,7 +119,9 @@ def bash_executor(directory: Path) -> Callable[[str], None]:
             ["bash", "-euo", "pipefail", "-c", source], cwd=directory, env=env,
             capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S,
         )  # fmt: skip
-        assert done.returncode == 0, f"{source}\nfailed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+        assert done.returncode == 0, (
+            f"{source}\nfailed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+        )
 
     return run
 

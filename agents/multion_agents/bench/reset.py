@@ -8,6 +8,13 @@ The sites env first marches every site of every train house (what a training run
 after its first visits; the time is printed), so its resets are timed as they are once warm.
 For both it times the fast marchings (:class:`MarchingClock`) within each reset.
 
+Those medians leave out what a training run also pays: house switches and the first marchings of
+each site. :func:`time_plain_resets`, run first (before any site is marched in the process), times
+a plain ``MultiONEnv`` on the train split at the default config (36² RGB-D + goal, 25 episodes
+per house): resets that stay in one house and resets that switch houses, apart, and the mean of
+all. Houses load from the navigable-grid cache on disk where it holds them (a first-ever load
+builds the grid: seconds).
+
 :func:`breadth_first_reach` is the step-reach check before issue 30, kept as the reference that
 ``tests/task/test_step_reach.py`` compares the best-first search with.
 """
@@ -135,6 +142,52 @@ def _env(num_goals: int, sampler: str) -> MultiONEnv:
     return MultiONEnv(bench_config(num_goals, sampler))
 
 
+def plain_config(num_goals: int) -> EnvConfig:
+    """A plain train env at the default config but for a 36² camera: RGB-D + goal."""
+    return env_config_from_dict(
+        {
+            "task": {"num_goals": num_goals},
+            "split": "train",
+            "sensors": ["rgb", "depth", "goal"],
+            "camera": {"width": 36, "height": 36},
+        }
+    )
+
+
+def time_plain_resets(num_goals: int, resets: int = 150) -> dict[str, float]:
+    """Time ``resets`` resets of a plain train env after its first (which loads the first
+    house): the median of those that stay in one house and of those that switch houses, and the
+    mean of all; printed and returned (ms)."""
+    env = MultiONEnv(plain_config(num_goals))
+    try:
+        env.reset(seed=0)
+        same: list[float] = []
+        switch: list[float] = []
+        for _ in range(resets):
+            scene = env.episode.scene_id if env.episode is not None else None
+            tick = time.perf_counter()
+            env.reset()
+            ms = 1000 * (time.perf_counter() - tick)
+            assert env.episode is not None
+            (same if env.episode.scene_id == scene else switch).append(ms)
+    finally:
+        env.close()
+    every = np.asarray(same + switch)
+    results = {
+        f"{num_goals}on_plain_same_house_median_ms": float(np.median(same)),
+        f"{num_goals}on_plain_switch_median_ms": float(np.median(switch)) if switch else 0.0,
+        f"{num_goals}on_plain_mean_ms": float(every.mean()),
+        f"{num_goals}on_plain_switches": float(len(switch)),
+    }
+    switched = f"median {np.median(switch):.0f} ms" if switch else "none"
+    print(
+        f"{num_goals}-ON   plain {np.median(same):>10.1f} {every.mean():>9.1f} "
+        f"{np.percentile(every, 90):>8.1f}  median in one house; {len(switch)} house switches: "
+        f"{switched}"
+    )
+    return results
+
+
 def march_every_site(sites: GoalSites, env: MultiONEnv) -> float:
     """March every goal site of every train house into ``sites``'s cache (the process's, which
     ``env`` reads too, warmed as its visits would); seconds taken."""
@@ -147,15 +200,23 @@ def march_every_site(sites: GoalSites, env: MultiONEnv) -> float:
 
 
 def run_reset_bench(
-    resets: int = 60, tasks: Sequence[int] = (1, 3), warm: bool = True
+    resets: int = 60, tasks: Sequence[int] = (1, 3), warm: bool = True, plain: int = 150
 ) -> dict[str, float]:
-    """Print and return the median and mean resets of both samplers, per task. ``warm``:
-    march every site first (several minutes on a cold grid cache); without it the sites env's
-    resets include its first marchings."""
+    """Print and return, per task, ``plain`` resets of a plain train env (:func:`time_plain_resets`),
+    then the median and mean resets of both samplers. ``warm``: march every site first (several
+    minutes on a cold grid cache); without it the sites env's resets include its first
+    marchings."""
     results: dict[str, float] = {}
     print(
+        f"a plain train env (default config, 36² RGB-D + goal, sites cold, 25 episodes per "
+        f"house): {plain} resets per task after the first"
+    )
+    print(f"{'task':>6} {'sampler':>7} {'median ms':>10} {'mean ms':>9} {'p90 ms':>8}")
+    for num_goals in tasks:
+        results.update(time_plain_resets(num_goals, plain))
+    print(
         f"train episodes: {resets} resets per task, the online and the sites env in turn "
-        "(same seed)"
+        "(same seed; sites warm: every site marched first; medians leave house switches out)"
     )
     task = bench_config(1, "sites").task
     # a view of the process's site cache held through both tasks: the cache is dropped when
