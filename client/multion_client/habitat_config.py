@@ -8,26 +8,43 @@ loads a habitat YAML and gives it to its agent, which reads its actions from it:
 
 A leaderboard run has no habitat simulator to configure, so the file is not read, whatever path
 is passed: the config describes the track the run will play (``MULTION_SERVER`` and
-``MULTION_TRACK``, as :class:`~multion_client.habitat_compat.Challenge` reads them), with the
-reference's key names (``configs/multinav_real.yaml`` there; saimwani/multiON
-``configs/tasks/multinav_mp3d.yaml``): ``ENVIRONMENT.MAX_EPISODE_STEPS``,
-``SIMULATOR.{TURN_ANGLE, FORWARD_STEP_SIZE, AGENT_0, RGB_SENSOR, DEPTH_SENSOR}``,
-``TASK.{TYPE, POSSIBLE_ACTIONS, SUCCESS_DISTANCE, SENSORS, GOAL_SENSOR_UUID}``,
-``DATASET.SPLIT`` (the phase), and a ``MULTION`` section with what habitat has no key for
-(the number of goals, the goal set, the wrong-FOUND budget, the sensors by this project's names).
-``DEPTH_SENSOR`` says what the compat layer delivers: [0, 1] of 0-10 m, whatever the track's
-camera.
+``MULTION_TRACK``, as :class:`~multion_client.habitat_compat.Challenge` reads them).
+
+It holds every key of the reference's default config tree (386 keys, ``habitat_defaults.json``,
+written by ``scripts/habitat_reference_keys.py``), the union of three yacs trees, each key's
+default from the first that has it: 3dlg-hcvc/multion-challenge branch ``chal_2022``
+``habitat/config/default.py`` (the 2022 starter's habitat: ``TASK.OBJECTS_TYPE = "CYL"`` at
+l. 239), branch ``main`` ``multion/config/default_old.py`` (its 2023 additions: semantic map
+sensors, ``AGENT_HEADING_SENSOR``, ...), and saimwani/multiON ``habitat/config/default.py`` (the
+paper's and the 2021 challenge's: ``TASK.MULTI_GOAL_SENSOR``); each key's ``from`` in the data
+file names its file and line. ``main``'s ``multion/config/default.py`` is habitat 0.2.5's hydra
+config (lower-case ``habitat.task...`` keys, 2024), which no yacs starter reads: not covered.
+
+Where the track decides a key (:func:`track_values`), the config has the track's value: the step
+limit, the camera (``RGB_SENSOR``, ``DEPTH_SENSOR``, ``SEMANTIC_SENSOR``: size, HFOV, position),
+the turn angle and step size, the agent's height and radius, the actions, the task sensors,
+``OBJECTS_TYPE`` (``"CYL"`` for the coloured cylinders, ``"REAL"`` for the everyday objects), the
+goals and distractors, every measure's success distance, ``DATASET.SPLIT`` (the phase). A
+``MULTION`` section holds what habitat has no key for (the track, the goal set, the wrong-FOUND
+budget, the sensors by this project's names). ``DEPTH_SENSOR`` says what the compat layer
+delivers: [0, 1] of 0-10 m, whatever the track's camera. Other keys (``SIMULATOR.HABITAT_SIM_V0``,
+the robot cameras, ``PYROBOT``, ...) configure habitat's simulator, which a run does not use:
+they hold the reference's defaults, for agents that read them.
 """
 
 from __future__ import annotations
 
 import ast
+import copy
+import functools
+import json
 import os
 from collections.abc import Mapping, Sequence
+from importlib import resources
 from typing import Any
 
 from multion_client.client import Client
-from multion_client.constants import Action
+from multion_client.constants import DEFAULT_GOAL_SET, Action
 
 SETTINGS = {
     "server": "MULTION_SERVER",
@@ -55,6 +72,26 @@ HABITAT_SENSORS = {
     "gps": "GPS_SENSOR",
 }
 """habitat's task sensor of each sensor here that the compat layer delivers."""
+DEFAULTS_FILE = "habitat_defaults.json"
+"""The reference's key tree as data, written by ``scripts/habitat_reference_keys.py``."""
+OBJECTS_TYPES = {"colours": "CYL", "objects": "REAL"}
+"""``TASK.OBJECTS_TYPE`` of a goal set: the reference's ``"CYL"`` (its CYLINDER track, the paper's
+coloured cylinders) and ``"REAL"`` (its REAL-OBJECTS track; chal_2022 ``configs/multinav_cyl.yaml``
+and ``multinav_real.yaml`` l. 32, ``habitat/config/default.py`` l. 239). The other goal sets here
+(``shapes``, ``unseen_train``, ``unseen_test``) are neither: their names, upper-cased."""
+SUCCESS_DISTANCE_KEYS = (
+    "TASK.SUCCESS_DISTANCE",
+    "TASK.SUCCESS.SUCCESS_DISTANCE",
+    "TASK.SUB_SUCCESS.SUCCESS_DISTANCE",
+    "TASK.PERCENTAGE_SUCCESS.SUCCESS_DISTANCE",
+    "TASK.ORACLE_SUB_SUCCESS.SUCCESS_DISTANCE",
+    "TASK.PROGRESS.SUCCESS_DISTANCE",
+)
+"""Every measure's success distance in the reference's tree: the track's, for all of them (the
+reference's yaml sets ``SUCCESS``, ``SUB_SUCCESS`` and ``PERCENTAGE_SUCCESS`` to its own)."""
+CAMERA_SENSORS = ("RGB_SENSOR", "DEPTH_SENSOR", "SEMANTIC_SENSOR")
+"""The cameras the reference's yaml sizes alike (chal_2022 ``configs/multinav_real.yaml``): the
+track's camera. The robot cameras of habitat's tree (``HEAD_RGB_SENSOR``, ...) keep its defaults."""
 
 
 class Config(dict[str, Any]):
@@ -161,55 +198,95 @@ def find_track(server: str, name: str) -> tuple[dict[str, Any], dict[str, Any]]:
     return track, dict(info.get("limits", {}))
 
 
-def track_config(track: Mapping[str, Any], phase: str | None = None) -> Config:
-    """The habitat config of a run of ``track`` (a track of ``GET /v1/challenge``)."""
+def reference_defaults() -> dict[str, Any]:
+    """Every key of the reference's default config tree and its default, ``{"A.B.C": value}``
+    (``habitat_defaults.json``: see the module docstring for the trees, and each key's ``from``
+    there for the file and line that sets it)."""
+    return {path: copy.deepcopy(entry["value"]) for path, entry in _reference_keys().items()}
+
+
+@functools.cache
+def _reference_keys() -> dict[str, Any]:
+    text = resources.files("multion_client").joinpath(DEFAULTS_FILE).read_text(encoding="utf-8")
+    keys: dict[str, Any] = json.loads(text)["keys"]
+    return keys
+
+
+def objects_type(goal_set: str) -> str:
+    """``TASK.OBJECTS_TYPE`` of a goal set (see :data:`OBJECTS_TYPES`)."""
+    return OBJECTS_TYPES.get(goal_set, goal_set.upper())
+
+
+def track_values(track: Mapping[str, Any], phase: str | None = None) -> dict[str, Any]:
+    """The reference keys a run of ``track`` decides, ``{"A.B.C": value}``: the steps, the
+    camera, the actions and motion, the goals, distractors and objects, the success distance
+    (of every measure that has one), the sensors, the split."""
     camera = {**CAMERA_DEFAULTS, **track.get("camera", {})}
     sensors = list(track.get("sensors", ()))
     position = [0.0, float(camera["sensor_height"]), 0.0]
-    image = {
-        "WIDTH": int(camera["width"]),
-        "HEIGHT": int(camera["height"]),
-        "HFOV": float(camera["hfov_deg"]),
-        "POSITION": position,
+    success = float(track.get("success_distance", 1.5))
+    distractors = int(track.get("num_distractors", 0))
+    values: dict[str, Any] = {
+        "ENVIRONMENT.MAX_EPISODE_STEPS": int(track["max_steps"]),
+        "TASK.TOP_DOWN_MAP.MAX_EPISODE_STEPS": int(track["max_steps"]),
+        "SIMULATOR.TURN_ANGLE": AGENT_DEFAULTS["turn_angle_deg"],
+        "SIMULATOR.FORWARD_STEP_SIZE": AGENT_DEFAULTS["forward_step"],
+        "SIMULATOR.AGENT_0.SENSORS": [
+            f"{s.upper()}_SENSOR" for s in ("rgb", "depth") if s in sensors
+        ],
+        "SIMULATOR.AGENT_0.HEIGHT": position[1],  # the reference's yaml: the camera's height
+        "SIMULATOR.AGENT_0.RADIUS": AGENT_DEFAULTS["radius"],
+        # what the compat layer delivers: depth in [0, 1] of 0-10 m, whatever the track's camera
+        "SIMULATOR.DEPTH_SENSOR.MIN_DEPTH": 0.0,
+        "SIMULATOR.DEPTH_SENSOR.MAX_DEPTH": 10.0,
+        "SIMULATOR.DEPTH_SENSOR.NORMALIZE_DEPTH": True,
+        "TASK.TYPE": "MultiObjectNav-v1",
+        "TASK.POSSIBLE_ACTIONS": [action.name for action in Action],
+        "TASK.SENSORS": [habitat for s, habitat in HABITAT_SENSORS.items() if s in sensors],
+        "TASK.GOAL_SENSOR_UUID": "multiobjectgoal",
+        "TASK.OBJECTS_TYPE": objects_type(str(track.get("goal_set", DEFAULT_GOAL_SET))),
+        "TASK.NUM_GOALS": int(track["num_goals"]),
+        "TASK.NUM_DISTRACTORS": distractors,
+        "TASK.INCLUDE_DISTRACTORS": distractors > 0,
+        "DATASET.TYPE": "MultiObjectNav-v1",
+        "DATASET.NUM_GOALS": int(track["num_goals"]),
+        "DATASET.SPLIT": phase,
     }
-    config = Config(
-        {
-            "ENVIRONMENT": {"MAX_EPISODE_STEPS": int(track["max_steps"])},
-            "SIMULATOR": {
-                "TURN_ANGLE": AGENT_DEFAULTS["turn_angle_deg"],
-                "FORWARD_STEP_SIZE": AGENT_DEFAULTS["forward_step"],
-                "AGENT_0": {
-                    "SENSORS": [f"{s.upper()}_SENSOR" for s in ("rgb", "depth") if s in sensors],
-                    "HEIGHT": position[1],  # the reference's yaml: the camera's height
-                    "RADIUS": AGENT_DEFAULTS["radius"],
-                },
-                "RGB_SENSOR": dict(image),
-                "DEPTH_SENSOR": {
-                    **image,
-                    "MIN_DEPTH": 0.0,
-                    "MAX_DEPTH": 10.0,
-                    "NORMALIZE_DEPTH": True,
-                },
-            },
-            "TASK": {
-                "TYPE": "MultiObjectNav-v1",
-                "POSSIBLE_ACTIONS": [action.name for action in Action],
-                "SUCCESS_DISTANCE": float(track.get("success_distance", 1.5)),
-                "SENSORS": [habitat for s, habitat in HABITAT_SENSORS.items() if s in sensors],
-                "GOAL_SENSOR_UUID": "multiobjectgoal",
-            },
-            "DATASET": {"TYPE": "MultiObjectNav-v1", "SPLIT": phase},
-            "MULTION": {
-                "TRACK": track["name"],
-                "NUM_GOALS": int(track["num_goals"]),
-                "GOAL_SET": track.get("goal_set", "colours"),
-                "FOUND_BUDGET": int(track.get("found_budget", 0)),
-                "NUM_DISTRACTORS": int(track.get("num_distractors", 0)),
-                "SENSORS": sensors,
-            },
-        }
-    )
-    return config
+    for measure in SUCCESS_DISTANCE_KEYS:
+        values[measure] = success
+    for sensor in CAMERA_SENSORS:
+        values[f"SIMULATOR.{sensor}.WIDTH"] = int(camera["width"])
+        values[f"SIMULATOR.{sensor}.HEIGHT"] = int(camera["height"])
+        values[f"SIMULATOR.{sensor}.HFOV"] = float(camera["hfov_deg"])
+        values[f"SIMULATOR.{sensor}.POSITION"] = list(position)
+    return values
+
+
+def track_config(track: Mapping[str, Any], phase: str | None = None) -> Config:
+    """The habitat config of a run of ``track`` (a track of ``GET /v1/challenge``): every key of
+    the reference's default tree (:func:`reference_defaults`), the track's values where the track
+    decides them (:func:`track_values`), and the ``MULTION`` section."""
+    flat = reference_defaults()
+    for path, value in track_values(track, phase).items():
+        if path not in flat:  # a key the reference does not have: this module's mistake
+            raise KeyError(f"track_values sets {path!r}, which the reference's tree lacks")
+        flat[path] = value
+    tree: dict[str, Any] = {}
+    for path, value in flat.items():
+        *sections, last = path.split(".")
+        node = tree
+        for section in sections:
+            node = node.setdefault(section, {})
+        node[last] = value
+    tree["MULTION"] = {
+        "TRACK": track["name"],
+        "NUM_GOALS": int(track["num_goals"]),
+        "GOAL_SET": track.get("goal_set", DEFAULT_GOAL_SET),
+        "FOUND_BUDGET": int(track.get("found_budget", 0)),
+        "NUM_DISTRACTORS": int(track.get("num_distractors", 0)),
+        "SENSORS": list(track.get("sensors", ())),
+    }
+    return Config(tree)
 
 
 def get_config(
