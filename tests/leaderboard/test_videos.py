@@ -137,6 +137,36 @@ def test_videos_answer_head_and_byte_ranges(server: Any, played: dict[str, Playe
     assert outside.status_code == 416 and outside.headers["content-range"] == f"bytes */{size}"
 
 
+def test_videos_keep_their_validators_for_conditional_and_range_requests(
+    server: Any, played: dict[str, PlayedRun]
+) -> None:
+    """Issue 53 item 1: watching a film (which marks it for the cache's eviction order) left its
+    ETag and Last-Modified changed, so no request got 304 and If-Range got the whole film."""
+    run_id = played["beta"].run_id
+    filmed_page(server, run_id)
+    for kind in ("mp4", "vtt"):
+        url = _url(server, run_id, 2, kind)
+        first, second = httpx.get(url, timeout=60), httpx.head(url, timeout=60)
+        etag, modified = first.headers["etag"], first.headers["last-modified"]
+        assert (second.headers["etag"], second.headers["last-modified"]) == (etag, modified)
+        for conditional in ({"If-None-Match": etag}, {"If-None-Match": f'"other", W/{etag}'},
+                            {"If-None-Match": "*"}, {"If-Modified-Since": modified}):  # fmt: skip
+            for answer in (httpx.get(url, headers=conditional, timeout=60),
+                           httpx.head(url, headers=conditional, timeout=60)):  # fmt: skip
+                assert answer.status_code == 304, (kind, conditional)
+                assert answer.content == b"" and answer.headers["etag"] == etag
+                assert answer.headers["cache-control"] == "public, max-age=3600"
+        assert httpx.get(url, headers={"If-None-Match": '"other"'}, timeout=60).status_code == 200
+        old = "Mon, 01 Jan 2001 00:00:00 GMT"
+        assert httpx.get(url, headers={"If-Modified-Since": old}, timeout=60).status_code == 200
+        for validator in (etag, modified):
+            part = httpx.get(url, headers={"Range": "bytes=5-14", "If-Range": validator},
+                             timeout=60)  # fmt: skip
+            assert part.status_code == 206 and part.content == first.content[5:15]
+        whole = httpx.get(url, headers={"Range": "bytes=5-14", "If-Range": '"other"'}, timeout=60)
+        assert whole.status_code == 200 and whole.content == first.content
+
+
 def test_a_cached_video_is_not_filmed_again_and_an_evicted_one_is(
     server: Any, played: dict[str, PlayedRun], video_dir: Path, tmp_path: Path
 ) -> None:
@@ -261,9 +291,13 @@ def test_the_cache_removes_the_least_recently_watched_films_first(tmp_path: Path
         video.write_bytes(b"v" * 900)
         captions.write_bytes(b"c" * 100)
         os.utime(video, (1000 + position, 1000 + position))
+    before = [path.stat().st_mtime for path in cache.paths("run1", 0)]
     cache.watched("run1", 0)  # watched now: the last to go
+    # its validators (ETag, Last-Modified: from the mtime) stay those of its filming (issue 53)
+    assert [path.stat().st_mtime for path in cache.paths("run1", 0)] == before
     assert cache.evict() == 1
     assert [cache.ready("run1", p) for p in range(3)] == [True, False, True]
+    assert not list(tmp_path.glob("run1/episode-1-*"))  # its film, captions and mark
     assert cache.evict() == 0
     with pytest.raises(ValueError, match="not a run id"):
         cache.paths("../etc", 0)

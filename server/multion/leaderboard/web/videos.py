@@ -13,7 +13,6 @@ import asyncio
 import datetime as dt
 import hashlib
 import logging
-import os
 import re
 import tempfile
 from collections.abc import Awaitable, Callable
@@ -76,12 +75,14 @@ class VideoCache:
         return all(path.is_file() for path in self.paths(run_id, position))
 
     def watched(self, run_id: str, position: int) -> None:
-        """Mark a film as just watched: the last to be evicted."""
-        for path in self.paths(run_id, position):
-            try:
-                os.utime(path)
-            except FileNotFoundError:
-                pass
+        """Mark a film as just watched: the last to be evicted. The mark is a separate empty
+        file's time (shared by a replica's workers): the film's and captions' own modification
+        times stay those of their filming, so their ETag and Last-Modified stay the same."""
+        video, _ = self.paths(run_id, position)
+        try:
+            watched_mark(video).touch()
+        except FileNotFoundError:  # the run's folder was removed meanwhile
+            pass
 
     def evict(self) -> int:
         """Remove the least recently watched films until the rest fit; returns how many."""
@@ -91,18 +92,27 @@ class VideoCache:
                 stat = video.stat()
             except FileNotFoundError:
                 continue
-            captions = video.with_suffix(".vtt")
+            captions, mark = video.with_suffix(".vtt"), watched_mark(video)
             size = stat.st_size + (captions.stat().st_size if captions.is_file() else 0)
-            films.append((stat.st_mtime, size, video, captions))
-        total = sum(size for _, size, _, _ in films)
+            try:  # watched last then, or (never watched) filmed then
+                last = max(stat.st_mtime, mark.stat().st_mtime)
+            except FileNotFoundError:
+                last = stat.st_mtime
+            films.append((last, size, video, captions, mark))
+        total = sum(film[1] for film in films)
         removed = 0
-        for _, size, video, captions in sorted(films, key=lambda film: film[0]):
+        for _, size, video, captions, mark in sorted(films, key=lambda film: film[0]):
             if total <= self.max_bytes:
                 break
-            video.unlink(missing_ok=True)
-            captions.unlink(missing_ok=True)
+            for path in (video, captions, mark):
+                path.unlink(missing_ok=True)
             total, removed = total - size, removed + 1
         return removed
+
+
+def watched_mark(video: Path) -> Path:
+    """The empty file whose modification time says when ``video`` was last watched."""
+    return video.with_suffix(".watched")
 
 
 InHelper = Callable[[Callable[[], Film]], Awaitable[Film]]
