@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import torch
 
@@ -11,6 +12,7 @@ from multion.config.task import EnvConfig
 from multion.task.spaces import build_observation_space
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.rollout import Rollout, compute_gae
+from multion_agents.learned.train_settings import Args
 
 SIZE = 64
 
@@ -93,3 +95,22 @@ def assert_same_loss_and_gradients(
         scale = float(expected.abs().max()) or 1.0
         error = float((gradients[name] - expected).abs().max()) / scale
         assert error < 1e-4, f"{name}: relative difference {error:.2e}"
+
+
+def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **changes) -> Args:
+    """Settings of a run of a few updates on ``dataset`` (the room), changed by ``changes``."""
+    values = dict(
+        agent=agent,
+        task="1-on",
+        frames=192,
+        envs=2,
+        rollout_steps=32,
+        image_size=SIZE,
+        dataset=str(dataset),
+        max_steps=40,
+        out=str(tmp_path / "run"),
+        progress=False,
+        tensorboard=False,
+    )
+    values.update(changes)
+    return Args(**values)

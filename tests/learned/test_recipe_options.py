@@ -9,11 +9,13 @@ import dataclasses
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import torch
 from rollouts import SIZE
+from rollouts import tiny_args as shared_tiny_args
 
 from multion.config.codec import env_config_from_dict
 from multion.config.datasets import load_dataset
@@ -47,22 +49,10 @@ from multion_agents.learned.vision_pretrain import (
 from multion_client.constants import Action
 
 
-def tiny_args(tmp_path: Path, dataset: Path, **changes) -> Args:
-    values = dict(
-        agent="no-map",
-        task="1-on",
-        frames=256,
-        envs=2,
-        rollout_steps=64,
-        image_size=SIZE,
-        dataset=str(dataset),
-        max_steps=40,
-        out=str(tmp_path / "run"),
-        progress=False,
-        tensorboard=False,
-    )
-    values.update(changes)
-    return Args(**values)
+def tiny_args(tmp_path: Path, dataset: Path, **changes: Any) -> Args:
+    """``rollouts.tiny_args`` for no-map, 4 updates of 64 frames unless ``changes`` say."""
+    values: dict[str, Any] = {"agent": "no-map", "frames": 256, "rollout_steps": 64, **changes}
+    return shared_tiny_args(tmp_path, dataset, **values)
 
 
 # ---------------------------------------------------------------- goal heads: targets

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import torch
 import torch.multiprocessing as mp
-from rollouts import SIZE, random_rollout, sample_frames, space_for
+from rollouts import SIZE, random_rollout, sample_frames, space_for, tiny_args
 
 from multion.config.codec import env_config_from_dict
 from multion_agents.learned.checkpoint import (
@@ -32,24 +32,6 @@ from multion_agents.learned.ppo import (
 )
 from multion_agents.learned.rollout import Rollout, compute_gae
 from multion_agents.learned.training_run import save_run_checkpoint, train
-
-
-def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **changes) -> Args:
-    values = dict(
-        agent=agent,
-        task="1-on",
-        frames=192,
-        envs=2,
-        rollout_steps=32,
-        image_size=SIZE,
-        dataset=str(dataset),
-        max_steps=40,
-        out=str(tmp_path / "run"),
-        progress=False,
-        tensorboard=False,
-    )
-    values.update(changes)
-    return Args(**values)
 
 
 @pytest.mark.parametrize("name", list(MODELS))

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from test_training import tiny_args
+from rollouts import tiny_args
 
 from multion.config.task import EnvConfig
 from multion_agents.learned.checkpoint import load_checkpoint

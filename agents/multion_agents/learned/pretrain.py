@@ -27,9 +27,11 @@ import torch
 from tqdm import tqdm
 
 from multion.config.datasets import packaged_dataset_path
+from multion.config.episode import Episode
 from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion.sim.geodesic import distance_field
+from multion.sim.navgrid import NavGrid
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
 from multion.task.spaces import build_observation_space
@@ -75,6 +77,21 @@ def pose_label(
     return Action.TURN_LEFT if bearing > 0 else Action.TURN_RIGHT
 
 
+def reset_randomly(
+    env: MultiONEnv, rng: np.random.Generator, seed: int | None
+) -> tuple[NavGrid, Episode]:
+    """Reset ``env`` into a random one of its episodes (a packaged split's or a file's), or
+    into its next online episode; ``seed`` seeds the reset. Returns the house's grid and the
+    episode (offline data: pretraining and probes draw poses in it)."""
+    options = {}
+    if env.episodes is not None:  # else sampled online
+        options = {"episode_index": int(rng.integers(len(env.episodes)))}
+    env.reset(seed=seed, options=options)
+    grid, episode = env.sim.grid, env.episode
+    assert grid is not None and episode is not None
+    return grid, episode
+
+
 def sample_map_crops(
     env_config: EnvConfig,
     count: int,
@@ -102,13 +119,8 @@ def sample_map_crops(
     try:
         first = True
         while len(labels) < count:
-            options = {}
-            if env.episodes is not None:  # else sampled online, each in a new house
-                options = {"episode_index": int(rng.integers(len(env.episodes)))}
-            env.reset(seed=seed if first else None, options=options)
+            grid, episode = reset_randomly(env, rng, seed if first else None)
             first = False
-            grid, episode = env.sim.grid, env.episode
-            assert grid is not None and episode is not None
             oracle = OracleMap(grid, config.maps)
             oracle.set_goals((*episode.goals, *episode.distractors))
             goal = episode.goals[rng.integers(len(episode.goals))]

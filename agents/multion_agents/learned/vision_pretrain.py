@@ -29,6 +29,7 @@ from multion.task.env import MultiONEnv
 from multion.task.maps import can_see
 from multion_agents.learned.encoders import ImageEncoder
 from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.pretrain import reset_randomly
 from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.training_log import TrainingLog
 from multion_client.constants import NUM_CATEGORIES
@@ -107,13 +108,8 @@ def sample_frames(
     try:
         first = True
         while len(goals) < count:
-            options = {}
-            if env.episodes is not None:
-                options = {"episode_index": int(rng.integers(len(env.episodes)))}
-            env.reset(seed=seed if first else None, options=options)
+            grid, episode = reset_randomly(env, rng, seed if first else None)
             first = False
-            grid, episode = env.sim.grid, env.episode
-            assert grid is not None and episode is not None
             goal = episode.goals[int(rng.integers(len(episode.goals)))]
             target = np.asarray(goal.position[:2], dtype=np.float64)
             cells = np.argwhere(grid.navigable)
