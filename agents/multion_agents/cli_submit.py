@@ -105,13 +105,20 @@ def submit(args: argparse.Namespace, cls: type[Agent]) -> Any:
             RunEnv(args.server, token=token, run_id=args.resume, lane=k)
             for k in range(1, env.num_envs)
         ]
+        if env.run_done:  # over already (finished, ended or failed): nothing to play
+            print(f"run {env.run_id} is over already: nothing left to play")
+            return _closed(envs, env.status())
         with Client(args.server, token=token) as client:
             track = _track(client.challenge(), env.status().track)
     play_lanes(
         envs, cls, args.seed, _target_size(camera, track), progress=not args.quiet,
         config=run_config(cls, track),
     )  # fmt: skip
-    status = env.status()
+    return _closed(envs, env.status())
+
+
+def _closed(envs: list[RunEnv], status: Any) -> Any:
+    """``status``, once the lanes' connections are closed."""
     for lane in envs:
         lane.close()
     return status

@@ -239,13 +239,19 @@ class RunEnv(gym.Env[dict[str, np.ndarray], int | np.integer[Any]]):
 
 
 def describe_run(status: RunStatus) -> str:
-    """What ``multion submit`` prints at the end of a run: its state, then the results the
-    phase shows (mean and 95% interval of each metric, the ranking one marked)."""
+    """What ``multion submit`` prints at the end of a run: its state and episodes completed,
+    then the results the phase shows (mean and 95% interval of each metric, the ranking one
+    marked)."""
     lines = [
         f"run {status.run_id}: {status.state}"
         + (f" ({status.end_reason})" if status.end_reason else "")
+        + f", {status.episodes_done}/{status.num_episodes} episodes completed"
     ]
-    if status.results:
+    if status.refunded:
+        lines.append(
+            "  results: none (the server broke the run: refunded, not counted in the quota)"
+        )
+    elif status.results:
         primary = status.results.get("primary", "ppl")
         for name in ("ppl", "progress", "success", "spl"):
             value = status.results[name]

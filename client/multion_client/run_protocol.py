@@ -302,7 +302,12 @@ class RunStatus:
     state: str
     end_reason: str | None
     num_episodes: int
-    episodes_done: int
+    episodes_done: int = field(
+        metadata=schema(
+            "episodes played to their end (the pages' completed ones): not those never played "
+            "or cut short when the run ended (abandoned, or refunded)"
+        )
+    )
     episode: int
     episode_active: bool
     seq: int

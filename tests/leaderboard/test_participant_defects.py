@@ -61,3 +61,25 @@ def test_resume_counts_the_episode_in_progress_once(
     bar = err.replace("\r", "\n")
     assert "3/3" in bar and "4/3" not in bar  # 1 done before, then episodes 1 and 2
     assert "| 1/3" in bar  # the bar starts at the one episode already finished
+
+
+def test_resume_of_a_finished_run_plays_nothing_and_counts_its_episodes(
+    server: Any,
+    new_team: Callable[[str], str],
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 53 item 3: ``--resume`` of a finished run showed a progress bar at 0/3."""
+    token = new_team("resume finished")
+    monkeypatch.setenv("MULTION_TOKEN", token)
+    env = new_run(server, token)
+    while not env.run_done:
+        env.reset()
+        env.step(Action.FOUND)  # each episode ends at once
+    env.close()
+    code = main(["submit", "--server", server.url, "--resume", env.run_id, "--agent", "random"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert f"run {env.run_id} is over already: nothing left to play" in out
+    assert "finished, 3/3 episodes completed" in out
+    assert "0/3" not in err.replace("\r", "\n")  # no progress bar of a run with nothing to play

@@ -39,6 +39,7 @@ from multion.leaderboard.hidden import HiddenEpisodes, RunDraw
 from multion.leaderboard.house_stats import house_stats, stats_table, val_stats
 from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
 from multion.leaderboard.replay import rescore
+from multion.leaderboard.run_rows import counted, replay_counts, run_line, run_rows, shown_rows
 from multion.leaderboard.storage import (
     Database,
     add_team,
@@ -48,7 +49,6 @@ from multion.leaderboard.storage import (
     find_team,
     revoke_tokens,
 )
-from multion.leaderboard.web.queries import leaderboards
 from multion.scenes.registry import layout_for
 from multion.sim.house_check import points_outside_rooms
 from multion_client.errors import MultiONError
@@ -226,10 +226,6 @@ def _episode_problems(episodes: list[Episode]) -> list[str]:
     return problems
 
 
-def counted(n: int, noun: str) -> str:
-    return f"{n} {noun}{'' if n == 1 else 's'}"
-
-
 def _tracks(args: argparse.Namespace) -> int:
     challenge = _challenge(args)
     now = utcnow()
@@ -296,82 +292,16 @@ def _token(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_rows(session: Any, **filters: str | None) -> list[dict[str, Any]]:
-    """Every run as a flat row (team, track, phase, method, state, metrics with intervals)."""
-    from sqlalchemy import select
-
-    query = select(Run, Team.name).join(Team).order_by(Run.created_at)
-    for name in ("track", "phase", "state"):
-        if filters.get(name):
-            query = query.where(getattr(Run, name) == filters[name])
-    if filters.get("team"):
-        query = query.where(Team.name == filters["team"])
-    rows = []
-    for run, team in session.execute(query):
-        row: dict[str, Any] = {
-            "run_id": run.id,
-            "team": team,
-            "track": run.track,
-            "phase": run.phase,
-            "method": run.method,
-            "baseline": run.baseline,
-            "state": run.state,
-            "end_reason": run.end_reason,
-            "refunded": run.refunded,
-            "episodes": len(run.order),
-            "created_at": run.created_at.isoformat(),
-            "finished_at": run.finished_at.isoformat() if run.finished_at else None,
-            "paper_url": run.paper_url,
-            "code_url": run.code_url,
-        }
-        for metric in ("ppl", "progress", "success", "spl"):
-            value = (run.summary or {}).get(metric) or {}
-            for part in ("mean", "low", "high"):
-                row[f"{metric}_{part}"] = value.get(part)
-        row["primary"] = (run.summary or {}).get("primary")
-        rows.append(row)
-    return rows
-
-
-def shown_rows(
-    session: Any, challenge: Challenge, rows: list[dict[str, Any]]
-) -> list[dict[str, Any]]:
-    """The rows of the runs the leaderboard page shows now, in its order: the page's own query
-    (:func:`~multion.leaderboard.web.queries.leaderboards`), so sealed phases before their
-    date and runs that played nothing are left out here too. Each row starts with the page's
-    ``rank`` and ``overlaps_leader`` (its 95% interval of the ranking metric overlaps the
-    leader's; marked, as on the page, on the rows ranked below 1)."""
-    by_id = {row["run_id"]: row for row in rows}
-    boards = leaderboards(session, challenge, utcnow())
-    return [
-        {"rank": r.rank, "overlaps_leader": r.tied_with_leader and r.rank > 1, **by_id[r.run_id]}
-        for board in boards
-        for r in board.rows
-        if r.run_id in by_id
-    ]
-
-
 def _runs(args: argparse.Namespace) -> int:
     db = existing_database(args)
     try:
         with db.sessions() as session:
             _check_filters(session, args)
-            rows = run_rows(
-                session, team=args.team, track=args.track, phase=args.phase, state=args.state
-            )
+            rows = run_rows(session, args.team, args.track, args.phase, args.state)
     finally:
         db.close()
     for r in rows:
-        score = (
-            "" if r["primary"] is None else f"{r['primary']} {100 * r[r['primary'] + '_mean']:.1f}%"
-        )
-        mark = " [baseline]" if r["baseline"] else ""
-        reason = f" ({r['end_reason']})" if r["end_reason"] else ""
-        if r["refunded"]:  # the server's fault: the run does not count against the quota
-            reason += ", refunded"
-        print(
-            f"{r['run_id']}  {r['team']}{mark}  {r['track']}/{r['phase']}  {r['method']}  {r['state']}{reason}  {score}"
-        )
+        print(run_line(r))
     if not rows:
         print("no runs")
     return 0
@@ -451,11 +381,7 @@ def _replay(args: argparse.Namespace) -> int:
             report = rescore(session, challenge, args.run_id, write=args.write)
     finally:
         db.close()
-    primary = report["summary"]["primary"]
-    value = report["summary"][primary]
-    print(
-        f"run {args.run_id}: {report['episodes']} episodes replayed; {primary} {100 * value['mean']:.2f}%"
-    )
+    print(f"run {args.run_id}: {replay_counts(report)}")
     if report["differences"]:
         print(f"  {len(report['differences'])} episode(s) differ from the stored record: {report['differences']}"
               + (" (stored records updated)" if args.write else " (use --write to re-score)"))  # fmt: skip

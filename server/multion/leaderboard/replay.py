@@ -27,6 +27,9 @@ class ReplayedEpisode:
     position: int
     stored: dict[str, Any]
     replayed: dict[str, Any]
+    steps: int | None = None
+    """The stored actions played again in the simulator; None: not played by the run (or
+    expired before it started), so compared as stored."""
 
     @property
     def same(self) -> bool:
@@ -76,7 +79,7 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
             metrics = dict(info["metrics"])
             if record.end_reason not in ("success", "wrong_found", "max_steps"):
                 metrics["end_reason"] = record.end_reason  # timeout / abandoned: the run's
-            yield ReplayedEpisode(record.position, record.metrics, metrics)
+            yield ReplayedEpisode(record.position, record.metrics, metrics, len(record.actions))
     finally:
         if env is not None:
             env.close()
@@ -85,7 +88,9 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
 def rescore(session: Session, challenge: Challenge, run_id: str, write: bool) -> dict[str, Any]:
     """Replay run ``run_id``; with ``write``, store the replayed metrics and new aggregates.
 
-    Returns ``{"run_id", "episodes", "differences": [positions], "summary"}``.
+    Returns ``{"run_id", "episodes", "replayed", "steps", "refunded", "differences":
+    [positions], "summary"}``: ``episodes`` is the run's count (the summary's), ``replayed`` those played
+    again in the simulator (the run played them, to their end or not) with ``steps`` actions.
     """
     run = session.get(Run, run_id)
     if run is None:
@@ -105,6 +110,9 @@ def rescore(session: Session, challenge: Challenge, run_id: str, write: bool) ->
     return {
         "run_id": run_id,
         "episodes": len(replayed),
+        "replayed": sum(1 for r in replayed if r.steps is not None),
+        "steps": sum(r.steps or 0 for r in replayed),
+        "refunded": run.refunded,
         "differences": differences,
         "summary": summary,
     }

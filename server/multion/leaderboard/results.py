@@ -57,11 +57,16 @@ def competition_ranks(scores: Sequence[float]) -> list[int]:
     return ranks
 
 
+CUT_SHORT = ("not_played", "abandoned")
+"""End reasons of the episodes a run did not play to their end: missed, or cut short because
+the run ended (abandoned, or the server broke it)."""
+
+
 def played_to_end(summary: dict[str, Any]) -> int:
     """Episodes of a run (its ``summary``) played to their end: not those missed or cut short
     because the run ended. A run with none is no leaderboard entry and has no score to draw."""
     reasons = summary.get("end_reasons") or {}
-    cut = int(reasons.get("not_played") or 0) + int(reasons.get("abandoned") or 0)
+    cut = sum(int(reasons.get(reason) or 0) for reason in CUT_SHORT)
     return int(summary.get("episodes") or 0) - cut
 
 

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from multion.leaderboard.challenge import Challenge, Phase, Track
 from multion.leaderboard.models import EpisodeRecord, Run, Team, utcnow
-from multion.leaderboard.results import missed_metrics, summarize
+from multion.leaderboard.results import CUT_SHORT, missed_metrics, summarize
 from multion.leaderboard.storage import daily_quota_reopens, runs_counted
 from multion_client import errors
 from multion_client.run_protocol import RunStatus
@@ -258,8 +258,12 @@ def describe_run(
     # A refunded run (the server broke it) shows nothing: its partial results would be a free
     # evaluation for anyone who can make a worker die.
     visible = phase is not None and phase.results_visible(utcnow()) and not run.refunded
+    # completed: played to their end, as the pages count them (results.played_to_end); not
+    # the placeholders of episodes never played or cut short when the run ended (or broke)
     done = session.scalar(
-        select(func.count()).select_from(EpisodeRecord).where(EpisodeRecord.run_id == run.id)
+        select(func.count())
+        .select_from(EpisodeRecord)
+        .where(EpisodeRecord.run_id == run.id, EpisodeRecord.end_reason.not_in(CUT_SHORT))
     )
     lanes = [
         {"episode": lane.position, "episode_active": lane.episode_active, "seq": lane.seq}
