@@ -77,12 +77,20 @@ def run(args: argparse.Namespace) -> int:
     except MultiONError as error:  # after UsageError: the local config errors are wire errors too
         return _fail(f"the server refused the evaluation: {error}")
     print(format_table(summarize(result.records), title_of(result)))
-    if args.out is not None:
-        written = write_report(result, args.out, pictures=args.pictures)
-        print(f"wrote {len(written)} files to {args.out}")
-    if args.video:
-        return _write_videos(args.out, args.video)
+    if args.out is None:
+        return 0
+    written = len(write_report(result, args.out, pictures=args.pictures))
+    videos = _write_videos(args.out, args.video) if args.video else 0
+    if videos is None:
+        print(f"wrote {_counted(written, 'report file')} to {args.out}")
+        return 2
+    made = f": {written} of the report and {_counted(videos, 'video')}" if args.video else ""
+    print(f"wrote {_counted(written + videos, 'file')} to {args.out}{made}")
     return 0
+
+
+def _counted(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _video_problem(count: int, out: Path | None) -> str | None:
@@ -101,17 +109,21 @@ def _video_problem(count: int, out: Path | None) -> str | None:
     return None
 
 
-def _write_videos(out: Path, count: int) -> int:
+def _write_videos(out: Path, count: int) -> int | None:
+    """Film the first ``count`` episodes; how many videos were written (None: an error,
+    said)."""
     from multion_agents.cli_video import describe
     from multion_agents.video.film import film_run
     from multion_agents.video.recorded import VideoError, read_run
 
     try:
-        for film in film_run(read_run(out), count):
-            print(describe(film.path, film.frames, film.bytes, film.seconds))
+        films = film_run(read_run(out), count)
     except VideoError as error:
-        return _fail(f"--video: {error}")
-    return 0
+        _fail(f"--video: {error}")
+        return None
+    for film in films:
+        print(describe(film.path, film.frames, film.bytes, film.seconds))
+    return len(films)
 
 
 def _is_learned(name: str) -> bool:

@@ -6,6 +6,8 @@ must reproduce the recorded metrics, and the MP4 decodes to the stated number of
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import shutil
 from pathlib import Path
@@ -54,10 +56,28 @@ def _records(run: Path) -> list[dict]:
 def filmed_run(
     room_dataset: tuple[Path, list[Episode]], tmp_path_factory: pytest.TempPathFactory
 ) -> Path:
-    """A 3-episode run of the random agent, the first two filmed by ``--video 2``."""
+    """A 3-episode run of the random agent, the first two filmed by ``--video 2`` (what the
+    command printed is in ``printed.txt`` beside the run)."""
     out = tmp_path_factory.mktemp("video") / "run"
-    assert _eval([*_flags(room_dataset[0]), "--out", str(out), "--video", "2"]) == 0
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert _eval([*_flags(room_dataset[0]), "--out", str(out), "--video", "2"]) == 0
+    (out.parent / "printed.txt").write_text(printed.getvalue())
     return out
+
+
+def test_eval_counts_the_videos_in_the_files_it_wrote(filmed_run: Path) -> None:
+    """Issue 53 item 5: "wrote 5 files" counted the report's files, not the two videos."""
+    printed = (filmed_run.parent / "printed.txt").read_text().splitlines()
+    report = sum(1 for path in filmed_run.rglob("*") if path.is_file() and path.suffix != ".mp4")
+    assert (
+        printed[-1]
+        == f"wrote {report + 2} files to {filmed_run}: {report} of the report and 2 videos"
+    )
+    assert sum(1 for path in filmed_run.rglob("*") if path.is_file()) == report + 2
+    assert [line.startswith(f"wrote {filmed_run / 'episode-'}") for line in printed[-3:-1]] == [
+        True
+    ] * 2
 
 
 def test_eval_records_the_actions_and_films_the_first_episodes(filmed_run: Path) -> None:
@@ -195,6 +215,13 @@ def test_a_moved_dataset_is_named_and_can_be_given(
     episode_id = _records(moved)[2]["episode_id"]
     assert _video([str(moved), "--episode", episode_id]) == 2
     assert "gone.json.gz is not here; give its file with --dataset" in capsys.readouterr().err
+    # a --dataset that is not there is named as the given option (issue 53 item 5)
+    assert _video([str(moved), "--episode", episode_id, "--dataset", str(tmp_path / "typo")]) == 2
+    err = capsys.readouterr().err
+    assert f"--dataset {tmp_path / 'typo'} does not exist: give the dataset file" in err
+    assert "give its file with --dataset" not in err
+    assert _video([str(moved), "--episode", episode_id, "--dataset", str(tmp_path)]) == 2
+    assert f"--dataset {tmp_path} is a directory" in capsys.readouterr().err
     argv = [str(moved), "--episode", episode_id, "--dataset", str(room_dataset[0])]
     assert _video(argv) == 0
     assert (moved / f"episode-{episode_id}.mp4").is_file()

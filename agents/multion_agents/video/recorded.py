@@ -90,17 +90,24 @@ def read_run(path: Path, dataset: Path | None = None) -> RecordedRun:
         num_goals = parse_task(str(run.get("task", "")))
     except ValueError as error:
         raise VideoError(f"{path / METRICS_FILE}: run.task: {error}") from None
-    if dataset is None:
+    if dataset is not None:
+        if not dataset.is_file():
+            what = "is a directory" if dataset.is_dir() else "does not exist"
+            raise VideoError(
+                f"--dataset {dataset} {what}: give the dataset file the run played "
+                f"(a .json.gz; {path / METRICS_FILE} names it as run.dataset)"
+            )
+    else:
         recorded = run.get("dataset")
         dataset = (
             Path(recorded)
             if isinstance(recorded, str)
             else Path(packaged_dataset_path(num_goals, str(run.get("split"))))
         )
-    if not dataset.is_file():
-        raise VideoError(
-            f"{path}: the run's dataset {dataset} is not here; give its file with --dataset"
-        )
+        if not dataset.is_file():
+            raise VideoError(
+                f"{path}: the run's dataset {dataset} is not here; give its file with --dataset"
+            )
     return RecordedRun(
         path=path,
         agent=str(run.get("agent", "?")),
