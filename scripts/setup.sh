@@ -31,6 +31,10 @@ if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
 PIP=(.venv/bin/python -m pip --disable-pip-version-check -q)
+# setuptools' editable builds (./client and .) each say "Editable installation. Please be careful
+# with folders in your working directory ..." as a ten-line warning that pip shows even with -q:
+# information, not a problem. Only that warning is left out: errors and other warnings still show.
+export PYTHONWARNINGS="${PYTHONWARNINGS:+$PYTHONWARNINGS,}ignore:Editable installation"
 "${PIP[@]}" install --upgrade "pip>=23" >/dev/null
 extras="[report]"
 if [ "${1:-}" = "--dev" ]; then
