@@ -111,9 +111,11 @@ def test_run_status_counts_the_episodes_completed(stored: tuple[Path, str, Chall
     db = Database.open(url)
     try:
         with db.sessions() as session:
+            runs = {run_id: session.get(Run, run_id) for run_id in RUNS}
             done = {
-                run_id: describe_run(session, challenge, session.get(Run, run_id)).episodes_done
-                for run_id in RUNS
+                run_id: describe_run(session, challenge, run).episodes_done
+                for run_id, run in runs.items()
+                if run is not None
             }
     finally:
         db.close()
