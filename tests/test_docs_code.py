@@ -5,8 +5,9 @@ executor registered per language), so a renamed option or function fails here, n
 A fenced block is one of:
 
 * ``bash`` / ``python``: run, page by page, in a fresh directory that holds a link to this
-  environment as ``.venv`` (so ``.venv/bin/multion`` is the installed one) and the files the
-  page writes first (below). A page's Python blocks run in one namespace, in order; each
+  environment as ``.venv`` (so ``.venv/bin/multion`` is the installed one), an empty
+  ``docs/img`` (the pictures the pages regenerate land there, not in the repository) and the
+  files the page writes first (below). A page's Python blocks run in one namespace, in order; each
   ``bash`` block in its own ``bash -euo pipefail``, in that directory, with a time limit;
 * ``python title="NAME.py"``: a file the page's commands use, written to NAME.py first (it runs
   when they import it);
@@ -150,6 +151,7 @@ def test_the_pages_code_runs(
 ) -> None:
     text = document.read_text(encoding="utf-8")
     (tmp_path / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)
+    (tmp_path / "docs" / "img").mkdir(parents=True)  # pictures the pages regenerate go there
     for info in fences(text):
         match = FILE.match(info)
         if match:
