@@ -81,3 +81,14 @@ def test_long_track_names_keep_the_columns_in_line(
             title,
             table,
         )
+
+
+def test_a_range_of_one_value_is_printed_as_the_value() -> None:
+    """Issue 53 item 5: one-room houses printed as rooms "1–1" (and a footprint "12 (12–12)")."""
+    width = len(house_stats.header())
+    one = HouseStats(3, (1, 1, 1.0), (11.9, 12.2, 12.0), 0.5).row("1-on/minival")
+    assert one.split()[1:] == ["3", "1", "1.0", "12", "50.0"] and len(one) == width
+    assert "–" not in one
+    many = HouseStats(11, (8, 16, 12.0), (150, 400, 250), 0.55).row("val")
+    assert many.split()[1:] == ["11", "8–16", "12.0", "250", "(150–400)", "55.0"]
+    assert len(many) == width

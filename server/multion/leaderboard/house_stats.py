@@ -33,12 +33,18 @@ class HouseStats:
 
     def row(self, name: str, name_width: int = 28) -> str:
         r, f = self.rooms, self.footprint_m2
-        rooms = f"{r[0]}–{r[1]}"
-        footprint = f"{f[2]:.0f} ({f[0]:.0f}–{f[1]:.0f})"
+        rooms = span(str(r[0]), str(r[1]))
+        low_high = span(f"{f[0]:.0f}", f"{f[1]:.0f}")
+        footprint = f"{f[2]:.0f}" if low_high == f"{f[2]:.0f}" else f"{f[2]:.0f} ({low_high})"
         return (
             f"{name:<{name_width}}{self.houses:>7}{rooms:>10}{r[2]:>6.1f}{footprint:>20}"
             f"{100 * self.navigable:>9.1f}"
         )
+
+
+def span(low: str, high: str) -> str:
+    """``8–16``, or ``1`` where both ends are one (never ``1–1``)."""
+    return low if low == high else f"{low}–{high}"
 
 
 def header(name_width: int = 28) -> str:
