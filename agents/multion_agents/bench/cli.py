@@ -235,7 +235,9 @@ def bench_sim(steps: int = 300, episodes: int = 1000, renderer: str = "all") -> 
     print(f"scene {SCENE}: build + navigable grid + 4 episodes: {results['scene_build_s']:.2f} s")
     renderers = ["tiny"] + (["egl"] if egl_plugin_loads() else [])
     if len(renderers) == 1:
-        print("EGL: the eglRenderer plugin does not load here (see docs/learned.md); tiny only")
+        print(
+            "EGL: the eglRenderer plugin does not load here (see docs/training-speed.md); tiny only"
+        )
     if renderer != "all":
         renderers = [renderer]
     print(

@@ -2,7 +2,7 @@
 
 Gymnasium's ``AsyncVectorEnv`` runs one environment per process, so each process imports
 PyBullet, builds its own scenes and holds its own goal-site cache (one per process, see
-docs/learned.md). :class:`SharedProcessVectorEnv` runs ``per_process`` environments in each
+docs/training-speed.md). :class:`SharedProcessVectorEnv` runs ``per_process`` environments in each
 worker process, stepped one after the other in a loop, so those environments share the
 process's cache and modules.
 

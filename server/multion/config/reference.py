@@ -1,7 +1,7 @@
 """Where the defaults come from: the paper or the reference code, file and line.
 
 The reference code is saimwani/multiON (the paper's code, on habitat-lab); paths below are in
-that repository. ``GET /v1/spec`` answers this table as ``sources``, and the README's task table
+that repository. ``GET /v1/spec`` answers this table as ``sources``, and docs/concepts/task.md's table
 cites the same lines. Fields not listed are this project's own choices (the procedural houses,
 the navigable grid, the renderer) and say so in their docstrings. The learned agents' GRU size
 (768, ``ppo_multinav.yaml`` line 45) is cited in ``multion_agents.learned.policy``.

@@ -156,7 +156,7 @@ plugin renders a shadow map from its light every frame, whatever ``shadow`` says
 orthographic camera that sees 1–300 m from the light, and darkens what that map shadows;
 TinyRenderer, asked for ``shadow=0`` like the plugin, draws no shadows. From 1,020 m the map
 sees nothing: no shadows (only pixels the map shadowed change, and only get lighter), and
-about 10 ms less per image of a house with Mesa on one thread (``docs/learned.md``)."""
+about 10 ms less per image of a house with Mesa on one thread (``docs/training-speed.md``)."""
 
 EGL_PIXEL_SHIFT = (1.0, 1.0)
 """TinyRenderer samples each pixel half a pixel off OpenGL's pixel centres, in x and in y.
