@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import http.server
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -53,6 +54,8 @@ def test_the_site_builds_strictly_with_every_part(site: Path) -> None:
     # generated from the docstrings: RemoteEnv's and RunEnv's own words, not only their names
     assert "Gymnasium" in client and "RunEnv" in client and "def reset" not in client
     assert 'id="multion_client.env.RemoteEnv"' in client
+    config = (site / "reference" / "config" / "index.html").read_text(encoding="utf-8")
+    assert 'id="multion.config.task.TaskConfig.max_steps"' in config  # every field, by name
     http_routes = (site / "reference" / "http" / "index.html").read_text(encoding="utf-8")
     assert "/openapi.json" in http_routes
 
@@ -121,3 +124,18 @@ def test_the_pages_fit_the_screen_and_axe_finds_nothing(
             if violations:
                 found[path or "/"] = violations
     assert found == {}, found
+
+
+def test_the_readme_is_a_first_screen_whose_links_lead_into_the_site() -> None:
+    """The README stays short (what this is, the two commands, the two ten-line examples, links),
+    and every relative link in it names a file that exists (GitHub shows it; the site does not
+    build it, so ``--strict`` cannot check it)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 150
+    links = re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text)
+    assert len(links) >= 20
+    missing = [link for link in links if not (ROOT / link).exists()]
+    assert missing == []
+    nav = yaml.safe_load((ROOT / "mkdocs.yml").read_text(encoding="utf-8"))["nav"]
+    pages = set(re.findall(r"[\w/.-]+\.md", str(nav)))
+    assert {link.removeprefix("docs/") for link in links if link.endswith(".md")} <= pages
