@@ -27,16 +27,18 @@ def _run(k: int, method: str, score: float, seconds: float, baseline: bool = Tru
 
 def test_the_baselines_best_so_far_is_one_line_per_method():
     runs = [_run(0, "random", 0.3, 0), _run(1, "explorer", 0.1, 30), _run(2, "random", 0.2, 60)]
-    svg = best_over_time(runs, "PPL")
+    svg = best_over_time(runs, "PPL", "1-on")
     assert svg.count('class="best-line"') == 2  # random and explorer: never joined
     assert "minival · random" in svg and "minival · explorer" in svg
     team = [_run(k, r.method, r.primary.mean, 30 * k, baseline=False) for k, r in enumerate(runs)]
-    assert best_over_time(team, "PPL").count('class="best-line"') == 1  # a team's best overall
+    assert (
+        best_over_time(team, "PPL", "1-on").count('class="best-line"') == 1
+    )  # a team's best overall
 
 
 def test_time_ticks_are_few_enough_to_stay_apart_and_dots_stay_off_the_axes():
     runs = [_run(k, "random", 0.0 if k == 0 else 0.1 * k, 20 * k) for k in range(6)]
-    svg = best_over_time(runs, "PPL")
+    svg = best_over_time(runs, "PPL", "1-on")
     ticks = re.findall(
         r'<text x="([\d.]+)" y="[\d.]+" text-anchor="(\w+)" class="tick">(\d\d:\d\d:\d\d)<', svg
     )

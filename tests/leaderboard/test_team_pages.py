@@ -33,7 +33,7 @@ def _styles(svg: str, element: str) -> dict[str, tuple[str, str]]:
 
 def test_eight_series_have_eight_colours_and_distinct_markers_or_dashes() -> None:
     runs = [_run(k, method, 0.05 * (k + 1), 60 * k) for k, method in enumerate(METHODS)]
-    svg = best_over_time(runs, "PPL")
+    svg = best_over_time(runs, "PPL", "1-on")
     lines = _styles(svg, "polyline")
     assert len(lines) == 8
     assert len({colour for colour, _ in lines.values()}) == 8, lines

@@ -16,7 +16,7 @@ from starlette.exceptions import HTTPException
 
 from multion.api.deps import MsgpackResponse
 from multion.api.openapi import install_openapi
-from multion.api.routers import live, meta, sessions
+from multion.api.routers import icon, live, meta, sessions
 from multion.api.sessions import SessionRegistry
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
 from multion.api.workers import WorkerPool
@@ -108,6 +108,7 @@ def create_app(
     app.include_router(meta.router)
     app.include_router(sessions.router)
     app.include_router(live.router)
+    app.include_router(icon.router)
     for extension in extensions:
         extension.install(app)
     app.add_exception_handler(MultiONError, _api_error)

@@ -140,8 +140,9 @@ def marker_end(shape: str) -> str:
     return "</circle>" if shape == "circle" else "</path>"
 
 
-def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
-    """The SVG of one track's runs (those with a score); empty string if none has one."""
+def best_over_time(runs: Sequence[TeamRun], metric_label: str, track: str) -> str:
+    """The SVG of track ``track``'s runs (those with a score); empty string if none has one.
+    Its name (aria-label) names the track: a page holds one chart per track."""
     scored = sorted(
         (r for r in runs if r.primary is not None and r.finished_at is not None), key=_when
     )
@@ -167,7 +168,8 @@ def best_over_time(runs: Sequence[TeamRun], metric_label: str) -> str:
 
     parts = [
         f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {WIDTH} {height}" role="img" '
-        f'class="chart" aria-label="{escape(metric_label)} of each run and the best so far">',
+        f'class="chart" aria-label="{escape(track)}: {escape(metric_label)} of each run over '
+        'time and the best so far">',
     ]
     for tick in ticks:
         ty = y(tick / 100)

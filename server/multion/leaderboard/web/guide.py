@@ -71,10 +71,10 @@ def localise(text: str, served: ServedExamples) -> str:
 
 
 def participant_markdown(text: str) -> str:
-    """The guide's introduction (up to its first table) and its participant sections."""
+    """The guide's introduction (its tables too: who does what, and the known problems of
+    other graders and what this one does about them) and its participant sections."""
     starts = [(m.start(), m.group(1).strip()) for m in _SECTION.finditer(text)]
     intro = text[: starts[0][0]] if starts else text
-    intro = intro.split("\n|", 1)[0]  # the tables after the first paragraph are for organisers
     intro = re.sub(r"^# .*\n", "", intro, count=1)  # the page has its own h1
     kept = [intro.strip()]
     for k, (start, title) in enumerate(starts):

@@ -238,7 +238,9 @@ async def team_page(team: str, request: Request) -> HTMLResponse:
     charts = []
     for track in challenge.tracks:
         svg = best_over_time(
-            [r for r in runs if r.track == track.name], queries.METRIC_NAMES[track.metric]
+            [r for r in runs if r.track == track.name],
+            queries.METRIC_NAMES[track.metric],
+            track.name,
         )
         if svg:
             charts.append((track, svg))
