@@ -146,11 +146,14 @@ def seed_scheme_note(runs: Sequence[Run]) -> str:
         which = "the runs seeded each episode's agent from their seed " + "; ".join(
             f"by {scheme}: {', '.join(names)}" for scheme, names in by_scheme.items()
         )
-    return (
-        f"seed: {which} (episode id: the same draws in every run that holds the episode; index: "
-        "by its position in the run's list, so other draws in a run of other episodes; "
-        "unrecorded: written before `metrics.json` recorded the scheme)."
-    )
+    meanings = {
+        "episode id": "the same draws in every run that holds the episode",
+        "index": "by its position in the run's list, so other draws in a run of other episodes",
+        "unrecorded": "written before `metrics.json` recorded the scheme",
+    }
+    present = " ".join(by_scheme)
+    told = "; ".join(f"{word}: {meaning}" for word, meaning in meanings.items() if word in present)
+    return f"seed: {which} ({told})."
 
 
 def headline_cells(run: Run, theirs: dict[str, float] | None) -> tuple[list[str], dict[str, Any]]:
