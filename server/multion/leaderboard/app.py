@@ -25,7 +25,7 @@ from multion.leaderboard.routes import TokenCache, router, team_of
 from multion.leaderboard.runs import RunService
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database, check_secret
-from multion.leaderboard.web.pages import install_pages
+from multion.leaderboard.web.pages import install_pages, warm_pages
 from multion.leaderboard.web.pictures import PictureDrawer
 from multion.leaderboard.web.videos import VideoCache, VideoFilmer, default_video_dir
 
@@ -79,6 +79,10 @@ async def leaderboard_lifespan(
             tasks.append(asyncio.create_task(videos.film_forever(settings.picture_interval_s)))
     if settings.warm_up:
         tasks.append(asyncio.create_task(_warm_up(service)))
+        try:  # before the first request: it would compile them
+            await asyncio.to_thread(warm_pages, db, challenge)
+        except Exception:  # noqa: BLE001 - reported; the first page view does it
+            log.exception("preparing the web pages failed")
     try:
         yield
     finally:

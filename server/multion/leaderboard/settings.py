@@ -52,5 +52,7 @@ class LeaderboardSettings(BaseSettings):
         description="MiB of films kept at most (the least recently watched removed)",
     )
     warm_up: bool = Field(
-        True, description="generate the hidden episodes at start-up rather than at the first run"
+        True,
+        description="generate the hidden episodes and prepare the web pages (their templates "
+        "and queries) at start-up rather than at the first run or page view",
     )
