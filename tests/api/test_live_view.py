@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 from PIL import Image
 
@@ -142,3 +143,63 @@ def test_a_leaderboard_runs_session_has_no_live_view() -> None:
     scope["client"] = ("192.0.2.4", 5000)  # another machine
     with pytest.raises(Refused, match="only requests from the server's own machine"):
         _viewed(Request(scope), "plain-session", 0)
+
+
+AGENT_ORANGE = (245, 130, 20)
+
+
+def _orange_pixels(png: bytes) -> int:
+    with Image.open(io.BytesIO(png)) as image:
+        pixels = np.asarray(image.convert("RGB"))
+    return int(np.all(pixels == AGENT_ORANGE, axis=-1).sum())
+
+
+def test_the_map_draws_the_path_walked_in_the_episode(server: LocalServer, env: RemoteEnv) -> None:
+    """Issue 53 item 4: the live map drew the agent but not its path (the videos do)."""
+    base = f"{server.url}/v1/live/{env.session_id}"
+    env.reset(options={"episode_index": 0})
+    at_start = httpx.get(f"{base}/frame.png", params={"part": "map"})
+    assert at_start.status_code == 200
+    with Image.open(io.BytesIO(at_start.content)) as image:
+        assert image.size[1] == 256 and image.size[0] <= 2 * 256  # the map alone
+    walked = 0.0
+    for action in [Action.MOVE_FORWARD] * 6 + [Action.TURN_LEFT] * 3 + [Action.MOVE_FORWARD] * 6:
+        _, _, _, _, info = env.step(int(action))
+        walked = float(info["metrics"]["path_length"])
+    assert walked > 1.0  # it moved (a path to draw)
+    moved = httpx.get(f"{base}/frame.png", params={"part": "map"}).content
+    # the agent's arrow is the same size; the path walked adds its orange line
+    assert _orange_pixels(moved) > _orange_pixels(at_start.content) + 50
+    env.reset(options={"episode_index": 1})  # a new episode starts a new path
+    again = httpx.get(f"{base}/frame.png", params={"part": "map"}).content
+    assert _orange_pixels(again) < _orange_pixels(moved)
+    views = httpx.get(f"{base}/frame.png", params={"part": "views"})
+    with Image.open(io.BytesIO(views.content)) as image:
+        assert image.size == (2 * 256, 256)  # RGB and depth
+    bad = httpx.get(f"{base}/frame.png", params={"part": "nope"})
+    assert bad.status_code == 400 and "part must be one of all, views, map" in bad.text
+
+
+def test_the_pages_fit_a_phone(server: LocalServer, env: RemoteEnv, browser: Any) -> None:
+    """At 390 px: the sessions list has a viewport (it had none: drawn at 980 px and shrunk) and
+    the session page shows the map apart from the camera views, as wide as the screen allows."""
+    env.reset(options={"episode_index": 0})
+    env.step(int(Action.MOVE_FORWARD))
+    page = browser.new_page(viewport={"width": 390, "height": 844}, device_scale_factor=2)
+    try:
+        page.goto(f"{server.url}/v1/live")
+        assert page.locator('meta[name="viewport"]').count() == 1
+        assert page.evaluate("document.documentElement.scrollWidth") <= 390
+        assert page.evaluate("window.innerWidth") == 390  # laid out at the phone's width
+        page.goto(f"{server.url}/v1/live/{env.session_id}")
+        page.wait_for_function(
+            "document.getElementById('map').complete && "
+            "document.getElementById('map').naturalWidth > 0",
+            timeout=10_000,
+        )
+        width = page.evaluate("document.getElementById('map').getBoundingClientRect().width")
+        assert width >= 0.8 * 390, width  # the map alone across the screen, not a third of it
+        assert page.evaluate("document.documentElement.scrollWidth") <= 390
+        assert "path walked" in (page.get_attribute("#map", "alt") or "")
+    finally:
+        page.close()

@@ -45,6 +45,8 @@ class LiveStep:
     observation: dict[str, Any]
     info: dict[str, Any]
     action: int | None
+    trail: tuple[tuple[float, float], ...] = ()
+    """Its ``gps`` readings since its episode began (the path the map draws)."""
 
     def state(self) -> dict[str, Any]:
         """What the page prints: episode, step, action and the metrics (JSON-ready)."""
@@ -66,14 +68,29 @@ def latest_step(session: Session, env: int) -> LiveStep | None:
         return None
     answer = decode(session.latest)
     action = session.last_actions[env] if session.last_actions else None
-    return LiveStep(answer["observations"][env], answer["infos"][env], action)
+    info = answer["infos"][env]
+    trail: tuple[tuple[float, float], ...] = ()
+    if env < len(session.trails) and session.trails[env].episode_id == info.get("episode_id"):
+        trail = tuple(session.trails[env].points)
+    return LiveStep(answer["observations"][env], info, action, trail)
 
 
-def picture(session: Session, step: LiveStep) -> bytes:
-    """The PNG of ``step``: RGB, depth and the map, side by side, as far as they exist."""
-    panels = [_camera(step.observation.get("rgb")), _depth(step.observation.get("depth"))]
-    episode = episode_of(session.config, str(step.info.get("episode_id", "")))
-    panels.append(_map(step, episode))
+PARTS = ("all", "views", "map")
+"""What a picture holds: every panel side by side, the camera views (RGB, depth), the map
+(the page shows the last two apart, so that a narrow screen shows each at its full width)."""
+
+
+def picture(session: Session, step: LiveStep, part: str = "all") -> bytes:
+    """The PNG of ``step``: RGB, depth and the map, side by side, as far as they exist (or only
+    the views, or only the map: ``part``)."""
+    if part not in PARTS:
+        raise ValueError(f"part must be one of {', '.join(PARTS)}, got {part!r}")
+    panels: list[Image.Image | None] = []
+    if part in ("all", "views"):
+        panels += [_camera(step.observation.get("rgb")), _depth(step.observation.get("depth"))]
+    if part in ("all", "map"):
+        episode = episode_of(session.config, str(step.info.get("episode_id", "")))
+        panels.append(_map(step, episode))
     shown = [p for p in panels if p is not None]
     canvas = Image.new("RGB", (sum(p.width for p in shown) or PANEL, PANEL), BACKGROUND)
     x = 0
@@ -126,6 +143,7 @@ def _map(step: LiveStep, episode: Episode | None) -> Image.Image | None:
     if episode is not None:
         found = int(step.info.get("metrics", {}).get("goals_found", 0))
         _goals(draw, episode, frame, found)
+        _trail(draw, step.trail, episode, frame)
         gps = step.observation.get("gps")
         if isinstance(gps, np.ndarray):
             x, y = gps_to_world(np.asarray(gps, np.float64).reshape(1, 2), episode)[0]
@@ -133,6 +151,21 @@ def _map(step: LiveStep, episode: Episode | None) -> Image.Image | None:
             yaw = episode.start_yaw + (float(np.ravel(compass)[0]) if compass is not None else 0.0)
             _agent(draw, world_to_pixel(float(x), float(y), frame), yaw, ppm)
     return image
+
+
+def _trail(
+    draw: ImageDraw.ImageDraw,
+    trail: tuple[tuple[float, float], ...],
+    episode: Episode,
+    frame: PictureFrame,
+) -> None:
+    """The path walked in this episode, as the videos draw it (the agent's colour)."""
+    if len(trail) < 2:
+        return
+    world = gps_to_world(np.asarray(trail, np.float64), episode)
+    points = [world_to_pixel(float(x), float(y), frame) for x, y in world]
+    width = max(2, round(frame.pixels_per_metre * 0.08))
+    draw.line(points, fill=AGENT, width=width, joint="curve")
 
 
 def _goals(draw: ImageDraw.ImageDraw, episode: Episode, frame: PictureFrame, found: int) -> None:

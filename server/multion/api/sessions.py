@@ -16,6 +16,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
+from multion.api.live_trail import Trail, extend_trails
 from multion.api.paths import allowed_roots, checked_config, checked_options
 from multion.api.settings import ServerSettings, replica_of
 from multion.api.workers import Reply, Worker, WorkerPool
@@ -80,6 +81,9 @@ class Session:
     live view is on)."""
     last_actions: list[int] = field(default_factory=list)
     """The actions of its last step; empty after a reset."""
+    trails: list[Trail] = field(default_factory=list)
+    """Each environment's path in its current episode (its ``gps``), which the live view draws
+    (kept only where the live view is on)."""
 
 
 class SessionRegistry:
@@ -239,6 +243,7 @@ class SessionRegistry:
         images of every session between its steps)."""
         if self.settings.live_view_on():
             session.latest, session.last_actions = answer, actions
+            session.trails = extend_trails(session.trails, answer, reset=not actions)
         return answer
 
     async def observe(self, session_id: str) -> bytes:

@@ -17,7 +17,7 @@ import json
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 
-from multion.api.live_view import latest_step, picture
+from multion.api.live_view import PARTS, latest_step, picture
 from multion.api.sessions import Session, SessionRegistry
 from multion.api.settings import ServerSettings
 
@@ -99,8 +99,10 @@ async def sessions(request: Request) -> Response:
     )
     body = f"<ul>{items}</ul>" if items else "<p>No session is open on this server now.</p>"
     text = (
-        '<!doctype html><html lang="en"><head><meta charset="utf-8"><title>Live view: '
-        f"sessions</title></head><body><h1>Sessions</h1>{body}</body></html>"
+        '<!doctype html><html lang="en"><head><meta charset="utf-8">'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f"<title>Live view: sessions</title><style>{LIST_STYLE}</style></head>"
+        f"<body><h1>Sessions</h1>{body}</body></html>"
     )
     return HTMLResponse(text, headers={"Cache-Control": "no-store"})
 
@@ -116,15 +118,20 @@ async def state(session_id: str, request: Request, env: int = 0) -> Response:
 
 
 @router.get("/{session_id}/frame.png")
-async def frame(session_id: str, request: Request, env: int = 0) -> Response:
+async def frame(session_id: str, request: Request, env: int = 0, part: str = "all") -> Response:
+    """The picture: every panel (``part=all``), the camera views or the map."""
     try:
         session = _viewed(request, session_id, env)
+        if part not in PARTS:
+            raise Refused(
+                400, "bad_request", f"part must be one of {', '.join(PARTS)}, got {part!r}"
+            )
     except Refused as refused:
         return _json_refusal(refused)
     step = latest_step(session, env)
     if step is None:
         return _json_refusal(Refused(409, "not_reset", "no episode has started in this session"))
-    return Response(picture(session, step), media_type="image/png",
+    return Response(picture(session, step, part), media_type="image/png",
                     headers={"Cache-Control": "no-store"})  # fmt: skip
 
 
@@ -143,6 +150,12 @@ async def page(session_id: str, request: Request, env: int = 0) -> Response:
     return HTMLResponse(page_text, headers={"Cache-Control": "no-store"})
 
 
+LIST_STYLE = (
+    "body { font-family: system-ui, sans-serif; margin: 1rem; color: #1a1a1a; } "
+    "li { margin: .6rem 0; overflow-wrap: anywhere; } a { padding: .2rem 0; }"
+)
+"""The sessions list: ids wrap rather than run off a phone's screen; links are easy to tap."""
+
 PAGE = """<!doctype html>
 <html lang="en">
 <head>
@@ -151,6 +164,7 @@ PAGE = """<!doctype html>
 <title>Live view: session {{TITLE}}</title>
 <style>
   body { font-family: system-ui, sans-serif; margin: 1rem; color: #1a1a1a; }
+  .pictures { display: flex; flex-wrap: wrap; gap: .5rem; align-items: flex-start; }
   img { max-width: 100%; image-rendering: pixelated; border: 1px solid #ccc; min-height: 2rem; }
   dl { display: grid; grid-template-columns: max-content max-content; gap: .15rem 1rem; }
   dt { font-weight: 600; }
@@ -158,17 +172,21 @@ PAGE = """<!doctype html>
 </head>
 <body>
 <h1>Live view</h1>
-<p>Session {{TITLE}}. The picture: what the agent sees (RGB, depth, as far as the session asked
-for them) and the house from above, with the goals in order (the current one ringed) and the
-agent when the session has GPS.</p>
+<p>Session {{TITLE}}. The pictures: what the agent sees (RGB, depth, as far as the session asked
+for them) and the house from above, with the goals in order (the current one ringed) and, when
+the session has GPS, the agent and the path it walked in this episode.</p>
 <p id="status" role="status" aria-live="polite">Waiting for the first reset…</p>
+<div class="pictures">
 <img id="frame" alt="No picture yet: the session has not been reset.">
+<img id="map" alt="No map yet: the session has not been reset.">
+</div>
 <h2>Metrics</h2>
 <dl id="metrics"></dl>
 <script>
 const live = {{CONFIG}};
 const status = document.getElementById("status");
 const frame = document.getElementById("frame");
+const map = document.getElementById("map");
 const metrics = document.getElementById("metrics");
 let shown = null;
 
@@ -197,8 +215,11 @@ async function poll() {
         shown = key;
         const text = `Episode ${state.episode_id} (${state.scene_id}), step ${state.step}, ` +
           `last action ${state.action ?? "reset"}`;
-        frame.src = `${live.base}/frame.png?env=${live.env}&at=${encodeURIComponent(key)}`;
-        frame.alt = `${text}: the agent's view and the map`;
+        const at = `env=${live.env}&at=${encodeURIComponent(key)}`;
+        frame.src = `${live.base}/frame.png?part=views&${at}`;
+        frame.alt = `${text}: the agent's view`;
+        map.src = `${live.base}/frame.png?part=map&${at}`;
+        map.alt = `${text}: the map, with the path walked in this episode`;
         status.textContent = text;
         document.body.dataset.step = state.step;
         showMetrics(state.metrics);
