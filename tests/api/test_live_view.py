@@ -158,7 +158,7 @@ def test_the_map_draws_the_path_walked_in_the_episode(server: LocalServer, env: 
     """Issue 53 item 4: the live map drew the agent but not its path (the videos do)."""
     base = f"{server.url}/v1/live/{env.session_id}"
     env.reset(options={"episode_index": 0})
-    at_start = httpx.get(f"{base}/frame.png", params={"part": "map"})
+    at_start = httpx.get(f"{base}/frame.png", params={"part": "map"}, timeout=60)
     assert at_start.status_code == 200
     with Image.open(io.BytesIO(at_start.content)) as image:
         assert image.size[1] == 256 and image.size[0] <= 2 * 256  # the map alone
@@ -167,16 +167,16 @@ def test_the_map_draws_the_path_walked_in_the_episode(server: LocalServer, env: 
         _, _, _, _, info = env.step(int(action))
         walked = float(info["metrics"]["path_length"])
     assert walked > 1.0  # it moved (a path to draw)
-    moved = httpx.get(f"{base}/frame.png", params={"part": "map"}).content
+    moved = httpx.get(f"{base}/frame.png", params={"part": "map"}, timeout=60).content
     # the agent's arrow is the same size; the path walked adds its orange line
     assert _orange_pixels(moved) > _orange_pixels(at_start.content) + 50
     env.reset(options={"episode_index": 1})  # a new episode starts a new path
-    again = httpx.get(f"{base}/frame.png", params={"part": "map"}).content
+    again = httpx.get(f"{base}/frame.png", params={"part": "map"}, timeout=60).content
     assert _orange_pixels(again) < _orange_pixels(moved)
-    views = httpx.get(f"{base}/frame.png", params={"part": "views"})
+    views = httpx.get(f"{base}/frame.png", params={"part": "views"}, timeout=60)
     with Image.open(io.BytesIO(views.content)) as image:
         assert image.size == (2 * 256, 256)  # RGB and depth
-    bad = httpx.get(f"{base}/frame.png", params={"part": "nope"})
+    bad = httpx.get(f"{base}/frame.png", params={"part": "nope"}, timeout=60)
     assert bad.status_code == 400 and "part must be one of all, views, map" in bad.text
 
 
