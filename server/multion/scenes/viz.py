@@ -9,6 +9,7 @@ be added on top of :func:`scene_picture`'s result with the same numbers.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,6 +32,8 @@ DOOR = (70, 140, 200)
 TEXT = (20, 20, 20)
 ROOM_LABEL = (70, 70, 70)
 LABEL_PATCH = (250, 249, 245)
+LABEL_MARGIN = 3.0
+"""Pixels between a room label's patch and its room's edge (the wall, any doorway)."""
 
 
 @dataclass(frozen=True)
@@ -94,11 +97,12 @@ def draw_layout(
         if box.kind == "wall":
             (x0, y0, _), (x1, y1, _) = box.min_corner, box.max_corner
             draw.rectangle(_rect_pixels(x0, y0, x1, y1, frame), fill=WALL)
-    font = label_font(frame)
-    for text, patch in room_labels(draw, layout, frame, font, keep_clear):
-        left, top, _, _ = draw.textbbox((0, 0), text, font=font)
+    for label in fitted_room_labels(draw, layout, frame, label_font(frame), keep_clear):
+        left, top, _, _ = draw.textbbox((0, 0), label.text, font=label.font)
+        patch, pad = label.box, LABEL_PAD
         draw.rectangle(patch, fill=LABEL_PATCH)
-        draw.text((patch[0] + 2 - left, patch[1] + 2 - top), text, fill=ROOM_LABEL, font=font)
+        at = (patch[0] + pad - left, patch[1] + pad - top)
+        draw.text(at, label.text, fill=ROOM_LABEL, font=label.font, align="center")
     for door in layout.doors:
         cx, cy = door.center
         dx, dy = (door.width / 2, 0.0) if door.axis == "x" else (0.0, door.width / 2)
@@ -129,6 +133,88 @@ def furniture_pixels(layout: SceneLayout, frame: PictureFrame) -> list[list[floa
     ]
 
 
+MIN_LABEL_SIZE = 8
+"""The smallest room label text, pixels: a room too small for its type at this size (a short
+hallway on a small video map) is labelled by a short form, or not at all, rather than
+by text that spills over walls, doorways and paths or out of the picture."""
+LABEL_PAD = 2
+"""Pixels between a label's text and the edge of its patch."""
+
+
+@dataclass(frozen=True)
+class RoomLabel:
+    """A room label as drawn: its text (a line per word where wrapped), the pixel box of its
+    patch and the font it is written in."""
+
+    text: str
+    box: list[float]
+    font: ImageFont.FreeTypeFont | ImageFont.ImageFont
+
+
+@functools.lru_cache(maxsize=32)
+def _font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    return ImageFont.load_default(size=size)
+
+
+SHORT_ROOM_NAMES = {"bedroom": "bed", "bathroom": "bath", "hallway": "hall", "kitchen": "kit."}
+"""Short forms of one-word room types, for rooms too small for the whole word."""
+
+
+def _label_texts(room_type: str) -> list[str]:
+    """What a room's label may say, best first: the whole type, a line per word, the first
+    word (or a short form)."""
+    words = room_type.replace("_", " ").split()
+    texts = [" ".join(words)]
+    if len(words) > 1:
+        texts += ["\n".join(words), words[0]]
+    elif words and words[0] in SHORT_ROOM_NAMES:
+        texts.append(SHORT_ROOM_NAMES[words[0]])
+    return texts
+
+
+def _fitting_label(
+    draw: ImageDraw.ImageDraw, room_type: str, space: tuple[float, float], size: int
+) -> tuple[str, Any, tuple[float, float]] | None:
+    """The first text and font (largest first, down to :data:`MIN_LABEL_SIZE`) whose patch fits
+    in ``space`` pixels; the whole type at any size before the shortened one."""
+    for text in _label_texts(room_type):
+        for points in range(size, MIN_LABEL_SIZE - 1, -1):
+            font = _font(points)
+            left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
+            patch = (right - left + 2 * LABEL_PAD, bottom - top + 2 * LABEL_PAD)
+            if patch[0] <= space[0] and patch[1] <= space[1]:
+                return text, font, patch
+    return None
+
+
+def fitted_room_labels(
+    draw: ImageDraw.ImageDraw,
+    layout: SceneLayout,
+    frame: PictureFrame,
+    font: Any,
+    keep_clear: Sequence[Sequence[float]] = (),
+) -> list[RoomLabel]:
+    """Each room's label, inside its room and the picture: in ``font`` where it fits, else
+    wrapped, smaller or shortened (:func:`_fitting_label`); rooms too small for any are left
+    unlabelled. Placed by :func:`place_label`: where it covers the least furniture, clear of the
+    labels placed before it and of the boxes ``keep_clear`` (goal markers)."""
+    obstacles = furniture_pixels(layout, frame)
+    width, height = frame.image_size
+    size = round(font.size) if isinstance(font, ImageFont.FreeTypeFont) else MIN_LABEL_SIZE
+    labels: list[RoomLabel] = []
+    for room in layout.rooms:
+        x0, y0, x1, y1 = _rect_pixels(*room.rect, frame)
+        inside = [max(0.0, x0), max(0.0, y0), min(float(width), x1), min(float(height), y1)]
+        space = (inside[2] - inside[0] - 2 * LABEL_MARGIN, inside[3] - inside[1] - 2 * LABEL_MARGIN)
+        fitted = _fitting_label(draw, room.room_type, space, size)
+        if fitted is None:
+            continue
+        text, chosen, patch = fitted
+        avoid = [*keep_clear, *(label.box for label in labels)]
+        labels.append(RoomLabel(text, place_label(inside, patch, obstacles, avoid), chosen))
+    return labels
+
+
 def room_labels(
     draw: ImageDraw.ImageDraw,
     layout: SceneLayout,
@@ -136,23 +222,16 @@ def room_labels(
     font: Any,
     keep_clear: Sequence[Sequence[float]] = (),
 ) -> list[tuple[str, list[float]]]:
-    """Each room's type and the pixel box of its label: where it covers the least furniture,
-    clear of the labels placed before it and of the boxes ``keep_clear`` (goal markers)."""
-    obstacles = furniture_pixels(layout, frame)
-    labels: list[tuple[str, list[float]]] = []
-    for room in layout.rooms:
-        text = room.room_type.replace("_", " ")
-        left, top, right, bottom = draw.textbbox((0, 0), text, font=font)
-        size = (right - left + 4, bottom - top + 4)
-        avoid = [*keep_clear, *(b for _, b in labels)]
-        box = place_label(_rect_pixels(*room.rect, frame), size, obstacles, avoid)
-        labels.append((text, box))
-    return labels
+    """The text and pixel box of each room label (:func:`fitted_room_labels`)."""
+    return [
+        (label.text, label.box)
+        for label in fitted_room_labels(draw, layout, frame, font, keep_clear)
+    ]
 
 
 def label_font(frame: PictureFrame) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
     """Text scales with the picture (0.3 m high), so pictures at one scale share a text size."""
-    return ImageFont.load_default(size=max(11, round(0.3 * frame.pixels_per_metre)))
+    return _font(max(11, round(0.3 * frame.pixels_per_metre)))
 
 
 def _overlap(a: Sequence[float], b: Sequence[float]) -> float:
@@ -171,10 +250,9 @@ def place_label(
     """Where a label of ``size`` pixels goes in a ``room`` (pixel box): the spot of a grid of
     candidates inside it that covers the least furniture, never another label if avoidable;
     top-left first on equal cover (the usual place on a floor plan)."""
-    margin = 3.0
-    x0, y0 = room[0] + margin, room[1] + margin
-    free_x = max(0.0, room[2] - margin - size[0] - x0)
-    free_y = max(0.0, room[3] - margin - size[1] - y0)
+    x0, y0 = room[0] + LABEL_MARGIN, room[1] + LABEL_MARGIN
+    free_x = max(0.0, room[2] - LABEL_MARGIN - size[0] - x0)
+    free_y = max(0.0, room[3] - LABEL_MARGIN - size[1] - y0)
     best: tuple[float, list[float]] | None = None
     for j in range(steps + 1):
         for i in range(steps + 1):
