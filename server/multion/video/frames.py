@@ -4,7 +4,7 @@ Layout (pixels; P = the panel height, the camera height but at least 256)::
 
     +-----------+-----------+---------+
     |    RGB    |   depth   |   map   |   P high: camera images scaled to P (nearest),
-    +-----------+-----------+---------+   the map fitted into P x (P to 2P) wide
+    +-----------+-----------+---------+   the map fitted into P x 2P, centred
     | agent, episode, scene            |
     | step, action, current goal, distance, goals found
     | what just happened (FOUND right / wrong, a collision, the end)
@@ -33,7 +33,9 @@ from multion_client.constants import GOAL_RGBA, Action
 MIN_PANEL = 256
 MAP_MARGIN = 6
 MAX_MAP_ASPECT = 2.0
-"""The map is P high and as wide as the house's shape asks, at most twice P."""
+"""The map panel is P high and twice P wide whatever the house's shape, so that every video of a
+run (of a track: one camera size) has one frame size: a player or page that lays out one film
+does not jump at the next. A house wider than that is scaled down to fit."""
 CAPTION_FONT_SIZE = 14
 CAPTION_LINES = 3
 BACKGROUND = (255, 255, 255)
@@ -144,8 +146,7 @@ class FrameComposer:
     def _floor_plan(self, grid: NavGrid) -> tuple[PictureFrame, Image.Image]:
         """The frame and the picture of the scene, fitted into its panel and centred."""
         rows, cols = grid.shape
-        aspect = cols / rows
-        self.map_width = even(min(MAX_MAP_ASPECT, max(1.0, aspect)) * self.panel)
+        self.map_width = even(MAX_MAP_ASPECT * self.panel)
         side = (self.map_width - 2 * MAP_MARGIN, self.panel - 2 * MAP_MARGIN)
         ppm = min(side[0] / (cols * grid.cell_size), side[1] / (rows * grid.cell_size))
         scene_id = self.episode.scene_id
