@@ -71,6 +71,29 @@ class LaneSessions:
         lane.session_id = info["session_id"]
         return {k: space_from_wire(info[k]) for k in ("observation_space", "action_space")}
 
+    async def open_new(self, live: LiveRun) -> list[dict[str, Any]]:
+        """Open every lane of a run that is not created yet (no row, no quota debited): on a
+        refusal (no room now) or a fault the lanes opened are closed again and the error says
+        that no run was created, so no run exists that its participant never learned of."""
+        try:
+            return [await self.open(live, lane) for lane in live.lanes]
+        except ServerFault as fault:
+            await self.close_all(live)
+            why = (
+                "has no room for" if isinstance(fault.error, errors.LimitExceeded) else "failed in"
+            )
+            raise type(fault.error)(
+                f"the server {why} this run's simulator now; no run was created and nothing "
+                "counts against your quota: retry later"
+            ) from None
+        except BaseException:
+            await self.close_all(live)
+            raise
+
+    async def close_all(self, live: LiveRun) -> None:
+        for lane in live.lanes:
+            await self.close(lane)
+
     async def call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> dict[str, Any]:
         """Reset the lane's environment into ``argument`` (an episode) or step it (an action).
         The session must exist; ``errors.SessionNotFound`` says it is gone."""

@@ -139,18 +139,33 @@ def create_run(
     The quota is debited here, at creation: an abandoned run still counts. Runs of the
     organisers' team :data:`BASELINE_TEAM` are marked baselines and have no quota.
     """
+    if refuse_over_quota(session, run.team_id, track, phase, now, check_quota):
+        run.baseline = True
+    session.add(run)
+
+
+def refuse_over_quota(
+    session: Session,
+    team_id: int,
+    track: Track,
+    phase: Phase,
+    now: dt.datetime,
+    check_quota: bool = True,
+) -> bool:
+    """Raise :class:`~multion_client.errors.QuotaExceeded` if the team may start no further
+    run of ``phase`` at ``now``; returns whether the team is the baselines' (no quota). Called
+    before a run's simulator is opened too, so an over-quota request costs the workers nothing.
+    """
     # Serialise quota checks of one team across replicas (PostgreSQL row lock; SQLite has a
     # single writer anyway).
-    team = session.execute(select(Team.name).where(Team.id == run.team_id).with_for_update())
+    team = session.execute(select(Team.name).where(Team.id == team_id).with_for_update())
     if team.scalar_one() == BASELINE_TEAM:
-        run.baseline, check_quota = True, False
+        return True
     if check_quota and phase.daily_quota is not None:
-        used = runs_counted(
-            session, run.team_id, track.name, phase.name, now - dt.timedelta(days=1)
-        )
+        used = runs_counted(session, team_id, track.name, phase.name, now - dt.timedelta(days=1))
         if used >= phase.daily_quota:
             reopens = daily_quota_reopens(
-                session, run.team_id, track.name, phase.name, now, phase.daily_quota
+                session, team_id, track.name, phase.name, now, phase.daily_quota
             )
             raise errors.QuotaExceeded(
                 f"{track.name}/{phase.name}: {used} runs in the last 24 hours, the daily quota is "
@@ -159,14 +174,14 @@ def create_run(
                 "broke are refunded"
             )
     if check_quota and phase.total_quota is not None:
-        used = runs_counted(session, run.team_id, track.name, phase.name, None)
+        used = runs_counted(session, team_id, track.name, phase.name, None)
         if used >= phase.total_quota:
             raise errors.QuotaExceeded(
                 f"{track.name}/{phase.name}: {used} runs, the phase's total quota is "
                 f"{phase.total_quota}: no further run of this phase is allowed (runs the server "
                 "broke are refunded)"
             )
-    session.add(run)
+    return False
 
 
 def _duration(span: dt.timedelta) -> str:

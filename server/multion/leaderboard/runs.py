@@ -47,6 +47,7 @@ from multion.leaderboard.run_store import (
     create_run,
     describe_run,
     finish_run,
+    refuse_over_quota,
     save_state,
 )
 from multion.leaderboard.storage import Database
@@ -129,16 +130,25 @@ class RunService(RunExpiry):
             order=order,
             num_envs=request.num_envs,
             created_at=self.clock.now(),
+            version=state.version,  # read by LiveRun.of before the insert
             **state.columns(),
         )
-        async with self._creating:
-            await self.db.transaction(lambda s: create_run(s, row, track, phase, row.created_at))
         live = LiveRun.of(row, track, phase, episode_ids)
         for lane, first in zip(live.lanes, firsts, strict=True):
             lane.episode = first
+        # Refused before the run exists (over quota, no room in the simulator now): the
+        # organiser's records hold only runs whose id their participant was given.
+        now = row.created_at
+        await self.db.transaction(lambda s: refuse_over_quota(s, team_id, track, phase, now))
+        spaces = await self.sessions.open_new(live)
+        try:
+            async with self._creating:
+                await self.db.transaction(lambda s: create_run(s, row, track, phase, now))
+        except BaseException:
+            await self.sessions.close_all(live)
+            raise
         self.live[run_id] = live
         try:
-            spaces = [await self._open(live, lane) for lane in live.lanes]
             for lane in live.lanes:  # the first step budgets start now, with every lane ready
                 lane.state.deadline = self._deadline()
             await self._save(live, [])
@@ -332,14 +342,6 @@ class RunService(RunExpiry):
             if row is None or row.state == "running":  # its end is being written
                 raise errors.RunOver("the run is over")
             raise errors.RunOver(_over(row.state, row.end_reason))
-
-    async def _open(self, live: LiveRun, lane: Lane) -> dict[str, Any]:
-        """Open a lane's session for a new run; on a server fault the run fails and is
-        refunded, also while the server stops (its creator never got its id)."""
-        try:
-            return await self.sessions.open(live, lane)
-        except ServerFault as fault:
-            await self._fail(live, fault, stopping=False)
 
     async def _session_call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> Any:
         """Reset (argument: the episode) or step (argument: the action) a lane's environment,
