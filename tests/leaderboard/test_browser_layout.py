@@ -125,7 +125,15 @@ def test_the_guide_is_a_rendered_page(visit: Any, played: dict[str, PlayedRun], 
         "The protocol",
     ]
     height = page.evaluate("document.documentElement.scrollHeight")
-    assert height < (7000 if width == "desktop" else 16000), height  # was 10,500 and 23,000
+    # the introduction's two tables (who does what; known problems) came with issue 53: the
+    # rest of the page is held to the earlier bound
+    tables = page.evaluate(
+        "Array.from(document.querySelectorAll('article.guide table')).slice(0, 2)"
+        ".reduce((sum, t) => sum + t.closest('.scroll').getBoundingClientRect().height, 0)"
+    )
+    assert page.locator("article.guide table").first.locator("th").first.inner_text() == "who"
+    rest = height - tables
+    assert rest < (7000 if width == "desktop" else 16000), (height, tables)  # was 10,500, 23,000
     assert page.evaluate("document.documentElement.scrollWidth") <= page.viewport_size["width"]
 
 
