@@ -82,8 +82,7 @@ class Session:
     last_actions: list[int] = field(default_factory=list)
     """The actions of its last step; empty after a reset."""
     trails: list[Trail] = field(default_factory=list)
-    """Each environment's path in its current episode (its ``gps``), which the live view draws
-    (kept only where the live view is on)."""
+    """Each environment's path in its episode, which the live view draws (kept as ``latest``)."""
 
 
 class SessionRegistry:
