@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
+from multion.api.turns import TurnQueue
 from multion.api.worker_entry import run_worker
 from multion.task.memory import ProcessShare, mib
 from multion_client.errors import MemoryBudgetExceeded, WorkerFailed
@@ -88,7 +89,7 @@ class Worker:
         self.failure = ""
         self._loop = asyncio.get_running_loop()
         self._on_exit = on_exit
-        self._lock = asyncio.Lock()
+        self._turns = TurnQueue()  # steps before resets and creations (see .turns)
         self._waiter: asyncio.Future[Reply] | None = None
         self.ready: asyncio.Future[WorkerReport] = self._loop.create_future()
         self.conn, child = ctx.Pipe(duplex=True)
@@ -161,7 +162,7 @@ class Worker:
         """Send one command and await its reply (header, raw parts)."""
         if not self.ready.done():  # a fresh replacement still importing the simulator
             await asyncio.wait_for(asyncio.shield(self.ready), timeout_s)
-        async with self._lock:
+        async with self._turns.turn(urgent=command == "step"):
             if not self.alive:
                 raise WorkerFailed(self.failure)
             self._waiter = self._loop.create_future()
