@@ -353,9 +353,10 @@ def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...])
 
 def _clear(memory_state: State, keep: Tensor) -> State:
     """Empty the memory of environments whose ``keep`` (B,) is 0 (an all-zero state is empty).
-    Most steps start no episode: their states are returned as they are, not multiplied by one
-    (a full pass over ProjNeuralMap's (B, 32, 63, 63) map per step, 6 % of its update)."""
-    if bool(keep.all()):
+    On the CPU, a step where no episode starts returns the states as they are, not multiplied
+    by one (a full pass over ProjNeuralMap's (B, 32, 63, 63) map per step, 6 % of its update);
+    elsewhere the test would wait for the device (CUDA) or cannot be read (meta)."""
+    if keep.device.type == "cpu" and bool(keep.all()):
         return memory_state
     return {k: v * keep.view(-1, *[1] * (v.dim() - 1)) for k, v in memory_state.items()}
 
