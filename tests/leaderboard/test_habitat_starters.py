@@ -116,7 +116,7 @@ def test_a_starter_runs_with_only_the_import_changed(
     assert lines[0].startswith("run ") and f"3 episodes, {lanes}" in lines[0]
     run_id = lines[0].split()[1].rstrip(":")
     assert f"MULTION_RUN_ID={run_id}" in lines[0]
-    assert lines[1] == f"run {run_id}: finished"
+    assert lines[1] == f"run {run_id}: finished, 3/3 episodes completed"
     assert any(line.split()[0] == "ppl" and line.endswith("(ranking)") for line in lines[2:])
 
 
@@ -336,4 +336,4 @@ def test_the_guides_example_runs(settings: dict[str, str], tmp_path: Path) -> No
     example = next(block for block in blocks if CHANGED_LINE in block)
     done = run_script(tmp_path, example, settings)
     assert done.returncode == 0, done.stderr[-3000:]
-    assert done.stdout.splitlines()[-5].endswith(": finished")
+    assert re.search(r": finished, (\d+)/\1 episodes completed$", done.stdout.splitlines()[-5])
