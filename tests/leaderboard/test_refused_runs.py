@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import select
+from test_faults import runs_of
 
 from multion.api.app import create_app
 from multion.api.settings import ServerSettings
@@ -20,7 +20,6 @@ from multion.leaderboard import runs as runs_module
 from multion.leaderboard.app import LeaderboardExtension
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.challenge_file import replace_phase, write_challenge
-from multion.leaderboard.models import Run
 from multion.leaderboard.settings import LeaderboardSettings
 from multion.leaderboard.storage import Database, add_team, runs_counted
 from multion_client import errors
@@ -28,15 +27,6 @@ from multion_client.protocol import CONTENT_TYPE, decode, encode
 from multion_client.run_protocol import RUNS_PATH, CreateRun
 
 Post = Any
-
-
-def _runs(database: str) -> list[Run]:
-    db = Database.open(database)
-    try:
-        with db.sessions() as session:
-            return list(session.scalars(select(Run)))
-    finally:
-        db.close()
 
 
 @pytest.fixture
@@ -86,13 +76,13 @@ def test_no_room_for_a_run_refuses_it_before_it_exists(
     assert code == 429 and refused["error"]["code"] == "memory_budget_exceeded", refused
     message = refused["error"]["message"]
     assert "no run was created" in message and "refunded" not in message, message
-    assert _runs(database) == []  # was: a failed, refunded run nobody learned the id of
+    assert runs_of(database) == []  # was: a failed, refunded run nobody learned the id of
     assert registry.live_sessions() == 0  # the first lane's session was closed again
 
     monkeypatch.setattr(registry, "create", real_create)
     code, info = _create(http, token, lanes=2)
     assert code == 201, info
-    assert [(r.id, r.state, r.refunded) for r in _runs(database)] == [
+    assert [(r.id, r.state, r.refunded) for r in runs_of(database)] == [
         (info["run_id"], "running", False)
     ]
 
@@ -109,7 +99,7 @@ def test_a_run_refused_at_its_insert_closes_the_lanes_it_opened(
     monkeypatch.setattr(runs_module, "create_run", raced)
     code, refused = _create(http, token, lanes=2)
     assert code == 429 and refused["error"]["code"] == "quota_exceeded", refused
-    assert _runs(database) == [] and registry.live_sessions() == 0
+    assert runs_of(database) == [] and registry.live_sessions() == 0
 
 
 def test_a_team_over_its_quota_is_refused_before_the_simulator_is_opened(
@@ -128,6 +118,6 @@ def test_a_team_over_its_quota_is_refused_before_the_simulator_is_opened(
     assert code == 429 and refused["error"]["code"] == "quota_exceeded", refused
     db = Database.open(database)
     with db.sessions() as session:
-        team = _runs(database)[0].team_id
+        team = runs_of(database)[0].team_id
         assert runs_counted(session, team, "1-on", "test-standard", None) == 3
     db.close()

@@ -3,7 +3,6 @@ id, records the scheme, and ``multion report`` says when it pairs runs seeded di
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import shutil
@@ -11,27 +10,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_report import report, run_eval
 
 from multion.config.datasets import save_dataset
 from multion.sim.simulator import Simulator
 from multion.task.sampling import sample_episode
-from multion_agents import cli_eval, cli_report
 from multion_agents.report.runs import load_run
 from multion_agents.seeding import episode_id_seed, episode_seed, scheme_seed
 
 ROOM = "room-6x4"
-
-
-def run_eval(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser()
-    cli_eval.add_arguments(parser)
-    return cli_eval.run(parser.parse_args(argv))
-
-
-def report(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser()
-    cli_report.add_arguments(parser)
-    return cli_report.run(parser.parse_args(argv))
 
 
 def actions(run: Path) -> dict[str, str]:
