@@ -1,4 +1,4 @@
-# A participant's agent: only the light client (numpy, msgpack, httpx, gymnasium; no PyBullet,
+# A participant's agent: only the light client (numpy, msgpack, gymnasium; no PyBullet,
 # no torch) and an example random agent that plays against the server at $MULTION_SERVER.
 #   docker build -f docker/agent.Dockerfile -t multion-agent .       (from the repository root)
 #   docker run --rm -e MULTION_SERVER=http://host.docker.internal:8000 multion-agent

@@ -1,5 +1,7 @@
-"""``multion bench --only sim`` runs end to end (its numbers are measured, not asserted: the
+"""``multion bench`` parts run end to end (its numbers are measured, not asserted: the
 machines are shared and noisy; here only that every part runs and reports a rate)."""
+
+import pytest
 
 from multion_agents.bench.cli import bench_sim
 from multion_agents.bench.reset import run_reset_bench
@@ -22,12 +24,17 @@ def test_the_simulator_bench_runs_every_part(capsys):
         assert results["rps_egl_merged_far_light_256"] > 0
 
 
-def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_two() -> None:
+def test_the_lanes_bench_plays_a_run_with_one_lane_and_with_three() -> None:
     from multion_agents.bench.lanes import run_lanes_bench
 
-    figures = run_lanes_bench(size=16, episodes=4, max_steps=5, rooms=1, verbose=False)
+    figures = run_lanes_bench(size=16, episodes=4, max_steps=5, rooms=1, verbose=False, lanes=3)
     assert figures["steps"] == 4 * 5  # every episode to its step limit, nothing lost
-    assert figures["one_lane_s"] > 0 and figures["two_lanes_s"] > 0 and figures["ratio"] > 0
+    assert figures["one_lane_s"] > 0 and figures["lanes_s"] > 0 and figures["ratio"] > 0
+    hours = figures["full_run_hours"]  # 2.5M steps at each measured rate
+    assert hours[1] == pytest.approx(2_500_000 * figures["one_lane_s"] / 20 / 3600)
+    assert set(hours) == {1, 3}
+    with pytest.raises(ValueError, match="lanes must be in"):
+        run_lanes_bench(lanes=9)
 
 
 def test_the_participants_bench_plays_every_run_to_its_end() -> None:

@@ -3,7 +3,7 @@
 * The server's ``GET /v1/spec`` with gymnasium 1.1.0 (the floor) in the same process as a
   ``SyncVectorEnv`` of the MultiON env: gymnasium before 1.4 writes its ``AutoresetMode`` enum
   into the env class's shared ``metadata``, which the spec used to copy (a 500).
-* The light client with its dependencies at their floors (numpy, msgpack, httpx, gymnasium) in
+* The light client with its dependencies at their floors (numpy, msgpack, gymnasium) in
   a fresh virtual environment, playing against a server started from this environment.
 
 Both need the package index (``pip install``); they are slow-marked and take ~1 minute.
@@ -108,11 +108,11 @@ def test_spec_with_the_lowest_gymnasium_after_a_vector_env(tmp_path: Path) -> No
 CLIENT_SCRIPT = """
 import json
 import sys
-import gymnasium, httpx, msgpack, numpy
+import gymnasium, msgpack, numpy
 from multion_client import RemoteEnv, RemoteVectorEnv
 
 msgpack_version = ".".join(map(str, msgpack.version))
-print("versions", numpy.__version__, msgpack_version, httpx.__version__, gymnasium.__version__)
+print("versions", numpy.__version__, msgpack_version, gymnasium.__version__)
 url, config = sys.argv[1], json.loads(sys.argv[2])
 env = RemoteEnv(url, config=config)
 obs, info = env.reset(seed=0)
@@ -157,5 +157,5 @@ def test_the_light_client_at_its_floors(
     )
     assert result.returncode == 0 and "client ok" in result.stdout, result.stdout + result.stderr
     versions = result.stdout.split("versions ", 1)[1].split("\n", 1)[0].split()
-    expected = [CLIENT_FLOORS[n] for n in ("numpy", "msgpack", "httpx", "gymnasium")]
+    expected = [CLIENT_FLOORS[n] for n in ("numpy", "msgpack", "gymnasium")]
     assert [Version(v) for v in versions] == [Version(v) for v in expected]

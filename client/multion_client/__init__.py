@@ -1,6 +1,6 @@
 """MultiON client: the wire protocol and Gymnasium-style remote environments.
 
-Light on purpose: it needs numpy, msgpack, httpx and gymnasium, never PyBullet, torch or FastAPI.
+Light on purpose: it needs numpy, msgpack and gymnasium, never PyBullet, torch or FastAPI.
 ``Client``, ``RemoteEnv`` and ``RemoteVectorEnv`` are imported on first use, so the server and
 simulator can import ``multion_client.constants`` without pulling in the HTTP client.
 """

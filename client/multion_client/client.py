@@ -1,4 +1,4 @@
-"""A small synchronous client for a MultiON server (one keep-alive HTTP connection pool)."""
+"""A small synchronous client for a MultiON server (one keep-alive HTTP connection)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ from collections.abc import Mapping, Sequence
 from types import TracebackType
 from typing import Any
 
-import httpx
 import numpy as np
 
 from multion_client.errors import MalformedMessage, MultiONError, ServerUnavailable, error_from_code
@@ -42,6 +41,7 @@ from multion_client.run_protocol import (
     StartEpisode,
     run_path,
 )
+from multion_client.transport import Connection, Response, TransportError
 
 DEFAULT_TIMEOUT_S = 120.0
 """Generous: a reset may load a new scene and build its navigable grid on the server."""
@@ -73,9 +73,10 @@ class Client:
         self.base_url = base_url.rstrip("/")
         self.retries = retries
         self.backoff_s = backoff_s
-        self._http = httpx.Client(
-            base_url=self.base_url,
-            timeout=httpx.Timeout(timeout, connect=min(timeout, 10.0)),
+        self._http = Connection(
+            self.base_url,
+            timeout_s=timeout,
+            connect_timeout_s=min(timeout, 10.0),
             headers={"accept": CONTENT_TYPE}
             | ({"authorization": f"Bearer {token}"} if token else {}),
         )
@@ -194,20 +195,19 @@ class Client:
 
     def _send(
         self, method: str, path: str, body: dict[str, Any] | None = None, idempotent: bool = False
-    ) -> httpx.Response:
+    ) -> Response:
         """The server's successful answer, or its error raised as a typed MultiONError."""
         content = None if body is None else encode(body)
         headers = None if content is None else {"content-type": CONTENT_TYPE}
         for attempt in range(self.retries + 1):
             try:
-                response = self._http.request(method, path, content=content, headers=headers)
+                response = self._http.request(method, path, content, headers)
                 break
-            except httpx.TransportError as error:
+            except TransportError as error:
                 # A refused connection never reached the server, so even a step is safe to resend.
-                never_sent = isinstance(error, (httpx.ConnectError, httpx.ConnectTimeout))
-                if not (idempotent or never_sent) or attempt == self.retries:
+                if not (idempotent or error.never_sent) or attempt == self.retries:
                     raise ServerUnavailable(
-                        f"{method} {self.base_url}{path} failed: {type(error).__name__}: {error}"
+                        f"{method} {self.base_url}{path} failed: {error}"
                     ) from error
                 time.sleep(min(self.backoff_s * 2**attempt, 2.0))
         if response.is_success:
@@ -215,13 +215,13 @@ class Client:
         raise _error(response)
 
 
-def _error(response: httpx.Response) -> MultiONError:
+def _error(response: Response) -> MultiONError:
     try:
         error = Error.from_wire(decode(response.content))
     except MalformedMessage:
-        text = response.text[:300] or response.reason_phrase
-        return error_from_code(f"http_{response.status_code}", text, response.status_code)
-    return error_from_code(error.code, error.message, response.status_code)
+        text = response.text[:300] or response.reason
+        return error_from_code(f"http_{response.status}", text, response.status)
+    return error_from_code(error.code, error.message, response.status)
 
 
 def _plain(action: Any) -> Any:

@@ -31,6 +31,7 @@ ROOT = HERE.parent.parent
 # tag → Dockerfile in standins/
 STANDIN_IMAGES = {
     "python:3.11-slim": "python.Dockerfile",
+    "python:3.11-slim-bookworm": "python.Dockerfile",  # the server's: it pins Debian 12's Mesa
     "postgres:16": "postgres.Dockerfile",
     "nginx:1.27": "nginx.Dockerfile",
 }
@@ -132,8 +133,8 @@ def start_daemon() -> Daemon:
 
 
 def standins_key() -> str:
-    """A hash of everything the stand-ins are built from."""
-    digest = hashlib.sha256()
+    """A hash of everything the stand-ins are built from, and of their tags."""
+    digest = hashlib.sha256(repr(sorted(STANDIN_IMAGES.items())).encode())
     for path in sorted(STANDINS.iterdir()):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]

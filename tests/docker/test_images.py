@@ -15,6 +15,8 @@ HEALTH = (
     "print(answer.status_code)"
 )
 
+GL_OPENS = "from multion.sim.camera import why_not_gl; print(why_not_gl())"
+
 
 def test_the_agent_image_plays_against_the_server_image(
     docker_daemon: Daemon, images: dict[str, str]
@@ -37,6 +39,9 @@ def test_the_agent_image_plays_against_the_server_image(
         assert health.stdout.strip() == "200"
         user = docker_daemon.run("docker", "exec", f"{name}-server", "id", "-un")
         assert user.stdout.strip() == "multion"  # not root
+        # the gl renderer opens (Mesa's llvmpipe through EGL, no GPU): MultiON 2.0's tracks
+        gl = docker_daemon.run("docker", "exec", f"{name}-server", "python", "-c", GL_OPENS)
+        assert gl.stdout.strip() == "None", gl.stdout + gl.stderr
     finally:
         docker_daemon.run("docker", "rm", "-f", f"{name}-server", check=False)
         docker_daemon.run("docker", "network", "rm", name, check=False)

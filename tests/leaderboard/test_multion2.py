@@ -3,6 +3,7 @@ within 1.0 m, cylinders or everyday objects) are read, served, played, scored an
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,11 +12,14 @@ import numpy as np
 import pytest
 
 from multion.api.local_server import LocalServer
+from multion.api.workers import WorkerReport
 from multion.config.codec import env_config_from_dict
+from multion.leaderboard.app import renderer_problem
 from multion.leaderboard.challenge import ChallengeError
 from multion.leaderboard.challenge_file import challenge_from_dict, load_challenge
 from multion.leaderboard.hidden import generate_hidden_episodes
 from multion.leaderboard.storage import Database, add_team
+from multion.sim.gl.context import gl_unavailable_reason
 from multion_client.client import Client
 from multion_client.run import RunEnv
 
@@ -38,6 +42,9 @@ def small_copy(directory: Path) -> Path:
     ]:  # fmt: skip
         assert before in text
         text = text.replace(before, after)
+    if gl_unavailable_reason() is not None and os.environ.get("MULTION_REQUIRE_EGL") != "1":
+        # no OpenGL here (the server would refuse the gl tracks): the rules do not change
+        text = text.replace('renderer = "gl"', 'renderer = "tiny"')
     path = directory / "multion-2.0-small.toml"
     path.write_text(
         f"{text}\n".replace(
@@ -56,6 +63,7 @@ def test_the_example_states_the_2022_rules() -> None:
         assert config.task.num_goals == 5 and config.task.num_distractors == 3
         assert config.task.success_distance == 1.0 and config.task.max_steps == 2500
         assert config.camera.width == 256 and config.camera.hfov_deg == 79.0
+        assert config.camera.renderer == "gl"
     assert [t.goal_set for t in challenge.tracks] == ["colours", "objects"]
     described = challenge.describe()["tracks"][1]
     assert described["num_distractors"] == 3 and described["success_distance"] == 1.0
@@ -127,3 +135,12 @@ def test_create_play_score_and_show(tmp_path: Path, launch: Callable[..., LocalS
         assert "8 everyday objects (teddy bear" in page and "8 coloured cylinders" in page
     finally:
         server.stop()
+
+
+def test_a_server_without_opengl_refuses_the_gl_tracks_at_start() -> None:
+    challenge = load_challenge(EXAMPLE, SECRET)
+    problem = renderer_problem(challenge, WorkerReport(pid=1, gl_unavailable="no EGL display"))
+    assert problem is not None
+    assert "5-on-cylinders, 5-on-objects" in problem and "no EGL display" in problem
+    assert "apt-get install libegl1" in problem
+    assert renderer_problem(challenge, WorkerReport(pid=1, renderer_auto="gl")) is None

@@ -17,7 +17,6 @@ import functools
 import math
 import os
 import sys
-import tempfile
 import time
 
 import gymnasium as gym
@@ -27,7 +26,6 @@ from multion.api.cli_serve import add_http_stack_arguments
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig, TaskConfig
 from multion.scenes.registry import layout_for
-from multion.sim import grid_cache, simulator
 from multion.sim.bullet import pybullet as p
 from multion.sim.camera import EGL_LIGHT_POSITION, EGL_PLUGIN_LIGHT, Camera, egl_plugin_loads
 from multion.sim.world import DEFAULT_LIGHTING, PyBulletWorld
@@ -36,8 +34,9 @@ from multion.task.generate import generate_episodes
 from multion_agents.bench.explorer import run_explorer_bench
 from multion_agents.bench.gl import bench_gl
 from multion_agents.bench.goal_pixels import run_goal_pixels_bench
-from multion_agents.bench.http import run_http_bench
-from multion_agents.bench.lanes import run_lanes_bench
+from multion_agents.bench.grid_cache import bench_cache
+from multion_agents.bench.http import http_renderers, run_http_bench
+from multion_agents.bench.lanes import MAX_LANES, run_lanes_bench
 from multion_agents.bench.leaderboard import run_leaderboard_bench
 from multion_agents.bench.memory import bench_memory
 from multion_agents.bench.pages import run_pages_bench
@@ -46,7 +45,6 @@ from multion_agents.bench.reset import run_reset_bench
 from multion_agents.bench.site_diversity import run_diversity_bench
 from multion_agents.bench.site_memory import run_site_memory_bench
 from multion_agents.bench.stepping import timed_steps
-from multion_agents.evaluate import EvalSettings, evaluate
 
 SCENE = "house-00061"
 
@@ -131,6 +129,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="participants playing at once in the participants bench (1-64, default 8)",
     )
     parser.add_argument(
+        "--lanes",
+        type=int,
+        default=2,
+        help="lanes of the lanes bench's second run (2-8, default 2: the ×1.6 target)",
+    )
+    parser.add_argument(
+        "--camera-size",
+        type=int,
+        help="camera width and height of the lanes bench (default 256) and the participants "
+        "bench (default 64), 16-512",
+    )
+    parser.add_argument(
         "--device",
         default="cpu",
         help="torch device of the training and learner benches: cpu (default) or cuda (needs a "
@@ -142,7 +152,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="all",
         help="renderers of the sim bench: every one that loads here (default), or only one "
         "(gl and egl need a GPU or Mesa's EGL; gl is measured beside tiny); the goal-pixels "
-        "bench draws with this one, or with gl where it opens (default)",
+        "bench draws with this one, or with gl where it opens (default); the http, lanes and "
+        "participants benches measure this one, or tiny and gl where it opens (default)",
     )
 
 
@@ -177,16 +188,35 @@ def run(args: argparse.Namespace) -> int:
         bench_cache(args.eval_episodes)
     if "memory" in parts:
         bench_memory()
+    renderers, why_not = http_renderers(args.renderer)
+    served = {"http", "lanes", "participants"} & set(parts)
+    if served and why_not is not None:
+        print(f"{' and '.join(sorted(served))} bench with --renderer {args.renderer}: {why_not}")
+        return 2
+    if args.camera_size is not None and not 16 <= args.camera_size <= 512:
+        print(f"multion bench: --camera-size must be in [16, 512], got {args.camera_size}")
+        return 2
     if "http" in parts:
-        run_http_bench(server_options=["--http", args.http, "--loop", args.loop])
+        run_http_bench(
+            steps=args.steps,
+            server_options=["--http", args.http, "--loop", args.loop],
+            renderers=renderers,
+        )
     if "lanes" in parts:
-        run_lanes_bench()
-    if "participants" in parts:
-        try:
-            run_participants_bench(args.participants)
-        except ValueError as error:
-            print(f"multion bench: --participants: {error}", file=sys.stderr)
+        if not 2 <= args.lanes <= MAX_LANES:
+            print(f"multion bench: --lanes must be in [2, {MAX_LANES}], got {args.lanes}")
             return 2
+        for renderer in renderers:
+            run_lanes_bench(size=args.camera_size or 256, renderer=renderer, lanes=args.lanes)
+    if "participants" in parts:
+        for renderer in renderers:
+            try:
+                run_participants_bench(
+                    args.participants, size=args.camera_size or 64, renderer=renderer
+                )
+            except ValueError as error:
+                print(f"multion bench: --participants: {error}", file=sys.stderr)
+                return 2
     if "leaderboard" in parts:
         run_leaderboard_bench(server_options=["--http", args.http, "--loop", args.loop])
     if "pages" in parts:
@@ -426,67 +456,3 @@ def _raw_render_rate(env: MultiONEnv, poses: list[tuple[float, float, float]]) -
         )
         elapsed += time.perf_counter() - begin
     return len(poses) / elapsed
-
-
-# ---------------------------------------------------------------------- navigable-grid cache
-CACHE_SCENES = ("house-00061", "house-00066")
-
-
-def bench_cache(eval_episodes: int = 100) -> dict[str, float]:
-    """House builds (world + navigable grid) with a cold and a warm disk cache, and the wall
-    time of an oracle-planner evaluation without the cache and with a warm one (a private
-    temporary cache directory: the user's cache is not touched)."""
-    results: dict[str, float] = {}
-    saved = os.environ.get(grid_cache.CACHE_ENV)
-    with tempfile.TemporaryDirectory(prefix="multion-bench-navgrids-") as directory:
-        os.environ[grid_cache.CACHE_ENV] = directory
-        try:
-            cold = [_build_seconds(scene) for scene in CACHE_SCENES]
-            warm = [_build_seconds(scene) for scene in CACHE_SCENES]
-            results["build_cold_s"] = float(np.mean(cold))
-            results["build_warm_s"] = float(np.mean(warm))
-            ratio = results["build_cold_s"] / results["build_warm_s"]
-            results["build_speedup"] = ratio
-            print(
-                f"house build (world + navigable grid), mean of {', '.join(CACHE_SCENES)}: "
-                f"cold {results['build_cold_s']:.2f} s, cached {results['build_warm_s']:.3f} s: "
-                f"{ratio:.1f}× faster   (target ≥ 10×)"
-            )
-            if eval_episodes > 0:
-                os.environ[grid_cache.CACHE_ENV] = "off"
-                before = _eval_seconds(eval_episodes)
-                os.environ[grid_cache.CACHE_ENV] = directory
-                _eval_seconds(eval_episodes)  # fills the cache with every val house
-                after = _eval_seconds(eval_episodes)
-                results["eval_no_cache_s"], results["eval_warm_cache_s"] = before, after
-                print(
-                    f"{eval_episodes}-episode 3-ON val oracle-planner evaluation (local server, "
-                    f"1 worker): no grid cache {before:.1f} s, warm cache {after:.1f} s: "
-                    f"{before / after:.1f}× faster"
-                )
-        finally:
-            if saved is None:
-                os.environ.pop(grid_cache.CACHE_ENV, None)
-            else:
-                os.environ[grid_cache.CACHE_ENV] = saved
-    return results
-
-
-def _build_seconds(scene: str) -> float:
-    """Seconds to load ``scene`` in a fresh simulator, as a new worker process would (the
-    in-process grid cache emptied first; the disk cache as it is)."""
-    simulator._GRID_CACHE.clear()
-    start = time.perf_counter()
-    sim = simulator.Simulator()
-    sim.load_scene(scene)
-    seconds = time.perf_counter() - start
-    sim.close()
-    return seconds
-
-
-def _eval_seconds(episodes: int) -> float:
-    """Wall time of ``multion eval --agent oracle-planner --task 3-on --split val``."""
-    settings = EvalSettings(agent="oracle-planner", num_goals=3, split="val", episodes=episodes)
-    start = time.perf_counter()
-    evaluate(settings, progress=False)
-    return time.perf_counter() - start

@@ -3,7 +3,9 @@
 Measures, with local servers on free loopback ports (always stopped at the end):
 
 * steps/s of one environment over HTTP (``RemoteEnv``) vs in-process (``MultiONEnv``) at each
-  resolution (RGB-D, the first episode of the packaged val set, a procedural house);
+  resolution and with each renderer asked for (3-ON, RGB-D + goal, the first episode of the
+  packaged val set), and the CPU each remote step costs the client, the HTTP process and the
+  simulator worker (read from ``/proc``: they run one after another for each request);
 * aggregate steps/s of a 4-env ``RemoteVectorEnv`` against ``--workers 2`` vs ``--workers 1``;
 * the server's resident memory (HTTP process + workers) after 50 and after N short episodes.
 
@@ -25,6 +27,7 @@ import numpy as np
 from multion.api.local_server import LocalServer
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
+from multion.sim.camera import egl_plugin_loads, why_not_gl
 from multion.sim.simulator import Simulator
 from multion.task.env import MultiONEnv
 from multion.task.sampling import sample_episode
@@ -42,10 +45,13 @@ def run_http_bench(
     vector_resolution: int = 256,
     verbose: bool = True,
     server_options: list[str] | None = None,
+    renderers: tuple[str, ...] = ("tiny",),
 ) -> dict[str, Any]:
     """Run every measurement, print a small table (``verbose``) and return the numbers.
 
     ``server_options`` are extra ``multion serve`` arguments, e.g. ``["--http", "h11"]``.
+    ``renderers``: the single-env rows are measured with each; the vector env renders with
+    the last one.
     """
     say = print if verbose else _quiet
     result: dict[str, Any] = {"cpu_count": os.cpu_count(), "load_average": os.getloadavg()}
@@ -59,30 +65,58 @@ def run_http_bench(
         for server in (one, two):
             server.wait_ready()
         say(f"servers up: {one.url} (1 worker), {two.url} (2 workers)")
-        result["single"] = {res: _single_env(one.url, res, steps, say) for res in resolutions}
-        result["vector"] = _vector(one.url, two.url, vector_resolution, vector_steps, say)
-    result["vector"]["machine_headroom"] = _parallel_headroom(vector_resolution, vector_steps)
+        result["single"] = {
+            f"{renderer} {res}": _single_env(one, res, renderer, steps, say)
+            for renderer in renderers
+            for res in resolutions
+        }
+        result["vector"] = _vector(
+            one.url, two.url, vector_resolution, renderers[-1], vector_steps, say
+        )
+    result["vector"]["machine_headroom"] = _parallel_headroom(
+        vector_resolution, renderers[-1], vector_steps
+    )
     result["memory"] = _memory(episodes_for_memory, say, options)
     if verbose:
         print_table(result)
     return result
 
 
+def http_renderers(requested: str) -> tuple[tuple[str, ...], str | None]:
+    """What ``bench --renderer REQUESTED`` measures over HTTP, or why it cannot: "all" is tiny,
+    and gl beside it where an OpenGL context opens."""
+    gl_missing = why_not_gl()
+    if requested == "all":
+        return ("tiny",) if gl_missing else ("tiny", "gl"), None
+    if requested == "gl" and gl_missing:
+        return (), f"gl does not open here: {gl_missing}"
+    if requested == "egl" and not egl_plugin_loads():
+        return (), "pybullet's eglRenderer plugin does not load here"
+    return (requested,), None
+
+
 def print_table(result: dict[str, Any]) -> None:
     load = ", ".join(f"{x:.2f}" for x in result["load_average"])
     print(f"\nMultiON HTTP benchmark — {result['cpu_count']} CPUs, load average {load} at start")
     print(f"server options: {' '.join(result.get('server_options') or []) or '(defaults)'}")
-    print(f"{'RGB-D':>9} {'in-process':>11} {'HTTP':>8} {'HTTP/in-process':>16}  (target ≥ 0.80)")
-    for res, row in result["single"].items():
+    print(f"{'':>38} CPU ms per step: in-process | remote: client, HTTP process, worker")
+    print(f"{'renderer RGB-D':>15} {'in-process':>11} {'HTTP':>6} {'ratio':>6} {'':>23} ")
+    for key, row in result["single"].items():
+        renderer, res = key.split()
         print(
-            f"{res:>4}x{res:<4} {row['in_process_sps']:>11.1f} {row['http_sps']:>8.1f}"
-            f" {row['ratio']:>16.2f}"
+            f"{renderer:>6} {res:>4}x{res:<4} {row['in_process_sps']:>11.1f} {row['http_sps']:>6.1f}"
+            f" {row['ratio']:>6.2f} {row['in_process_cpu_ms']:>32.2f} |"
+            f" {row['client_cpu_ms']:>6.2f} {row['http_cpu_ms']:>6.2f} {row['worker_cpu_ms']:>6.2f}"
         )
+    print(
+        "  targets with gl (issue 54): HTTP/in-process ≥ 0.7 at 256², ≥ 0.6 at 128²; client and "
+        "HTTP CPU ≤ 0.8 ms per step at 256²"
+    )
     vec = result["vector"]
     print(
-        f"RemoteVectorEnv, {vec['num_envs']} envs at {vec['resolution']}²: "
+        f"RemoteVectorEnv, {vec['num_envs']} envs at {vec['resolution']}² ({vec['renderer']}): "
         f"{vec['workers_1_sps']:.1f} steps/s with 1 worker, {vec['workers_2_sps']:.1f} with 2 "
-        f"→ ×{vec['ratio']:.2f} (target ≥ 1.5)"
+        f"→ ×{vec['ratio']:.2f} (target ≥ 1.6)"
     )
     print(
         f"  (for reference: 2 in-process envs in 2 processes run ×{vec['machine_headroom']:.2f} "
@@ -97,20 +131,32 @@ def print_table(result: dict[str, Any]) -> None:
 
 
 # ---------------------------------------------------------------------- measurements
-def _single_env(url: str, res: int, steps: int, say: Callable[[str], None]) -> dict[str, float]:
-    config = {"camera": {"width": res, "height": res}}
-    local = MultiONEnv(EnvConfig(camera=CameraConfig(width=res, height=res)))
-    remote = RemoteEnv(url, config)
+def _single_env(
+    server: LocalServer, res: int, renderer: str, steps: int, say: Callable[[str], None]
+) -> dict[str, float]:
+    """``server`` has one worker, so the CPU of its children is that worker's."""
+    local = MultiONEnv(EnvConfig(camera=CameraConfig(width=res, height=res, renderer=renderer)))
+    remote = RemoteEnv(server.url, {"camera": {"width": res, "height": res, "renderer": renderer}})
     try:
         envs: dict[str, Any] = {"in_process": local, "http": remote}
         for env in envs.values():
             env.reset(options={"episode_index": 0})  # one house: no scene loads while timing
         rng = np.random.default_rng(res)
         totals = {name: [0, 0.0] for name in envs}
+        processes = [server.pid, *_children(server.pid)]  # the HTTP process, then its worker
+        cpu = np.zeros(3)  # seconds of the client, the HTTP process and its worker
+        in_process_cpu = 0.0
         while totals["http"][0] < steps:
             actions = rng.integers(1, 4, BLOCK_STEPS).tolist()  # moves and turns, no FOUND
             for name, env in envs.items():
+                if name == "http":
+                    cpu -= _cpu_seconds(processes, client_last=True)
+                started = time.process_time()
                 count, seconds = _run_block(env, actions)
+                if name == "http":
+                    cpu += _cpu_seconds(processes, client_last=False)
+                else:
+                    in_process_cpu += time.process_time() - started
                 totals[name][0] += count
                 totals[name][1] += seconds
     finally:
@@ -118,7 +164,17 @@ def _single_env(url: str, res: int, steps: int, say: Callable[[str], None]) -> d
         remote.close()
     row = {f"{name}_sps": count / seconds for name, (count, seconds) in totals.items()}
     row["ratio"] = row["http_sps"] / row["in_process_sps"]
-    say(f"{res}²: in-process {row['in_process_sps']:.1f}, HTTP {row['http_sps']:.1f} steps/s")
+    per_step_ms = 1000 * cpu / totals["http"][0]
+    row.update(
+        zip(("client_cpu_ms", "http_cpu_ms", "worker_cpu_ms"), per_step_ms.tolist(), strict=True)
+    )
+    # (the renderer's threads count: llvmpipe draws on every core)
+    row["in_process_cpu_ms"] = 1000 * in_process_cpu / totals["in_process"][0]
+    say(
+        f"{renderer} {res}²: in-process {row['in_process_sps']:.1f}, HTTP {row['http_sps']:.1f}"
+        f" steps/s; CPU ms per step: in-process {row['in_process_cpu_ms']:.2f}; remote: client"
+        f" {per_step_ms[0]:.2f}, HTTP {per_step_ms[1]:.2f}, worker {per_step_ms[2]:.2f}"
+    )
     return row
 
 
@@ -134,9 +190,15 @@ def _run_block(env: Any, actions: list[int]) -> tuple[int, float]:
 
 
 def _vector(
-    url_1: str, url_2: str, res: int, steps: int, say: Callable[[str], None], num_envs: int = 4
+    url_1: str,
+    url_2: str,
+    res: int,
+    renderer: str,
+    steps: int,
+    say: Callable[[str], None],
+    num_envs: int = 4,
 ) -> dict[str, Any]:
-    config = {"camera": {"width": res, "height": res}}
+    config = {"camera": {"width": res, "height": res, "renderer": renderer}}
     vecs = {"workers_1": RemoteVectorEnv([url_1], num_envs, config)}
     try:
         vecs["workers_2"] = RemoteVectorEnv([url_2], num_envs, config)
@@ -156,7 +218,12 @@ def _vector(
             vec.close()
     done = len(range(0, steps, BLOCK_STEPS // 2)) * (BLOCK_STEPS // 2) * num_envs
     row: dict[str, Any] = {f"{k}_sps": done / v for k, v in totals.items()}
-    row.update(num_envs=num_envs, resolution=res, ratio=row["workers_2_sps"] / row["workers_1_sps"])
+    row.update(
+        num_envs=num_envs,
+        resolution=res,
+        renderer=renderer,
+        ratio=row["workers_2_sps"] / row["workers_1_sps"],
+    )
     say(
         f"vector: 1 worker {row['workers_1_sps']:.1f}, 2 workers {row['workers_2_sps']:.1f} steps/s"
     )
@@ -201,7 +268,7 @@ def _memory(
     }
 
 
-def _parallel_headroom(res: int, steps: int) -> float:
+def _parallel_headroom(res: int, renderer: str, steps: int) -> float:
     """Throughput of in-process envs in 2 processes over 1, without any server: what the
     machine (its cores, and whatever else runs on it) allows a second worker to add."""
     ctx = multiprocessing.get_context("spawn")
@@ -209,7 +276,9 @@ def _parallel_headroom(res: int, steps: int) -> float:
     for count in (1, 2):
         barrier, results = ctx.Barrier(count), ctx.Queue()
         procs = [
-            ctx.Process(target=_render_steps, args=(res, steps, barrier, results), daemon=True)
+            ctx.Process(
+                target=_render_steps, args=(res, renderer, steps, barrier, results), daemon=True
+            )
             for _ in range(count)
         ]
         try:
@@ -225,8 +294,8 @@ def _parallel_headroom(res: int, steps: int) -> float:
     return float(rates[1] / rates[0])
 
 
-def _render_steps(res: int, steps: int, barrier: Any, results: Any) -> None:
-    env = MultiONEnv(EnvConfig(camera=CameraConfig(width=res, height=res)))
+def _render_steps(res: int, renderer: str, steps: int, barrier: Any, results: Any) -> None:
+    env = MultiONEnv(EnvConfig(camera=CameraConfig(width=res, height=res, renderer=renderer)))
     env.reset(options={"episode_index": 0})
     barrier.wait()  # every process starts timing together
     start = time.perf_counter()
@@ -237,6 +306,28 @@ def _render_steps(res: int, steps: int, barrier: Any, results: Any) -> None:
 
 
 # ---------------------------------------------------------------------- helpers
+def _cpu_seconds(processes: list[int], client_last: bool) -> np.ndarray:
+    """CPU seconds used so far by this process (the client), the server's HTTP process
+    (``processes[0]``) and its children (the rest). The client's own clock is read last before
+    a block and first after it, so that reading ``/proc`` is not counted as the client's."""
+    client = 0.0 if client_last else time.process_time()
+    server = _process_cpu_seconds(processes[0])
+    children = sum(_process_cpu_seconds(child) for child in processes[1:])
+    if client_last:
+        client = time.process_time()
+    return np.array([client, server, children])
+
+
+def _process_cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of one process (0 for one that is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            fields = handle.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _tree_rss_mb(pid: int) -> float:
     """Resident memory of a process and its children (the simulator workers), in MB."""
     total_kb = 0

@@ -1,5 +1,6 @@
-"""``multion bench --only lanes``: a phase played with one lane and with two, on a server with
-two simulator workers: the wall time of the whole run, and their ratio (target ≥ 1.6).
+"""``multion bench --only lanes``: a phase played with one lane and with two (or ``--lanes N``),
+on a server with two simulator workers: the wall time of the whole run, and their ratio
+(target ≥ 1.6 with two lanes), with the renderer asked for.
 
 The client only sends random moves (never FOUND, so every episode lasts ``max_steps``): the
 bench measures what the server can do in parallel, not an agent's thinking time.
@@ -25,18 +26,24 @@ from multion.leaderboard.storage import Database, add_team
 from multion_client.run import RunEnv
 
 TARGET = 1.6
+MAX_LANES = 8
+FULL_RUN_STEPS = 1000 * 2500
+"""A MultiON 2.0 test phase whose every episode runs to the step limit: the longest it takes."""
 
 
-def bench_challenge(size: int, episodes: int, max_steps: int, rooms: int) -> Challenge:
-    """One 3-ON track at ``size``² in houses of ``rooms`` rooms, runs of up to two lanes, a
-    fresh secret."""
+def bench_challenge(
+    size: int, episodes: int, max_steps: int, rooms: int, renderer: str = "tiny", lanes: int = 2
+) -> Challenge:
+    """One 3-ON track at ``size``² drawn by ``renderer`` in houses of ``rooms`` rooms, runs of
+    up to ``lanes`` lanes, a fresh secret."""
+    camera = {"width": size, "height": size, "renderer": renderer}
     return Challenge(
         name="bench-lanes",
         secret=secrets.token_urlsafe(24),
-        limits=Limits(step_timeout_s=600, max_envs_per_run=2),
+        limits=Limits(step_timeout_s=600, max_envs_per_run=lanes),
         hidden=HiddenScenes(rooms=(rooms, rooms)),
         tracks=(
-            Track("3-on", num_goals=3, camera={"width": size, "height": size},
+            Track("3-on", num_goals=3, camera=camera,
                   max_steps=max_steps, phases=(
                 Phase("test", episodes=episodes, houses=2, feedback="aggregate"),
             )),
@@ -45,11 +52,10 @@ def bench_challenge(size: int, episodes: int, max_steps: int, rooms: int) -> Cha
 
 
 def bench_server_options(
-    directory: Path, teams: list[str], size: int, episodes: int, max_steps: int, rooms: int
+    directory: Path, teams: list[str], challenge: Challenge
 ) -> tuple[list[str], list[str]]:
-    """Write the bench's challenge file and SQLite database (``teams`` added, without quotas)
-    into ``directory``: the server's options and each team's token."""
-    challenge = bench_challenge(size, episodes, max_steps, rooms)
+    """Write ``challenge`` and an SQLite database (``teams`` added, without quotas) into
+    ``directory``: the server's options and each team's token."""
     path = write_challenge(challenge, directory / "challenge.toml")
     database = f"sqlite:///{directory / 'bench.db'}"
     db = Database.open(database)
@@ -96,24 +102,31 @@ def timed_run(url: str, token: str, lanes: int) -> tuple[float, int]:
 
 
 def run_lanes_bench(
-    size: int = 256, episodes: int = 40, max_steps: int = 50, rooms: int = 3, verbose: bool = True
-) -> dict[str, Any]:
-    """Print and return the wall time of a run with one lane and with two, and their ratio."""
+    size: int = 256, episodes: int = 40, max_steps: int = 50, rooms: int = 3,
+    verbose: bool = True, renderer: str = "tiny", lanes: int = 2,
+) -> dict[str, Any]:  # fmt: skip
+    """Print and return the wall time of a run with one lane and with ``lanes``, their ratio,
+    and the wall time a 1,000-episode run of 2,500-step episodes would take at these rates."""
+    if not 2 <= lanes <= MAX_LANES:
+        raise ValueError(f"lanes must be in [2, {MAX_LANES}], got {lanes}")
+    challenge = bench_challenge(size, episodes, max_steps, rooms, renderer, lanes)
     with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
-        options, (token,) = bench_server_options(
-            Path(directory), ["baselines"], size, episodes, max_steps, rooms
-        )
+        options, (token,) = bench_server_options(Path(directory), ["baselines"], challenge)
         with LocalServer(workers=2, options=options, serve_module=SERVE_MODULE) as server:
-            timed_run(server.url, token, 2)  # warm up: houses built, workers' scenes loaded
+            timed_run(server.url, token, lanes)  # warm up: houses built, workers' scenes loaded
             one, steps_one = timed_run(server.url, token, 1)
-            two, steps_two = timed_run(server.url, token, 2)
-    ratio = one / two
+            many, steps_many = timed_run(server.url, token, lanes)
+    ratio = one / many
+    hours = {k: FULL_RUN_STEPS / (steps / seconds) / 3600
+             for k, steps, seconds in ((1, steps_one, one), (lanes, steps_many, many))}  # fmt: skip
     if verbose:
         load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-        print(f"\nA {episodes}-episode run ({max_steps} steps each, {size}² RGB-D) on 2 simulator "
-              f"workers (load average {load})")  # fmt: skip
-        print(f"{'lanes':>6} {'seconds':>9} {'steps/s':>9}")
-        print(f"{1:>6} {one:>9.1f} {steps_one / one:>9.1f}")
-        print(f"{2:>6} {two:>9.1f} {steps_two / two:>9.1f}")
-        print(f"1 lane / 2 lanes wall time: {ratio:.2f} (target ≥ {TARGET})")
-    return {"one_lane_s": one, "two_lanes_s": two, "ratio": ratio, "steps": steps_one}
+        print(f"\nA {episodes}-episode run ({max_steps} steps each, {size}² RGB-D, {renderer}) on 2 "
+              f"simulator workers (load average {load})")  # fmt: skip
+        print(f"{'lanes':>6} {'seconds':>9} {'steps/s':>9} {'hours for 1,000 x 2,500 steps':>31}")
+        for count, seconds, steps in ((1, one, steps_one), (lanes, many, steps_many)):
+            print(f"{count:>6} {seconds:>9.1f} {steps / seconds:>9.1f} {hours[count]:>31.1f}")
+        target = f" (target ≥ {TARGET})" if lanes == 2 else ""
+        print(f"1 lane / {lanes} lanes wall time: {ratio:.2f}{target}")
+    return {"one_lane_s": one, "lanes": lanes, "lanes_s": many, "ratio": ratio,
+            "steps": steps_one, "full_run_hours": hours}  # fmt: skip

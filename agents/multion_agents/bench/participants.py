@@ -20,7 +20,7 @@ import numpy as np
 
 from multion.api.local_server import LocalServer
 from multion.leaderboard.cli_serve import SERVE_MODULE
-from multion_agents.bench.lanes import bench_server_options
+from multion_agents.bench.lanes import bench_challenge, bench_server_options
 from multion_client.run import RunEnv
 
 MAX_PARTICIPANTS = 64
@@ -48,16 +48,15 @@ def play_participant(url: str, token: str, name: str, latencies: list[float], se
 
 def run_participants_bench(
     participants: int = 8, size: int = 64, episodes: int = 4, max_steps: int = 25,
-    rooms: int = 3, verbose: bool = True,
+    rooms: int = 3, verbose: bool = True, renderer: str = "tiny",
 ) -> dict[str, Any]:  # fmt: skip
     """Print and return steps/s and step-latency percentiles of ``participants`` at once."""
     if not 1 <= participants <= MAX_PARTICIPANTS:
         raise ValueError(f"participants must be in [1, {MAX_PARTICIPANTS}], got {participants}")
+    challenge = bench_challenge(size, episodes, max_steps, rooms, renderer)
     with tempfile.TemporaryDirectory(prefix="multion-bench-") as directory:
         names = [f"participant {k}" for k in range(participants)]
-        options, tokens = bench_server_options(
-            Path(directory), names, size, episodes, max_steps, rooms
-        )
+        options, tokens = bench_server_options(Path(directory), names, challenge)
         with LocalServer(workers=2, options=options, serve_module=SERVE_MODULE) as server:
             latencies: list[list[float]] = [[] for _ in range(participants)]
             counts = [0] * participants
@@ -86,7 +85,8 @@ def run_participants_bench(
         load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
         print(
             f"\n{participants} participants at once, each a {episodes}-episode run of "
-            f"{max_steps}-step episodes ({size}² RGB-D), 2 simulator workers (load {load})"
+            f"{max_steps}-step episodes ({size}² RGB-D, {renderer}), 2 simulator workers "
+            f"(load {load})"
         )
         print(
             f"  {figures['steps_per_s']:.1f} steps/s over {steps} steps; step latency p50 "

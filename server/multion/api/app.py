@@ -19,6 +19,7 @@ from multion.api.openapi import install_openapi
 from multion.api.routers import icon, live, meta, sessions
 from multion.api.sessions import SessionRegistry
 from multion.api.settings import ServerSettings, fit_outer_memory_limit
+from multion.api.step_fast_path import StepFastPath
 from multion.api.workers import WorkerPool
 from multion.config.ranges import ConfigError
 from multion_client.errors import (
@@ -111,6 +112,7 @@ def create_app(
     app.include_router(icon.router)
     for extension in extensions:
         extension.install(app)
+    app.add_middleware(StepFastPath)
     app.add_exception_handler(MultiONError, _api_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(HTTPException, _http_error)

@@ -8,11 +8,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from multion_client.protocol import decode
+from multion_client.wire import decode_small_arrays
 
 MAX_POINTS = 10_000
 """Points kept per environment at most (an episode's step limit is far below): beyond it the
 oldest are dropped, so a session that never resets holds a bounded trail."""
+
+GPS_BYTES_AT_MOST = 256
+"""A ``gps`` reading is 2 floats (21 bytes encoded); larger arrays are skipped undecoded."""
 
 
 @dataclass
@@ -35,7 +38,7 @@ class Trail:
 def extend_trails(trails: list[Trail], answer: bytes, reset: bool) -> list[Trail]:
     """``trails`` (one per environment) with the readings of ``answer`` (a reset's or a step's
     encoded reply); an answer without ``gps`` leaves them as they are."""
-    decoded = decode(answer)
+    decoded = decode_small_arrays(answer, GPS_BYTES_AT_MOST)  # the images are not read
     observations, infos = decoded["observations"], decoded["infos"]
     if len(trails) != len(observations):
         trails = [Trail() for _ in observations]

@@ -394,13 +394,15 @@ class SessionRegistry:
     async def _fan_out(self, shards: list[Shard], command: str, payloads: list[Any]) -> list[Reply]:
         """Send one command per shard concurrently; raise the first error once all answered."""
         timeout = self.settings.worker_timeout_s
-        results = await asyncio.gather(
-            *(
-                sh.worker.request(command, sh.shard_id, p, timeout)
-                for sh, p in zip(shards, payloads, strict=True)
-            ),
-            return_exceptions=True,
-        )
+        requests = [
+            sh.worker.request(command, sh.shard_id, p, timeout)
+            for sh, p in zip(shards, payloads, strict=True)
+        ]
+        results: list[Reply | BaseException]
+        if len(requests) == 1:  # most sessions: no task for gather to make
+            results = [await requests[0]]
+        else:
+            results = await asyncio.gather(*requests, return_exceptions=True)
         replies: list[Reply] = []
         for sh, result in zip(shards, results, strict=True):
             if isinstance(result, BaseException):

@@ -10,8 +10,11 @@ from __future__ import annotations
 from multiprocessing.connection import Connection
 
 
-def run_worker(conn: Connection, memory_limit_bytes: int) -> None:
-    """Import the simulator in this (child) process and serve the server's commands."""
+def run_worker(
+    conn: Connection, memory_limit_bytes: int, reply_buffer: tuple[str, int] | None = None
+) -> None:
+    """Import the simulator in this (child) process and serve the server's commands;
+    ``reply_buffer``: the name and size of the shared memory its replies' parts go through."""
     from multion.api.worker_process import worker_main  # the child's import, never the server's
 
-    worker_main(conn, memory_limit_bytes)
+    worker_main(conn, memory_limit_bytes, reply_buffer)

@@ -2,9 +2,12 @@
 
 A worker owns *shards*: the environments of one session that were pinned to it. It answers one
 command at a time over its pipe. Requests are pickled tuples ``(command, shard_id, payload)``;
-a reply is a msgpack header ``{"ok": bool, "parts": k, ...}`` followed by ``k`` raw byte
-messages: the msgpack encodings of the per-env items (see ``protocol.encode_items``), which the
-server splices into its HTTP response without decoding them. This module never imports FastAPI.
+a reply is a msgpack header ``{"ok": bool, "parts": k, ...}`` and ``k`` raw byte strings: the
+msgpack encodings of the per-env items (see ``protocol.encode_items``), which the server
+splices into its HTTP response without decoding them. The parts follow the header on the pipe,
+or, where the server gave the worker a :class:`~multion.api.reply_buffer.ReplyBuffer` and they
+fit, lie in it with their lengths under the header's ``buffered``. This module never imports
+FastAPI.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
+from multion.api.reply_buffer import ReplyBuffer
 from multion.common.processes import give_back_memory, ignore_stop_signals, limit_address_space
 from multion.config.codec import session_config_from_dict
 from multion.sim.camera import auto_renderer_elsewhere, resolve_renderer
@@ -38,14 +42,18 @@ class Shard:
     infos: list[dict[str, Any]] = field(default_factory=list)
 
 
-def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
+def worker_main(
+    conn: Connection, memory_limit_bytes: int, reply_buffer: tuple[str, int] | None = None
+) -> None:
     """Serve commands until ``shutdown``, until the server's end of the pipe closes, or until
     memory runs out (the worker then answers and exits: its state is not to be trusted, and the
-    server replaces it)."""
+    server replaces it). ``reply_buffer``: the name and size of the server's shared memory for
+    this worker's replies."""
     ignore_stop_signals()  # Ctrl-C or SIGTERM reach the server too, which stops us in order
     # A bug or a bad estimate can cost this worker, never the machine. (The server already
     # lowered the limit to any outer one; the clamp is for apps built without that check.)
     memory_limit_bytes = limit_address_space(memory_limit_bytes)
+    buffer = None if reply_buffer is None else ReplyBuffer.attach(*reply_buffer)
     shards: dict[str, Shard] = {}
     conn.send_bytes(encode(ready_message()))
     while True:
@@ -59,6 +67,9 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
             header, parts = handle(shards, command, shard_id, payload)
         except MemoryError:
             header, parts = _out_of_memory(command, memory_limit_bytes), []
+        buffered = None if buffer is None or not parts else buffer.write(parts)
+        if buffered is not None:
+            header["buffered"], parts = buffered, []
         header["parts"] = len(parts)
         conn.send_bytes(encode(header))
         for part in parts:
@@ -67,6 +78,8 @@ def worker_main(conn: Connection, memory_limit_bytes: int) -> None:
             break
     for shard in shards.values():
         _close(shard)
+    if buffer is not None:
+        buffer.close()
 
 
 def ready_message() -> dict[str, Any]:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
+from multion.api.reply_buffer import ReplyBuffer
 from multion.api.turns import TurnQueue
 from multion.api.worker_entry import run_worker
 from multion.task.memory import ProcessShare, mib
@@ -94,9 +95,11 @@ class Worker:
         self.ready: asyncio.Future[WorkerReport] = self._loop.create_future()
         self.conn, child = ctx.Pipe(duplex=True)
         _widen(self.conn, child)
+        self.buffer: ReplyBuffer | None = ReplyBuffer.create()
+        buffer_name = None if self.buffer is None else (self.buffer.name, self.buffer.size)
         self.process = ctx.Process(
             target=run_worker,
-            args=(child, memory_limit_bytes),
+            args=(child, memory_limit_bytes, buffer_name),
             name=f"multion-worker-{slot}",
             daemon=True,
         )
@@ -165,18 +168,23 @@ class Worker:
         async with self._turns.turn(urgent=command == "step"):
             if not self.alive:
                 raise WorkerFailed(self.failure)
-            self._waiter = self._loop.create_future()
+            waiter: asyncio.Future[Reply] = self._loop.create_future()
+            self._waiter = waiter
             try:
                 self.conn.send((command, shard_id, payload))
             except OSError as error:
                 self._died(f"simulator worker {self.pid} cannot be reached ({error})")
+            # A timer rather than asyncio.wait_for, which costs a task per request: on time-out
+            # the worker is killed, and its death fails the waiter with WorkerFailed.
+            timer = self._loop.call_later(timeout_s, self._timed_out, command, timeout_s)
             try:
-                return await asyncio.wait_for(self._waiter, timeout_s)
-            except asyncio.TimeoutError:
-                self.kill(f"simulator worker {self.pid} did not answer {command} in {timeout_s} s")
-                raise WorkerFailed(self.failure) from None
+                return await waiter
             finally:
+                timer.cancel()
                 self._waiter = None
+
+    def _timed_out(self, command: str, timeout_s: float) -> None:
+        self.kill(f"simulator worker {self.pid} did not answer {command} in {timeout_s} s")
 
     def kill(self, reason: str) -> None:
         """Stop the process now (no reply expected) and mark the worker failed."""
@@ -201,8 +209,14 @@ class Worker:
             header = decode(self.conn.recv_bytes())
             # The parts follow the header at once, so these reads do not wait.
             parts = [self.conn.recv_bytes() for _ in range(int(header.get("parts", 0)))]
+            if "buffered" in header and self.buffer is not None:
+                # now, before anything else is sent to the worker: its next reply reuses it
+                parts = self.buffer.read(header.pop("buffered"))
         except (EOFError, OSError):
             self._died(None)
+            return
+        except ValueError as error:
+            self.kill(f"simulator worker {self.pid} sent a malformed reply ({error})")
             return
         if header.get("ready"):
             if not self.ready.done():
@@ -222,6 +236,9 @@ class Worker:
             "the sessions it held are lost: close them and create new ones"
         )
         self.conn.close()
+        if self.buffer is not None:
+            self.buffer.close()
+            self.buffer = None
         error = WorkerFailed(self.failure)
         for future in (self._waiter, self.ready):
             if future is not None and not future.done():

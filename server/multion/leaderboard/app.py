@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from fastapi import FastAPI
 
 from multion.api.sessions import SessionRegistry
-from multion.leaderboard.challenge import Challenge
+from multion.api.workers import WorkerReport
+from multion.leaderboard.challenge import Challenge, ChallengeError
 from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.clock import Clock
 from multion.leaderboard.live_run import draw_of
@@ -58,8 +59,12 @@ async def leaderboard_lifespan(
     registry: SessionRegistry,
     clock: Clock | None = None,
 ) -> AsyncIterator[None]:
-    """Open (and migrate) the database, start the run service and its expiry loop; the
-    service's deadlines follow ``clock`` (None: the wall clock)."""
+    """Check the tracks' renderers open in the workers (ChallengeError if not), open (and
+    migrate) the database, start the run service and its expiry loop; the service's deadlines
+    follow ``clock`` (None: the wall clock)."""
+    problem = renderer_problem(challenge, await registry.pool.report())
+    if problem is not None:
+        raise ChallengeError(problem)
     db = await asyncio.to_thread(Database.open, settings.database)
     service = RunService(challenge, db, registry, clock)
     app.state.runs, app.state.token_cache = service, TokenCache(settings.token_cache_s)
@@ -93,6 +98,21 @@ async def leaderboard_lifespan(
         await service.close()
         pictures.close()
         db.close()
+
+
+def renderer_problem(challenge: Challenge, report: WorkerReport | None) -> str | None:
+    """Why the tracks that render with ``gl`` cannot be served by these workers (they could
+    not open an OpenGL context), or None: said when the server starts, not to the first
+    participant whose run would fail."""
+    tracks = [t.name for t in challenge.tracks if t.camera.get("renderer") == "gl"]
+    if not tracks or report is None or report.gl_unavailable is None:
+        return None
+    return (
+        f"track(s) {', '.join(tracks)} render with camera.renderer = 'gl', which does not open "
+        f"in this server's simulator workers: {report.gl_unavailable}. Install Mesa's EGL "
+        "(apt-get install libegl1 libgl1-mesa-dri) or a GPU driver, or set the tracks' "
+        "renderer to 'tiny'"
+    )
 
 
 @dataclass
