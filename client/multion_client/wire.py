@@ -98,6 +98,45 @@ def _unpack(data: bytes | bytearray | memoryview, ext_hook: Callable[[int, bytes
         ) from None
 
 
+def decode_keeping_encoded(data: bytes, name: str) -> dict[str, Any]:
+    """:func:`decode` of a map, except that the items of its array ``name`` stay msgpack
+    encodings: a server passes them on (:func:`encode_with_encoded`) without copying their
+    arrays out and back in."""
+    unpacker = msgpack.Unpacker(ext_hook=_ext_hook, raw=False, max_buffer_size=len(data))
+    unpacker.feed(data)
+    try:
+        decoded: dict[str, Any] = {}
+        for _ in range(unpacker.read_map_header()):
+            key = unpacker.unpack()
+            if key != name:
+                decoded[key] = unpacker.unpack()
+                continue
+            items = []
+            for _ in range(unpacker.read_array_header()):
+                start = unpacker.tell()
+                unpacker.skip()
+                items.append(data[start : unpacker.tell()])
+            decoded[key] = items
+    except MalformedMessage:
+        raise
+    except (ValueError, TypeError, msgpack.UnpackException) as error:
+        raise MalformedMessage(
+            f"body is not valid msgpack ({type(error).__name__}: {error})"
+        ) from None
+    return decoded
+
+
+def encode_with_encoded(fields: Mapping[str, Any], encoded: Mapping[str, bytes]) -> bytes:
+    """:func:`encode` of the map ``fields``, with the values named in ``encoded`` given as
+    their msgpack encodings already."""
+    packer = msgpack.Packer(**_packer_options)
+    out = [packer.pack_map_header(len(fields))]
+    for key, value in fields.items():
+        out.append(packer.pack(key))
+        out.append(encoded[key] if key in encoded else packer.pack(value))
+    return b"".join(out)
+
+
 def encode_items(items: Sequence[Any]) -> bytes:
     """The msgpack encodings of ``items`` back to back, without an array header.
 

@@ -16,6 +16,8 @@ from multion.leaderboard.hidden import HiddenEpisodes
 from multion.leaderboard.live_run import Lane, LiveRun
 from multion_client import errors
 from multion_client.protocol import CreateSession, Reset, Step, decode, space_from_wire
+from multion_client.run_protocol import RunObservation
+from multion_client.wire import decode_keeping_encoded, encode_with_encoded
 
 log = logging.getLogger("multion.leaderboard")
 
@@ -95,8 +97,9 @@ class LaneSessions:
             await self.close(lane)
 
     async def call(self, live: LiveRun, lane: Lane, argument: Episode | int) -> dict[str, Any]:
-        """Reset the lane's environment into ``argument`` (an episode) or step it (an action).
-        The session must exist; ``errors.SessionNotFound`` says it is gone."""
+        """Reset the lane's environment into ``argument`` (an episode) or step it (an action):
+        the decoded answer, whose ``observations`` stay encoded (they go on to the participant
+        as they are). The session must exist; ``errors.SessionNotFound`` says it is gone."""
         assert lane.session_id is not None
         try:
             if isinstance(argument, Episode):
@@ -114,12 +117,11 @@ class LaneSessions:
                     "does not count against your quota, and shows no results"
                 )
             ) from None
-        answer: dict[str, Any] = decode(reply)
-        return answer
+        return decode_keeping_encoded(reply, "observations")
 
-    async def replay(self, live: LiveRun, lane: Lane) -> tuple[Any, bool] | None:
+    async def replay(self, live: LiveRun, lane: Lane) -> tuple[bytes, bool] | None:
         """A new session in the lane's state: its episode reset and its actions replayed.
-        Returns the last (observation, done), or None when no episode is going."""
+        Returns the last (encoded observation, done), or None when no episode is going."""
         await self.close(lane)
         st = lane.state
         if st.episode_active and lane.episode is None:
@@ -141,3 +143,9 @@ class LaneSessions:
             with contextlib.suppress(errors.MultiONError):
                 await self.registry.close(lane.session_id)
             lane.session_id = None
+
+
+def with_observation(answer: RunObservation, observation: bytes) -> bytes:
+    """``answer`` encoded with ``observation``, the simulator's encoding of it (not decoded
+    and encoded again: a 256² RGB-D observation is ~460 kB)."""
+    return encode_with_encoded(answer.to_wire(), {"observation": observation})

@@ -34,7 +34,7 @@ from multion.config.episode import Episode
 from multion.leaderboard.challenge import Challenge
 from multion.leaderboard.clock import Clock, SystemClock
 from multion.leaderboard.hidden import HiddenEpisodes, RunDraw, run_order
-from multion.leaderboard.lane_sessions import LaneSessions, ServerFault
+from multion.leaderboard.lane_sessions import LaneSessions, ServerFault, with_observation
 from multion.leaderboard.live_run import Lane, LiveRun, draw_of
 from multion.leaderboard.models import Run
 from multion.leaderboard.run_expiry import RunExpiry
@@ -205,8 +205,9 @@ class RunService(RunExpiry):
             st.consecutive_timeouts = 0
             lane.episode_clock = time.monotonic()
             await self._save(live, [])
-            answer = RunObservation(st.position, 0, observation, done=False)
-            lane.last_answer = encode(answer.to_wire())
+            lane.last_answer = with_observation(
+                RunObservation(st.position, 0, {}, done=False), observation
+            )
             return lane.last_answer
 
     async def step(self, team_id: int, run_id: str, episode: int, seq: int, action: int) -> bytes:
@@ -386,7 +387,12 @@ class RunService(RunExpiry):
         return None
 
     async def _conclude(
-        self, live: LiveRun, lane: Lane, observation: Any, done: bool, save_unfinished: bool = True
+        self,
+        live: LiveRun,
+        lane: Lane,
+        observation: bytes,
+        done: bool,
+        save_unfinished: bool = True,
     ) -> bytes:
         """After a step (or a replay up to it): record the episode if it ended, finish the run
         if that was its last, else save the state; keep the answer for retries."""
@@ -405,10 +411,10 @@ class RunService(RunExpiry):
             await self._save(live, results)
         metrics = st.last_metrics if done and live.phase.feedback == "episodes" else None
         answer = RunObservation(
-            st.position, st.seq, observation, done=done,
+            st.position, st.seq, {}, done=done,
             end_reason=self._shown_reason(live, end_reason), metrics=metrics, run_done=run_done,
         )  # fmt: skip
-        lane.last_answer = encode(answer.to_wire())
+        lane.last_answer = with_observation(answer, observation)
         return lane.last_answer
 
     async def _save(self, live: LiveRun, results: list[EpisodeResult]) -> None:
