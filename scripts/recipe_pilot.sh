@@ -19,8 +19,11 @@ episodes=${EPISODES:-100}
 only=${ONLY:-}
 multion=${MULTION:-.venv/bin/multion}
 published=docs/learned/pilot
-# the FOUND curriculum covers the first 40 % of the run, at the reference's penalty (2.5)
+# The FOUND curriculum covers the first 40 % of the run. `all` has the reference's penalty
+# (2.5: saimwani/multiON environments.py l. 82-83); with it the agent stopped calling FOUND at
+# all, so `found` alone tries a fifth of it (FOUND_PENALTY).
 found_frames=$((frames * 2 / 5))
+found_penalty=${FOUND_PENALTY:-0.5}
 recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
   --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard --quiet)
 evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0)
@@ -46,7 +49,7 @@ pilot() {
 pilot "$agent-all" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000
 pilot "$agent-paper"
 pilot "$agent-heads" --goal-heads
-pilot "$agent-found" --found-curriculum "$found_frames:2.5"
+pilot "$agent-found" --found-curriculum "$found_frames:$found_penalty"
 pilot "$agent-vision" --pretrain-vision 2000
 
 mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)

@@ -185,7 +185,8 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     extras = ("--goal-heads", "--found-curriculum", "--pretrain-vision")
     assert not any(flag in by_run["no-map-paper"] for flag in extras)
     assert all(flag in by_run["no-map-all"] for flag in extras)
-    assert "--found-curriculum 400:2.5" in by_run["no-map-found"]
+    assert "--found-curriculum 400:2.5" in by_run["no-map-all"]  # the reference's penalty
+    assert "--found-curriculum 400:0.5" in by_run["no-map-found"]  # a fifth of it (FOUND_PENALTY)
     assert "--goal-heads" in by_run["no-map-heads"]
     assert "--found-curriculum" not in by_run["no-map-heads"]
     assert "--pretrain-vision 2000" in by_run["no-map-vision"]

@@ -5,9 +5,10 @@ See :mod:`multion_client.protocol` for the layout of the array extensions.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import struct
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any
 
 import msgpack
@@ -88,8 +89,15 @@ def decode_small_arrays(data: bytes, max_bytes: int) -> Any:
 
 
 def _unpack(data: bytes | bytearray | memoryview, ext_hook: Callable[[int, bytes], Any]) -> Any:
-    try:
+    with _malformed_as_error():
         return msgpack.unpackb(data, ext_hook=ext_hook, raw=False)
+
+
+@contextlib.contextmanager
+def _malformed_as_error() -> Iterator[None]:
+    """msgpack's and the array hook's complaints as :class:`MalformedMessage`."""
+    try:
+        yield
     except MalformedMessage:
         raise
     except (ValueError, TypeError, msgpack.UnpackException) as error:
@@ -104,8 +112,8 @@ def decode_keeping_encoded(data: bytes, name: str) -> dict[str, Any]:
     arrays out and back in."""
     unpacker = msgpack.Unpacker(ext_hook=_ext_hook, raw=False, max_buffer_size=len(data))
     unpacker.feed(data)
-    try:
-        decoded: dict[str, Any] = {}
+    decoded: dict[str, Any] = {}
+    with _malformed_as_error():
         for _ in range(unpacker.read_map_header()):
             key = unpacker.unpack()
             if key != name:
@@ -117,12 +125,6 @@ def decode_keeping_encoded(data: bytes, name: str) -> dict[str, Any]:
                 unpacker.skip()
                 items.append(data[start : unpacker.tell()])
             decoded[key] = items
-    except MalformedMessage:
-        raise
-    except (ValueError, TypeError, msgpack.UnpackException) as error:
-        raise MalformedMessage(
-            f"body is not valid msgpack ({type(error).__name__}: {error})"
-        ) from None
     return decoded
 
 

@@ -26,6 +26,7 @@ from multion_client.protocol import (
     space_from_wire,
     space_to_wire,
 )
+from multion_client.wire import decode_keeping_encoded, decode_small_arrays, encode_with_encoded
 
 
 def test_routes_are_versioned() -> None:
@@ -109,6 +110,26 @@ def test_join_encoded_matches_whole_encoding() -> None:
     out = decode(data)
     assert [o["x"].tolist() for o in out["obs"]] == [[0, 1, 2], [0, 1], [0]]
     assert out["r"] == []
+
+
+def test_an_observation_passed_on_encoded_decodes_as_the_original() -> None:
+    observation = {"rgb": np.arange(12, dtype=np.uint8).reshape(2, 2, 3), "gps": np.ones(2)}
+    reply = encode({"observations": [observation], "infos": [{"metrics": {"spl": 0.5}}]})
+    decoded = decode_keeping_encoded(reply, "observations")
+    assert decoded["infos"] == [{"metrics": {"spl": 0.5}}]  # the rest is decoded
+    (kept,) = decoded["observations"]
+    assert kept == encode(observation)  # the item's own encoding, as it was
+    answer = decode(encode_with_encoded({"episode": 3, "observation": {}}, {"observation": kept}))
+    assert answer["episode"] == 3
+    np.testing.assert_array_equal(answer["observation"]["rgb"], observation["rgb"])
+    with pytest.raises(errors.MalformedMessage):
+        decode_keeping_encoded(reply[:-3], "observations")
+
+
+def test_small_arrays_are_decoded_and_images_skipped() -> None:
+    reply = encode({"gps": np.array([1.5, -2.0], np.float32), "rgb": np.zeros((64, 64, 3))})
+    decoded = decode_small_arrays(reply, 256)
+    assert decoded["rgb"] is None and decoded["gps"].tolist() == [1.5, -2.0]
 
 
 def test_spaces_round_trip() -> None:
