@@ -25,7 +25,7 @@ RUN pip wheel --no-cache-dir --wheel-dir /wheels ./client ".[postgres]"
 FROM python:3.11-slim-bookworm
 RUN apt-get update \
     && apt-get install -y --no-install-recommends libstdc++6 \
-        "libegl1=1.6.*" "libegl-mesa0=22.3.*" "libgl1-mesa-dri=22.3.*" \
+        "libegl1=1.6.*" "libgl1=1.6.*" "libegl-mesa0=22.3.*" "libgl1-mesa-dri=22.3.*" \
     && rm -rf /var/lib/apt/lists/*
 COPY --from=build /wheels /wheels
 # The same packages as `pip install ./client ".[postgres]"`, from the wheels built above.

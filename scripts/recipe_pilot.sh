@@ -49,6 +49,7 @@ pilot() {
 pilot "$agent-all" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000
 pilot "$agent-paper"
 pilot "$agent-heads" --goal-heads
+pilot "$agent-found-sup" --found-supervision 1
 pilot "$agent-found" --found-curriculum "$found_frames:$found_penalty"
 pilot "$agent-vision" --pretrain-vision 2000
 

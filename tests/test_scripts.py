@@ -178,7 +178,14 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     trains = [line for line in calls.read_text().splitlines() if line.startswith("train")]
     by_run = {line.split("--out ")[1].split()[0].rsplit("/", 1)[1]: line for line in trains}
     assert sorted(by_run) == sorted(
-        ["no-map-all", "no-map-paper", "no-map-heads", "no-map-found", "no-map-vision"]
+        [
+            "no-map-all",
+            "no-map-paper",
+            "no-map-heads",
+            "no-map-found-sup",
+            "no-map-found",
+            "no-map-vision",
+        ]  # fmt: skip
     )
     for line in trains:
         assert "--frames 1000" in line and "--found-prior 0.02" in line
@@ -190,8 +197,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--goal-heads" in by_run["no-map-heads"]
     assert "--found-curriculum" not in by_run["no-map-heads"]
     assert "--pretrain-vision 2000" in by_run["no-map-vision"]
+    assert "--found-supervision 1" in by_run["no-map-found-sup"]
     evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
-    assert len(evals) == 5 and all("--split val --episodes 100" in line for line in evals)
+    assert len(evals) == 6 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip

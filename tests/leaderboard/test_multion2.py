@@ -142,5 +142,5 @@ def test_a_server_without_opengl_refuses_the_gl_tracks_at_start() -> None:
     problem = renderer_problem(challenge, WorkerReport(pid=1, gl_unavailable="no EGL display"))
     assert problem is not None
     assert "5-on-cylinders, 5-on-objects" in problem and "no EGL display" in problem
-    assert "apt-get install libegl1" in problem
+    assert "apt-get install libegl1 libgl1" in problem
     assert renderer_problem(challenge, WorkerReport(pid=1, renderer_auto="gl")) is None

@@ -134,6 +134,7 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
 
 RECIPE_OPTIONS = (
     "goal_heads",
+    "found_supervision",
     "found_curriculum",
     "pretrain_vision",
     "pretrain_map",

@@ -19,13 +19,17 @@ import torch
 from torch import Tensor, nn
 
 from multion.config.ranges import ConfigError
+from multion.config.task import TaskConfig
 from multion_agents.learned.distributed import average_gradients
+from multion_agents.learned.found_supervision import FOUND_LABEL_SENSOR, found_labels, found_loss
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.precision import update_precision
 from multion_agents.learned.rollout import Rollout
 from multion_agents.learned.rollout_envs import NO_LABEL
 from multion_agents.learned.train_settings import Args
 from multion_client.constants import Action
+
+SUCCESS_DISTANCE = TaskConfig().success_distance
 
 FOUND = int(Action.FOUND)
 
@@ -62,9 +66,11 @@ def ppo_update(
     rollout: Rollout,
     args: Args,
     clip: float | None = None,
+    success_distance: float = SUCCESS_DISTANCE,
 ) -> dict[str, float]:
     """PPO's clipped-objective update on one rollout (``clip``: this update's clip range, by
-    default ``args.clip``); gradients are averaged over DD-PPO ranks."""
+    default ``args.clip``; ``success_distance``: the task's, for ``--found-supervision``);
+    gradients are averaged over DD-PPO ranks."""
     clip = args.clip if clip is None else clip
     num_envs = rollout.rewards.shape[1]
     groups = max(1, min(args.minibatches, num_envs))
@@ -100,7 +106,7 @@ def ppo_update(
                 else rollout.expert_actions,
             )
             with precision.autocast():
-                loss, losses = ppo_loss(policy, minibatch, clip, args)
+                loss, losses = ppo_loss(policy, minibatch, clip, args, success_distance)
             optimizer.zero_grad(set_to_none=False)
             precision.backward(loss)
             average_gradients(policy)
@@ -116,12 +122,16 @@ def ppo_update(
 
 
 def ppo_loss(
-    policy: RecurrentPolicy, batch: Rollout, clip: float, args: Args
+    policy: RecurrentPolicy,
+    batch: Rollout,
+    clip: float,
+    args: Args,
+    success_distance: float = SUCCESS_DISTANCE,
 ) -> tuple[Tensor, dict[str, Tensor | None]]:
     """PPO's loss on one recurrent mini-batch (every tensor on the policy's device): the
     clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
-    the entropy bonus, the model's auxiliary loss and the imitation loss; and those terms for
-    logging."""
+    the entropy bonus, the model's auxiliary loss, the goal heads', the FOUND supervision's and
+    the imitation loss; and those terms for logging."""
     replay = policy.evaluate_actions(
         batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
     )
@@ -144,6 +154,11 @@ def ppo_loss(
     heads = replay.goal_losses
     if heads is not None:
         loss = loss + args.goal_head_coef * heads.total
+    found = None
+    if args.found_supervision > 0 and FOUND_LABEL_SENSOR in batch.frames:
+        labels = found_labels(batch.frames[FOUND_LABEL_SENSOR], success_distance)
+        found = found_loss(replay.logits, labels)
+        loss = loss + args.found_supervision * found
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
         labelled = batch.expert_actions != NO_LABEL
@@ -158,6 +173,7 @@ def ppo_loss(
         "entropy": entropy_mean.detach(),
         "aux_loss": aux.detach() if aux is not None else None,
         "imitation_loss": imitation.detach() if imitation is not None else None,
+        "found_loss": found.detach() if found is not None else None,
         "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
         "goal_seen_loss": heads.seen.detach() if heads is not None else None,
         "goal_direction_loss": heads.direction.detach() if heads is not None else None,

@@ -85,6 +85,7 @@ def collect(
     live: Live,
     steps: int,
     finished: deque[dict[str, float]],
+    labels: tuple[str, ...] = (),
 ) -> tuple[Rollout, Tensor, Timing]:
     """Play ``steps`` steps from ``live`` (updated in place) with actions sampled from
     ``policy``; the summary metrics and return of every episode that ends are appended to
@@ -92,8 +93,9 @@ def collect(
     give none), the value of the observation after it, and timings.
 
     The groups take turns (:mod:`.env_groups`): the policy acts for a group while the others
-    step, so ``sim_seconds`` is only the time spent waiting for them."""
-    keys, count = policy.train_sensors, envs.num_envs
+    step, so ``sim_seconds`` is only the time spent waiting for them. ``labels``: sensors kept
+    in the rollout for the loss beside the policy's own (``--found-supervision``'s oracle)."""
+    keys, count = tuple(dict.fromkeys(policy.train_sensors + labels)), envs.num_envs
     timing = Timing()
     initial_state = {k: v.detach().cpu().clone() for k, v in live.state.items()}
     columns = {

@@ -191,6 +191,17 @@ class Args:
             group=BEYOND_PAPER,
         ),
     )
+    found_supervision: float = setting(
+        0.0,
+        low=0,
+        high=10,
+        cli=Option(
+            "weight of a class-balanced cross-entropy teaching P(FOUND) where FOUND would "
+            "succeed, from the goal_distance oracle that only training receives, in [0, 10] "
+            "(default 0: off, as in the paper)",
+            group=BEYOND_PAPER,
+        ),
+    )
     pretrain_vision: VisionPretraining = setting(
         default_factory=VisionPretraining,
         cli=Option(

@@ -47,6 +47,7 @@ from multion_agents.learned.distributed import (
     weights_digest,
 )
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
+from multion_agents.learned.found_supervision import FOUND_LABEL_SENSOR
 from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.models import build_policy, model_spec
@@ -215,8 +216,9 @@ class TrainingRun:
         args, placement = self.args, self.placement
         self._next_stage_when_due()
         tick = time.perf_counter()
+        labels = (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
         rollout, next_value, timing = collect(
-            self.envs, self.policy, self.live, args.rollout_steps, self.window
+            self.envs, self.policy, self.live, args.rollout_steps, self.window, labels
         )
         compute_gae(rollout, next_value, args.gamma, args.gae_lambda)
         update_tick = time.perf_counter()
@@ -225,7 +227,10 @@ class TrainingRun:
         for group in self.optimizer.param_groups:
             group["lr"] = learning_rate
         try:
-            stats = ppo_update(self.policy, self.optimizer, rollout, args, clip)
+            stats = ppo_update(
+                self.policy, self.optimizer, rollout, args, clip,
+                self.env_config.task.success_distance,
+            )  # fmt: skip
         finally:
             torch.set_num_threads(placement.act_threads)
         update_seconds = time.perf_counter() - update_tick
@@ -389,6 +394,7 @@ def run_env_config(args: Args) -> EnvConfig:
     then fixes the map geometry, crop size and camera even if the env's defaults change)."""
     spec = model_spec(args.agent)
     sensors = spec.train_sensors + ((GOAL_VECTOR,) if args.goal_heads else ())
+    sensors += (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
     config = training_env_config(
         parse_task(args.task),
         sensors,

@@ -110,8 +110,8 @@ def renderer_problem(challenge: Challenge, report: WorkerReport | None) -> str |
     return (
         f"track(s) {', '.join(tracks)} render with camera.renderer = 'gl', which does not open "
         f"in this server's simulator workers: {report.gl_unavailable}. Install Mesa's EGL "
-        "(apt-get install libegl1 libgl1-mesa-dri) or a GPU driver, or set the tracks' "
-        "renderer to 'tiny'"
+        "(apt-get install libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri) or a GPU driver, or set "
+        "the tracks' renderer to 'tiny'"
     )
 
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import moderngl
 
-EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
+EGL_PACKAGES = "libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri"
 """Debian packages of Mesa's EGL, which OpenGL needs on a machine without a GPU."""
 GL_VERSION = 330
 """The OpenGL version the renderer's shaders need (3.3 core)."""

@@ -1,0 +1,47 @@
+"""``--found-supervision COEF``: the policy's FOUND probability taught where FOUND would succeed.
+
+`multion diagnose` on the pilot's `no-map` runs (issue 51) showed the agents that must see
+failing at the decision, not at the seeing: a linear probe of the frozen image embedding tells
+"the goal shows within 1.5 m" with recall 0.86 and precision 0.85, yet the policy's mean
+P(FOUND) was 0.00 both within 1.5 m of the goal and farther. PPO alone rarely samples FOUND at
+the goal, so it seldom learns what calling it there is worth.
+
+This adds a supervised term to PPO's loss, from the ``goal_distance`` oracle sensor (geodesic
+metres to the current goal), which only training receives: a class-balanced binary
+cross-entropy of P(FOUND) against "FOUND would succeed now" (the goal within the task's
+success distance). Positives are rare (a few % of steps), so each class weighs half. The
+policy never reads the sensor; it is off in the paper's recipe, and evaluation never has it.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from multion_client.constants import Action
+
+FOUND_LABEL_SENSOR = "goal_distance"
+
+
+def found_labels(distance: Tensor, success_distance: float) -> Tensor:
+    """1.0 where FOUND would succeed (the current goal within ``success_distance``), else 0.0;
+    one per step, from the ``goal_distance`` sensor's (..., 1) readings."""
+    return (distance.reshape(-1) <= success_distance).float()
+
+
+def found_loss(logits: Tensor, labels: Tensor) -> Tensor:
+    """Class-balanced binary cross-entropy of P(FOUND) (from action ``logits``, (..., A))
+    against ``labels`` (one per step): each class present weighs half of the loss."""
+    flat = logits.reshape(-1, logits.shape[-1]).float()
+    log_probs = torch.log_softmax(flat, dim=-1)
+    found = int(Action.FOUND)
+    log_found = log_probs[:, found]
+    others = torch.cat([log_probs[:, :found], log_probs[:, found + 1 :]], dim=1)
+    log_not_found = torch.logsumexp(others, dim=1)
+    positive = labels > 0.5
+    terms = []
+    if positive.any():
+        terms.append(-log_found[positive].mean())
+    if (~positive).any():
+        terms.append(-log_not_found[~positive].mean())
+    return torch.stack(terms).mean()

@@ -1,0 +1,75 @@
+"""``--found-supervision`` (issue 51): labels from the goal_distance oracle, the class-balanced
+loss against hand computation, its direction, and that only training receives the oracle."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+import torch
+from rollouts import tiny_args as shared_tiny_args
+
+from multion_agents.learned.checkpoint import CheckpointError, load_policy
+from multion_agents.learned.found_supervision import (
+    FOUND_LABEL_SENSOR,
+    found_labels,
+    found_loss,
+)
+from multion_agents.learned.train_settings import Args
+from multion_agents.learned.training_run import run_env_config, train
+from multion_client.constants import Action
+
+
+def tiny_args(tmp_path: Path, dataset: Path, **changes: Any) -> Args:
+    values: dict[str, Any] = {"agent": "no-map", "frames": 128, "rollout_steps": 64, **changes}
+    return shared_tiny_args(tmp_path, dataset, **values)
+
+
+def test_labels_say_where_found_would_succeed() -> None:
+    distance = torch.tensor([[[0.4], [1.5]], [[1.51], [1e6]]])  # (T, B, 1) readings
+    assert found_labels(distance, 1.5).tolist() == [1.0, 1.0, 0.0, 0.0]
+    assert found_labels(distance, 1.0).tolist() == [1.0, 0.0, 0.0, 0.0]
+
+
+def test_the_loss_weighs_each_class_half_as_computed_by_hand() -> None:
+    logits = torch.tensor([[2.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 3.0, 0.0]])
+    labels = torch.tensor([1.0, 0.0, 0.0])  # one positive, two negatives
+    p_found = torch.softmax(logits, dim=1)[:, int(Action.FOUND)]
+    positive = -torch.log(p_found[0])
+    negative = -(torch.log(1 - p_found[1]) + torch.log(1 - p_found[2])) / 2
+    expected = (positive + negative) / 2
+    assert float(found_loss(logits, labels)) == pytest.approx(float(expected), rel=1e-5)
+    # a batch with one class only: that class's mean
+    assert float(found_loss(logits[1:], labels[1:])) == pytest.approx(float(negative), rel=1e-5)
+
+
+def test_a_gradient_step_raises_found_where_it_would_succeed_only() -> None:
+    logits = torch.zeros(2, 4, requires_grad=True)
+    labels = torch.tensor([1.0, 0.0])
+    found_loss(logits, labels).backward()
+    assert logits.grad is not None
+    stepped = torch.softmax(logits.detach() - 0.5 * logits.grad, dim=1)[:, int(Action.FOUND)]
+    assert float(stepped[0]) > 0.25 > float(stepped[1])  # from 0.25 each
+
+
+def test_only_training_receives_the_oracle(tmp_path: Path, room_dataset: Path) -> None:
+    assert FOUND_LABEL_SENSOR not in run_env_config(tiny_args(tmp_path, room_dataset)).sensors
+    args = tiny_args(tmp_path, room_dataset, found_supervision=1.0)
+    assert FOUND_LABEL_SENSOR in run_env_config(args).sensors
+    train(args)
+    rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
+    assert rows and all(math.isfinite(float(row["found_loss"])) for row in rows)
+    policy, _, _ = load_policy(tmp_path / "run" / "checkpoint.pt")
+    assert FOUND_LABEL_SENSOR not in policy.sensors  # the agent that acts never reads it
+    resumed = dataclasses.replace(args, frames=256, resume=True, found_supervision=0.0)
+    with pytest.raises(CheckpointError, match="--found-supervision"):
+        train(resumed)
+
+
+def test_the_option_is_bounded() -> None:
+    with pytest.raises(ValueError, match=r"--found-supervision must be in \[0, 10\]"):
+        Args(found_supervision=11.0)
