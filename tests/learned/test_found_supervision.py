@@ -7,11 +7,10 @@ import csv
 import dataclasses
 import math
 from pathlib import Path
-from typing import Any
 
 import pytest
 import torch
-from rollouts import tiny_args as shared_tiny_args
+from test_recipe_options import tiny_args
 
 from multion_agents.learned.checkpoint import CheckpointError, load_policy
 from multion_agents.learned.found_supervision import (
@@ -22,11 +21,6 @@ from multion_agents.learned.found_supervision import (
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
 from multion_client.constants import Action
-
-
-def tiny_args(tmp_path: Path, dataset: Path, **changes: Any) -> Args:
-    values: dict[str, Any] = {"agent": "no-map", "frames": 128, "rollout_steps": 64, **changes}
-    return shared_tiny_args(tmp_path, dataset, **values)
 
 
 def test_labels_say_where_found_would_succeed() -> None:
@@ -58,7 +52,7 @@ def test_a_gradient_step_raises_found_where_it_would_succeed_only() -> None:
 
 def test_only_training_receives_the_oracle(tmp_path: Path, room_dataset: Path) -> None:
     assert FOUND_LABEL_SENSOR not in run_env_config(tiny_args(tmp_path, room_dataset)).sensors
-    args = tiny_args(tmp_path, room_dataset, found_supervision=1.0)
+    args = tiny_args(tmp_path, room_dataset, frames=128, found_supervision=1.0)
     assert FOUND_LABEL_SENSOR in run_env_config(args).sensors
     train(args)
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
