@@ -8,6 +8,9 @@ from dataclasses import dataclass
 from multion.config.ranges import Range, bounded, check_fields, one_of, require
 
 RENDERERS = ("tiny", "gl", "egl", "auto")
+EGL_PACKAGES = "libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri"
+"""Debian packages of Mesa's EGL, which OpenGL needs on a machine without a GPU (named in the
+simulator's errors and in the leaderboard's, which never imports the simulator)."""
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from fastapi import FastAPI
 
 from multion.api.sessions import SessionRegistry
 from multion.api.workers import WorkerReport
+from multion.config.sim import EGL_PACKAGES
 from multion.leaderboard.challenge import Challenge, ChallengeError
 from multion.leaderboard.challenge_file import load_challenge
 from multion.leaderboard.clock import Clock
@@ -110,8 +111,8 @@ def renderer_problem(challenge: Challenge, report: WorkerReport | None) -> str |
     return (
         f"track(s) {', '.join(tracks)} render with camera.renderer = 'gl', which does not open "
         f"in this server's simulator workers: {report.gl_unavailable}. Install Mesa's EGL "
-        "(apt-get install libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri) or a GPU driver, or set "
-        "the tracks' renderer to 'tiny'"
+        f"(apt-get install {EGL_PACKAGES}) or a GPU driver, or set the tracks' renderer to "
+        "'tiny'"
     )
 
 

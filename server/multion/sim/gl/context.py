@@ -18,11 +18,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
+from multion.config.sim import EGL_PACKAGES
+
 if TYPE_CHECKING:
     import moderngl
 
-EGL_PACKAGES = "libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri"
-"""Debian packages of Mesa's EGL, which OpenGL needs on a machine without a GPU."""
 GL_VERSION = 330
 """The OpenGL version the renderer's shaders need (3.3 core)."""
 
