@@ -52,6 +52,9 @@ pilot "$agent-heads" --goal-heads
 pilot "$agent-found-sup" --found-supervision 1
 pilot "$agent-found" --found-curriculum "$found_frames:$found_penalty"
 pilot "$agent-vision" --pretrain-vision 2000
+# Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
+pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
+  --found-supervision 1
 
 mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)
 [ "${#runs[@]}" -gt 0 ] && $multion report "${runs[@]}" --out "$out/report"
