@@ -17,6 +17,7 @@ from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
     found_labels,
     found_loss,
+    found_probability_at_goal,
 )
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
@@ -50,6 +51,15 @@ def test_a_gradient_step_raises_found_where_it_would_succeed_only() -> None:
     assert float(stepped[0]) > 0.25 > float(stepped[1])  # from 0.25 each
 
 
+def test_the_log_says_how_likely_found_is_where_it_would_succeed() -> None:
+    logits = torch.tensor([[2.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 3.0, 0.0]])
+    p_found = torch.softmax(logits, dim=1)[:, int(Action.FOUND)]
+    at_goal = found_probability_at_goal(logits, torch.tensor([1.0, 0.0, 1.0]))
+    assert at_goal is not None
+    assert float(at_goal) == pytest.approx(float((p_found[0] + p_found[2]) / 2), rel=1e-6)
+    assert found_probability_at_goal(logits, torch.zeros(3)) is None  # no positive: no figure
+
+
 def test_only_training_receives_the_oracle(tmp_path: Path, room_dataset: Path) -> None:
     assert FOUND_LABEL_SENSOR not in run_env_config(tiny_args(tmp_path, room_dataset)).sensors
     args = tiny_args(tmp_path, room_dataset, frames=128, found_supervision=1.0)
@@ -57,6 +67,8 @@ def test_only_training_receives_the_oracle(tmp_path: Path, room_dataset: Path) -
     train(args)
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
     assert rows and all(math.isfinite(float(row["found_loss"])) for row in rows)
+    assert all(0.0 <= float(row["found_positive_share"]) <= 1.0 for row in rows)
+    assert all("found_prob_at_goal" in row for row in rows)  # nan where no step was at a goal
     policy, _, _ = load_policy(tmp_path / "run" / "checkpoint.pt")
     assert FOUND_LABEL_SENSOR not in policy.sensors  # the agent that acts never reads it
     resumed = dataclasses.replace(args, frames=256, resume=True, found_supervision=0.0)

@@ -45,3 +45,13 @@ def found_loss(logits: Tensor, labels: Tensor) -> Tensor:
     if (~positive).any():
         terms.append(-log_not_found[~positive].mean())
     return torch.stack(terms).mean()
+
+
+def found_probability_at_goal(logits: Tensor, labels: Tensor) -> Tensor | None:
+    """The policy's mean P(FOUND) at the steps where FOUND would succeed (``labels`` 1), or
+    None where the batch has none: what the loss is meant to raise."""
+    positive = labels > 0.5
+    if not positive.any():
+        return None
+    flat = logits.reshape(-1, logits.shape[-1]).float()
+    return torch.softmax(flat, dim=-1)[positive, int(Action.FOUND)].mean()

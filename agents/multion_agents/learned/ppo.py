@@ -21,7 +21,12 @@ from torch import Tensor, nn
 from multion.config.ranges import ConfigError
 from multion.config.task import TaskConfig
 from multion_agents.learned.distributed import average_gradients
-from multion_agents.learned.found_supervision import FOUND_LABEL_SENSOR, found_labels, found_loss
+from multion_agents.learned.found_supervision import (
+    FOUND_LABEL_SENSOR,
+    found_labels,
+    found_loss,
+    found_probability_at_goal,
+)
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.precision import update_precision
 from multion_agents.learned.rollout import Rollout
@@ -80,7 +85,7 @@ def ppo_update(
     device = policy.device
     precision = update_precision(args.mixed_precision, device, optimizer)
     totals: dict[str, float] = {}
-    updates = 0
+    counts: dict[str, int] = {}
     policy.train()
     for _ in range(args.epochs):
         order = torch.randperm(num_envs)
@@ -113,12 +118,16 @@ def ppo_update(
             precision.unscale(optimizer)
             grad_norm = nn.utils.clip_grad_norm_(policy.parameters(), args.max_grad_norm)
             precision.step(optimizer)
-            stats = {k: v.item() if v is not None else math.nan for k, v in losses.items()}
+            stats = {k: v.item() if v is not None else None for k, v in losses.items()}
             stats["grad_norm"] = float(grad_norm)
             for key, value_ in stats.items():
-                totals[key] = totals.get(key, 0.0) + value_
-            updates += 1
-    return {k: v / updates for k, v in totals.items()}
+                totals.setdefault(key, 0.0)
+                if value_ is not None:
+                    totals[key] += value_
+                    counts[key] = counts.get(key, 0) + 1
+    # a term some mini-batches lack (no FOUND positive, no labelled step) is averaged over those
+    # that have it; nan where none has
+    return {k: total / counts[k] if k in counts else math.nan for k, total in totals.items()}
 
 
 def ppo_loss(
@@ -154,10 +163,11 @@ def ppo_loss(
     heads = replay.goal_losses
     if heads is not None:
         loss = loss + args.goal_head_coef * heads.total
-    found = None
+    found = labels = found_at_goal = None
     if args.found_supervision > 0 and FOUND_LABEL_SENSOR in batch.frames:
         labels = found_labels(batch.frames[FOUND_LABEL_SENSOR], success_distance)
         found = found_loss(replay.logits, labels)
+        found_at_goal = found_probability_at_goal(replay.logits.detach(), labels)
         loss = loss + args.found_supervision * found
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
@@ -174,6 +184,8 @@ def ppo_loss(
         "aux_loss": aux.detach() if aux is not None else None,
         "imitation_loss": imitation.detach() if imitation is not None else None,
         "found_loss": found.detach() if found is not None else None,
+        "found_positive_share": labels.mean() if labels is not None else None,
+        "found_prob_at_goal": found_at_goal,
         "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
         "goal_seen_loss": heads.seen.detach() if heads is not None else None,
         "goal_direction_loss": heads.direction.detach() if heads is not None else None,
