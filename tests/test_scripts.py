@@ -121,6 +121,32 @@ def _central_calls(tmp_path: Path, variables: dict[str, str]) -> tuple[str, list
     return done.stdout, calls.read_text().splitlines()
 
 
+def test_run_baselines_passes_eval_args_to_every_run(tmp_path: Path) -> None:
+    """scripts/run_baselines.sh (issue 53 item 8): EVAL_ARGS reach every evaluation (explorer's
+    runs with gl), EPISODES_OVERRIDE sets their size, and finished runs are kept."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "run_baselines.sh", tmp_path / "scripts")
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    calls = tmp_path / "calls.txt"
+    env = {**os.environ, "CALLS": str(calls), "MULTION": f"bash {fake}",
+           "EVAL_ARGS": "--set camera.renderer=gl", "EPISODES_OVERRIDE": "3"}  # fmt: skip
+    script = ["bash", "scripts/run_baselines.sh", "runs", "explorer"]
+    done = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    evals = calls.read_text().splitlines()
+    names = sorted(line.split("--out runs/")[1].split()[0] for line in evals)
+    assert names == ["explorer-1on", "explorer-2on", "explorer-3on", "explorer-3on-distractors"]
+    assert all("--episodes 3 " in e and "--set camera.renderer=gl --agent explorer" in e
+               for e in evals)  # fmt: skip
+    calls.unlink()
+    again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
+                           timeout=60)  # fmt: skip
+    assert again.returncode == 0 and "already in runs" in again.stdout
+    assert not calls.exists()
+
+
 def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None:
     """IMAGE_SIZE=128 RENDERER=gl (issue 44 item 3) trains and evaluates at that size with that
     renderer into runs/central-128-gl, never restores the published 36² runs into it, and reports
