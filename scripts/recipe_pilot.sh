@@ -57,6 +57,9 @@ pilot "$agent-vision" --pretrain-vision 2000
 # (found_positive_share), so it had little to learn FOUND from.
 pilot "$agent-found-sup-near" --found-supervision 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10"
+# With it, P(FOUND) at the positives stayed at the prior's 0.02: ten times the supervision.
+pilot "$agent-found-sup10-near" --found-supervision 10 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10"
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1
