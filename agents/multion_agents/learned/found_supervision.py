@@ -9,7 +9,8 @@ the goal, so it seldom learns what calling it there is worth.
 This adds a supervised term to PPO's loss, from the ``goal_distance`` oracle sensor (geodesic
 metres to the current goal), which only training receives: a class-balanced binary
 cross-entropy of P(FOUND) against "FOUND would succeed now" (the goal within the task's
-success distance). Positives are rare (a few % of steps), so each class weighs half. The
+success distance). Positives are rare (a few % of steps), so each class weighs half over each
+rollout (:func:`class_weights`). The
 policy never reads the sensor; it is off in the paper's recipe, and evaluation never has it.
 """
 
@@ -29,28 +30,41 @@ def found_labels(distance: Tensor, success_distance: float) -> Tensor:
     return (distance.reshape(-1) <= success_distance).float()
 
 
-def found_loss(logits: Tensor, labels: Tensor) -> Tensor:
-    """Class-balanced binary cross-entropy of P(FOUND) (from action ``logits``, (..., A))
-    against ``labels`` (one per step): each class present weighs half of the loss."""
+def class_weights(labels: Tensor) -> tuple[float, float] | None:
+    """Per-step weights (positive, negative) that give each class half of the loss over
+    ``labels`` (a whole rollout's): ``N / (2 N_pos)`` and ``N / (2 N_neg)``; None where a class
+    is absent (a rollout with no step at a goal has nothing to teach FOUND from).
+
+    Balancing over the rollout, not over each mini-batch, is what makes the classes weigh half
+    each over an update: most mini-batches hold no positive, and balanced on its own each of
+    them taught "never FOUND" with the whole weight (issue 51's pilot: P(FOUND) at the
+    positives fell from 0.02 to 0.0002 with a coefficient of 10)."""
+    total = labels.numel()
+    positives = int((labels > 0.5).sum())  # any shape: one label per step
+    if positives == 0 or positives == total:
+        return None
+    return total / (2.0 * positives), total / (2.0 * (total - positives))
+
+
+def found_loss(logits: Tensor, labels: Tensor, weights: tuple[float, float]) -> Tensor:
+    """Weighted binary cross-entropy of P(FOUND) (from action ``logits``, (..., A)) against
+    ``labels`` (one per step), averaged over the steps: ``weights`` (positive, negative) per
+    step, from :func:`class_weights` of the rollout the steps belong to."""
     flat = logits.reshape(-1, logits.shape[-1]).float()
     log_probs = torch.log_softmax(flat, dim=-1)
     found = int(Action.FOUND)
     log_found = log_probs[:, found]
     others = torch.cat([log_probs[:, :found], log_probs[:, found + 1 :]], dim=1)
     log_not_found = torch.logsumexp(others, dim=1)
-    positive = labels > 0.5
-    terms = []
-    if positive.any():
-        terms.append(-log_found[positive].mean())
-    if (~positive).any():
-        terms.append(-log_not_found[~positive].mean())
-    return torch.stack(terms).mean()
+    positive = labels.reshape(-1) > 0.5
+    terms = torch.where(positive, -weights[0] * log_found, -weights[1] * log_not_found)
+    return terms.mean()
 
 
 def found_probability_at_goal(logits: Tensor, labels: Tensor) -> Tensor | None:
     """The policy's mean P(FOUND) at the steps where FOUND would succeed (``labels`` 1), or
     None where the batch has none: what the loss is meant to raise."""
-    positive = labels > 0.5
+    positive = labels.reshape(-1) > 0.5
     if not positive.any():
         return None
     flat = logits.reshape(-1, logits.shape[-1]).float()

@@ -23,6 +23,7 @@ from multion.config.task import TaskConfig
 from multion_agents.learned.distributed import average_gradients
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
+    class_weights,
     found_labels,
     found_loss,
     found_probability_at_goal,
@@ -82,6 +83,10 @@ def ppo_update(
     advantages = rollout.advantages
     if args.normalize_advantages:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    found_weights = None
+    if args.found_supervision > 0 and FOUND_LABEL_SENSOR in rollout.frames:
+        labels = found_labels(rollout.frames[FOUND_LABEL_SENSOR], success_distance)
+        found_weights = class_weights(labels)
     device = policy.device
     precision = update_precision(args.mixed_precision, device, optimizer)
     totals: dict[str, float] = {}
@@ -111,7 +116,9 @@ def ppo_update(
                 else rollout.expert_actions,
             )
             with precision.autocast():
-                loss, losses = ppo_loss(policy, minibatch, clip, args, success_distance)
+                loss, losses = ppo_loss(
+                    policy, minibatch, clip, args, success_distance, found_weights
+                )
             optimizer.zero_grad(set_to_none=False)
             precision.backward(loss)
             average_gradients(policy)
@@ -136,11 +143,14 @@ def ppo_loss(
     clip: float,
     args: Args,
     success_distance: float = SUCCESS_DISTANCE,
+    found_weights: tuple[float, float] | None = None,
 ) -> tuple[Tensor, dict[str, Tensor | None]]:
     """PPO's loss on one recurrent mini-batch (every tensor on the policy's device): the
     clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
     the entropy bonus, the model's auxiliary loss, the goal heads', the FOUND supervision's and
-    the imitation loss; and those terms for logging."""
+    the imitation loss; and those terms for logging. ``found_weights``: the FOUND supervision's
+    class weights from the whole rollout (:func:`.found_supervision.class_weights`); by default
+    from this batch's own labels; no FOUND term where a class is absent from the rollout."""
     replay = policy.evaluate_actions(
         batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
     )
@@ -166,9 +176,11 @@ def ppo_loss(
     found = labels = found_at_goal = None
     if args.found_supervision > 0 and FOUND_LABEL_SENSOR in batch.frames:
         labels = found_labels(batch.frames[FOUND_LABEL_SENSOR], success_distance)
-        found = found_loss(replay.logits, labels)
         found_at_goal = found_probability_at_goal(replay.logits.detach(), labels)
-        loss = loss + args.found_supervision * found
+        weights = found_weights if found_weights is not None else class_weights(labels)
+        if weights is not None:
+            found = found_loss(replay.logits, labels, weights)
+            loss = loss + args.found_supervision * found
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
         labelled = batch.expert_actions != NO_LABEL
