@@ -52,14 +52,13 @@ pilot "$agent-heads" --goal-heads
 pilot "$agent-found-sup" --found-supervision 1
 pilot "$agent-found" --found-curriculum "$found_frames:$found_penalty"
 pilot "$agent-vision" --pretrain-vision 2000
-# FOUND supervision with near goals first (`--curriculum`: within 4 m until 40 % of the frames,
-# 10 m until 70 %): alone it saw a goal within the success distance in few of its updates
-# (found_positive_share), so it had little to learn FOUND from.
-pilot "$agent-found-sup-near" --found-supervision 1 --curriculum "$found_frames:4" \
-  --curriculum "$((frames * 7 / 10)):10"
-# With it, P(FOUND) at the positives stayed at the prior's 0.02: ten times the supervision.
-pilot "$agent-found-sup10-near" --found-supervision 10 --curriculum "$found_frames:4" \
-  --curriculum "$((frames * 7 / 10)):10"
+# FOUND supervision with both curricula: near goals first (`--curriculum`: within 4 m until 40 %
+# of the frames, 10 m until 70 %), and wrong FOUNDs that cost FOUND_PENALTY without ending
+# training episodes until 40 % (`--found-curriculum`). Alone, the supervision saw almost no
+# step at a goal; with near goals only, the policy it taught called FOUND everywhere at first
+# and its episodes ended on wrong FOUNDs within 5 steps, before any goal was reached.
+pilot "$agent-found-sup-curricula" --found-supervision 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --found-curriculum "$found_frames:$found_penalty"
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1
