@@ -188,7 +188,7 @@ def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None
 
 
 def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) -> None:
-    """scripts/recipe_pilot.sh (issue 51) with the stand-in command: eight no-map runs at the
+    """scripts/recipe_pilot.sh (issue 51) with the stand-in command: nine no-map runs at the
     central comparison's recipe, the FOUND curriculum over the first 40 % of the frames, each
     then evaluated; run again, it skips what is done."""
     (tmp_path / "scripts").mkdir()
@@ -213,6 +213,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-vision",
             "no-map-all-sup",
             "no-map-found-sup-curricula",
+            "no-map-found-sup10-curricula",
         ]  # fmt: skip
     )
     for line in trains:
@@ -231,8 +232,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     curricula = by_run["no-map-found-sup-curricula"]
     assert "--found-supervision 1 --curriculum 400:4 --curriculum 700:10" in curricula
     assert "--found-curriculum 400:0.5" in curricula
+    assert "--found-supervision 10 --curriculum" in by_run["no-map-found-sup10-curricula"]
     evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
-    assert len(evals) == 8 and all("--split val --episodes 100" in line for line in evals)
+    assert len(evals) == 9 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
