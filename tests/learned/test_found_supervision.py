@@ -19,6 +19,7 @@ from multion_agents.learned.found_supervision import (
     found_labels,
     found_loss,
     found_probability_at_goal,
+    found_targets,
 )
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
@@ -42,6 +43,15 @@ def test_the_loss_weighs_each_class_half_as_computed_by_hand() -> None:
     expected = (positive + negative) / 2
     assert weights is not None
     assert float(found_loss(logits, labels, weights)) == pytest.approx(float(expected), rel=1e-5)
+
+
+def test_a_rollouts_targets_keep_its_steps_and_weigh_its_classes() -> None:
+    distance = torch.full((3, 2, 1), 4.0)  # (T, B, 1) goal_distance readings
+    distance[1, 0] = 1.0
+    targets = found_targets(distance, 1.5)
+    assert targets.labels.tolist() == [[0.0, 0.0], [1.0, 0.0], [0.0, 0.0]]
+    assert targets.weights == pytest.approx((6 / 2, 6 / 10))
+    assert found_targets(torch.full((3, 2, 1), 4.0), 1.5).weights is None
 
 
 def test_a_rollout_without_both_classes_teaches_nothing() -> None:

@@ -80,9 +80,9 @@ def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPat
 
     seen: list[torch.Tensor] = []
 
-    def spy(policy, batch, clip, args, success_distance, found_weights):
+    def spy(policy, batch, clip, args, found):
         seen.append(batch.advantages)
-        return ppo_loss(policy, batch, clip, args, success_distance, found_weights)
+        return ppo_loss(policy, batch, clip, args, found)
 
     monkeypatch.setattr(ppo, "ppo_loss", spy)
     space = space_for("no-map")

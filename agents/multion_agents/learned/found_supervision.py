@@ -16,6 +16,8 @@ policy never reads the sensor; it is off in the paper's recipe, and evaluation n
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import Tensor
 
@@ -28,6 +30,22 @@ def found_labels(distance: Tensor, success_distance: float) -> Tensor:
     """1.0 where FOUND would succeed (the current goal within ``success_distance``), else 0.0;
     one per step, from the ``goal_distance`` sensor's (..., 1) readings."""
     return (distance.reshape(-1) <= success_distance).float()
+
+
+@dataclass(frozen=True)
+class FoundTargets:
+    """What the loss needs of a rollout (or of its mini-batch: ``labels`` picked, ``weights``
+    kept): ``labels`` (T, B) 1.0 where FOUND would succeed; ``weights`` the whole rollout's
+    :func:`class_weights`, None where it lacks a class (no FOUND term then)."""
+
+    labels: Tensor
+    weights: tuple[float, float] | None
+
+
+def found_targets(distance: Tensor, success_distance: float) -> FoundTargets:
+    """The targets of a rollout from its ``goal_distance`` readings (T, B, 1)."""
+    labels = found_labels(distance, success_distance).view(distance.shape[:2])
+    return FoundTargets(labels, class_weights(labels))
 
 
 def class_weights(labels: Tensor) -> tuple[float, float] | None:

@@ -23,10 +23,10 @@ from multion.config.task import TaskConfig
 from multion_agents.learned.distributed import average_gradients
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
-    class_weights,
-    found_labels,
+    FoundTargets,
     found_loss,
     found_probability_at_goal,
+    found_targets,
 )
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.precision import update_precision
@@ -83,10 +83,9 @@ def ppo_update(
     advantages = rollout.advantages
     if args.normalize_advantages:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-    found_weights = None
+    targets = None
     if args.found_supervision > 0 and FOUND_LABEL_SENSOR in rollout.frames:
-        labels = found_labels(rollout.frames[FOUND_LABEL_SENSOR], success_distance)
-        found_weights = class_weights(labels)
+        targets = found_targets(rollout.frames[FOUND_LABEL_SENSOR], success_distance)
     device = policy.device
     precision = update_precision(args.mixed_precision, device, optimizer)
     totals: dict[str, float] = {}
@@ -115,10 +114,9 @@ def ppo_update(
                 if rollout.expert_actions.numel()
                 else rollout.expert_actions,
             )
+            found = None if targets is None else FoundTargets(pick(targets.labels), targets.weights)
             with precision.autocast():
-                loss, losses = ppo_loss(
-                    policy, minibatch, clip, args, success_distance, found_weights
-                )
+                loss, losses = ppo_loss(policy, minibatch, clip, args, found)
             optimizer.zero_grad(set_to_none=False)
             precision.backward(loss)
             average_gradients(policy)
@@ -142,15 +140,13 @@ def ppo_loss(
     batch: Rollout,
     clip: float,
     args: Args,
-    success_distance: float = SUCCESS_DISTANCE,
-    found_weights: tuple[float, float] | None = None,
+    found: FoundTargets | None = None,
 ) -> tuple[Tensor, dict[str, Tensor | None]]:
     """PPO's loss on one recurrent mini-batch (every tensor on the policy's device): the
     clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
     the entropy bonus, the model's auxiliary loss, the goal heads', the FOUND supervision's and
-    the imitation loss; and those terms for logging. ``found_weights``: the FOUND supervision's
-    class weights from the whole rollout (:func:`.found_supervision.class_weights`); by default
-    from this batch's own labels; no FOUND term where a class is absent from the rollout."""
+    the imitation loss; and those terms for logging. ``found``: the FOUND supervision's targets
+    for this batch, weighted by the whole rollout's classes (``ppo_update`` makes them)."""
     replay = policy.evaluate_actions(
         batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
     )
@@ -173,14 +169,12 @@ def ppo_loss(
     heads = replay.goal_losses
     if heads is not None:
         loss = loss + args.goal_head_coef * heads.total
-    found = labels = found_at_goal = None
-    if args.found_supervision > 0 and FOUND_LABEL_SENSOR in batch.frames:
-        labels = found_labels(batch.frames[FOUND_LABEL_SENSOR], success_distance)
-        found_at_goal = found_probability_at_goal(replay.logits.detach(), labels)
-        weights = found_weights if found_weights is not None else class_weights(labels)
-        if weights is not None:
-            found = found_loss(replay.logits, labels, weights)
-            loss = loss + args.found_supervision * found
+    found_term = found_at_goal = None
+    if found is not None:
+        found_at_goal = found_probability_at_goal(replay.logits.detach(), found.labels)
+        if found.weights is not None:
+            found_term = found_loss(replay.logits, found.labels, found.weights)
+            loss = loss + args.found_supervision * found_term
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
         labelled = batch.expert_actions != NO_LABEL
@@ -195,8 +189,8 @@ def ppo_loss(
         "entropy": entropy_mean.detach(),
         "aux_loss": aux.detach() if aux is not None else None,
         "imitation_loss": imitation.detach() if imitation is not None else None,
-        "found_loss": found.detach() if found is not None else None,
-        "found_positive_share": labels.mean() if labels is not None else None,
+        "found_loss": found_term.detach() if found_term is not None else None,
+        "found_positive_share": found.labels.mean() if found is not None else None,
         "found_prob_at_goal": found_at_goal,
         "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
         "goal_seen_loss": heads.seen.detach() if heads is not None else None,
