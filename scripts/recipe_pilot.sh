@@ -63,6 +63,14 @@ pilot "$agent-found-sup-curricula" --found-supervision 1 --curriculum "$found_fr
 # "never FOUND" faster than the supervision taught where: ten times the supervision.
 pilot "$agent-found-sup10-curricula" --found-supervision 10 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --found-curriculum "$found_frames:$found_penalty"
+# FOUND decided by a supervised head, not by the actor (--found-head): PPO teaches only the
+# movements, so nothing teaches "never FOUND"; the gate opens where the head is more sure than
+# not that FOUND succeeds. Near goals first, so that steps at a goal are common.
+pilot "$agent-found-head-near" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10"
+# The same with the goal heads and vision pretraining.
+pilot "$agent-found-head-all" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1

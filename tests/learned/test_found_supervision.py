@@ -18,8 +18,9 @@ from multion_agents.learned.found_supervision import (
     class_weights,
     found_labels,
     found_loss,
-    found_probability_at_goal,
+    found_probabilities,
     found_targets,
+    mean_where,
 )
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
@@ -87,10 +88,13 @@ def test_a_gradient_step_raises_found_where_it_would_succeed_only() -> None:
 def test_the_log_says_how_likely_found_is_where_it_would_succeed() -> None:
     logits = torch.tensor([[2.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 3.0, 0.0]])
     p_found = torch.softmax(logits, dim=1)[:, int(Action.FOUND)]
-    at_goal = found_probability_at_goal(logits, torch.tensor([1.0, 0.0, 1.0]))
+    labels = torch.tensor([1.0, 0.0, 1.0]) > 0.5
+    at_goal = mean_where(found_probabilities(logits, None), labels)
     assert at_goal is not None
     assert float(at_goal) == pytest.approx(float((p_found[0] + p_found[2]) / 2), rel=1e-6)
-    assert found_probability_at_goal(logits, torch.zeros(3)) is None  # no positive: no figure
+    elsewhere = mean_where(found_probabilities(logits, None), ~labels)
+    assert elsewhere is not None and float(elsewhere) == pytest.approx(float(p_found[1]), rel=1e-6)
+    assert mean_where(found_probabilities(logits, None), torch.zeros(3) > 0.5) is None
 
 
 def test_only_training_receives_the_oracle(tmp_path: Path, room_dataset: Path) -> None:

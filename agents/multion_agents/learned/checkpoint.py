@@ -112,7 +112,9 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         hidden_size = hidden_size_of(payload["model"])
     except ValueError as error:
         raise CheckpointError(f"{path}: {error}") from None
-    policy = build_policy(payload["agent"], config, hidden_size)  # without training heads
+    # without training heads; with the FOUND head where it was trained with one (it acts)
+    found_head = "found_head.weight" in payload["model"]
+    policy = build_policy(payload["agent"], config, hidden_size, found_head=found_head)
     try:
         policy.load_state_dict(acting_weights(payload["model"]))
     except RuntimeError as error:
@@ -135,6 +137,7 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
 RECIPE_OPTIONS = (
     "goal_heads",
     "found_supervision",
+    "found_head",
     "found_curriculum",
     "pretrain_vision",
     "pretrain_map",

@@ -21,9 +21,16 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from multion_agents.learned.train_settings import Args
 from multion_client.constants import Action
 
 FOUND_LABEL_SENSOR = "goal_distance"
+
+
+def needs_found_labels(args: Args) -> bool:
+    """Whether the run learns FOUND from the oracle (``--found-supervision`` or ``--found-head``),
+    so that its rollouts carry the ``goal_distance`` readings."""
+    return args.found_supervision > 0 or args.found_head > 0
 
 
 def found_labels(distance: Tensor, success_distance: float) -> Tensor:
@@ -79,11 +86,26 @@ def found_loss(logits: Tensor, labels: Tensor, weights: tuple[float, float]) -> 
     return terms.mean()
 
 
-def found_probability_at_goal(logits: Tensor, labels: Tensor) -> Tensor | None:
-    """The policy's mean P(FOUND) at the steps where FOUND would succeed (``labels`` 1), or
-    None where the batch has none: what the loss is meant to raise."""
-    positive = labels.reshape(-1) > 0.5
-    if not positive.any():
-        return None
+def found_head_loss(found_logit: Tensor, labels: Tensor) -> Tensor:
+    """``--found-head``'s loss: the binary cross-entropy of the head's logits (one per step)
+    against ``labels``, unweighted, so that its probability estimates how likely FOUND is to
+    succeed and the gate (probability above 0.5) opens only where success is the likelier
+    outcome: a wrong FOUND ends the episode, a FOUND called one step late costs a step."""
+    return torch.nn.functional.binary_cross_entropy_with_logits(
+        found_logit.reshape(-1).float(), labels.reshape(-1)
+    )
+
+
+def found_probabilities(logits: Tensor, found_logit: Tensor | None) -> Tensor:
+    """Per step, how likely the policy is to call FOUND: the head's probability where it has
+    one (``found_logit``), else the actor's softmax probability of FOUND."""
+    if found_logit is not None:
+        return torch.sigmoid(found_logit.reshape(-1).float())
     flat = logits.reshape(-1, logits.shape[-1]).float()
-    return torch.softmax(flat, dim=-1)[positive, int(Action.FOUND)].mean()
+    return torch.softmax(flat, dim=-1)[:, int(Action.FOUND)]
+
+
+def mean_where(values: Tensor, where: Tensor) -> Tensor | None:
+    """The mean of ``values`` (one per step) where ``where`` holds; None where it never does."""
+    where = where.reshape(-1)
+    return values[where].mean() if where.any() else None

@@ -15,6 +15,7 @@ state (FRMQN, EgoMap), with which it advances step by step.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from contextlib import nullcontext
 from dataclasses import dataclass
@@ -29,7 +30,7 @@ from torch.distributions import Categorical
 from multion_agents.learned.encoders import ImageEncoder
 from multion_agents.learned.goal_heads import GOAL_VECTOR, GoalHeads, GoalLosses
 from multion_agents.learned.gru import MaskedGRU
-from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
+from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES, Action
 
 AUTOCAST_DEVICES = ("cpu", "cuda")
 """Devices whose autocast the GRU recurrence turns off (see ``_recurrent``)."""
@@ -46,6 +47,10 @@ GOAL_EMBED_DIM = 32
 ACTION_EMBED_DIM = 32
 NO_ACTION = NUM_ACTIONS
 """Index of the "no previous action" embedding, used at an episode's first step."""
+FOUND = int(Action.FOUND)
+FOUND_HEAD_PRIOR = 0.02
+"""The untrained FOUND head's probability (its bias): well under the gate's 0.5, so an untrained
+policy never calls FOUND."""
 
 
 class Memory(nn.Module, ABC):
@@ -112,6 +117,8 @@ class PolicyOutput:
     goal_losses: GoalLosses | None = None
     """The auxiliary goal heads' losses, where the policy has them and ``goal_vector`` is in
     the frames (training); None otherwise."""
+    found_logit: Tensor | None = None
+    """(T, B): the FOUND head's logit, where the policy has one (``logits`` are then gated)."""
 
 
 @dataclass
@@ -124,13 +131,19 @@ class Replay:
     auxiliary_loss: Tensor | None
     logits: Tensor  # (T, B, A), for losses on other actions (imitation)
     goal_losses: GoalLosses | None = None
+    found_logit: Tensor | None = None
 
 
 class RecurrentPolicy(nn.Module):
     """Actor-critic over RGB-D, goal, previous action and a :class:`Memory` (None: no map).
 
     ``goal_heads``: auxiliary heads on the GRU output trained from the ``goal_vector`` sensor
-    (:mod:`.goal_heads`); a training aid that a policy loaded for evaluation is built without."""
+    (:mod:`.goal_heads`); a training aid that a policy loaded for evaluation is built without.
+
+    ``found_head``: FOUND is decided by a binary head on the GRU output, trained by supervision
+    only (``--found-head``, :mod:`.found_supervision`), not by the actor: the policy calls FOUND
+    when the head's probability exceeds 0.5 (:func:`gated_logits`), and otherwise samples a
+    movement from the actor. It is part of the agent, kept at evaluation."""
 
     def __init__(
         self,
@@ -140,6 +153,7 @@ class RecurrentPolicy(nn.Module):
         use_depth: bool = True,
         hidden_size: int = HIDDEN_SIZE,
         goal_heads: bool = False,
+        found_head: bool = False,
     ) -> None:
         super().__init__()
         if not 1 <= hidden_size <= MAX_HIDDEN_SIZE:
@@ -165,6 +179,11 @@ class RecurrentPolicy(nn.Module):
         self.actor = _layer(nn.Linear(hidden_size, NUM_ACTIONS), std=0.01)
         self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
         self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
+        self.found_head: nn.Linear | None = None
+        if found_head:
+            self.found_head = _layer(nn.Linear(hidden_size, 1), std=0.01)
+            prior = math.log(FOUND_HEAD_PRIOR / (1.0 - FOUND_HEAD_PRIOR))
+            nn.init.constant_(self.found_head.bias, prior)
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -195,11 +214,18 @@ class RecurrentPolicy(nn.Module):
         return state
 
     def forward(
-        self, frames: Batch, prev_action: Tensor, episode_start: Tensor, state: State
+        self,
+        frames: Batch,
+        prev_action: Tensor,
+        episode_start: Tensor,
+        state: State,
+        found_fired: Tensor | None = None,
     ) -> PolicyOutput:
         """Run T steps for B environments. ``frames[k]`` is (T, B, ...); ``prev_action`` (T, B)
         is the action taken before each step (ignored at episode starts); ``episode_start``
-        (T, B) is 1 where a new episode begins, which clears the state."""
+        (T, B) is 1 where a new episode begins, which clears the state. ``found_fired`` (T, B):
+        with a FOUND head, where its gate was open when the steps were acted (a replay gates
+        as the actions were taken); by default where the head says so now."""
         steps, batch = episode_start.shape
         flat = {k: v.reshape(steps * batch, *v.shape[2:]) for k, v in frames.items()}
         starts = episode_start.reshape(-1).bool()
@@ -262,12 +288,19 @@ class RecurrentPolicy(nn.Module):
         goal_losses = None
         if self.goal_heads is not None and GOAL_VECTOR in flat:
             goal_losses = self.goal_heads.losses(core.flatten(0, 1), flat[GOAL_VECTOR])
+        logits = self.actor(core)
+        found_logit = None
+        if self.found_head is not None:
+            found_logit = self.found_head(core).squeeze(-1)
+            fired = found_logit.detach() > 0 if found_fired is None else found_fired.bool()
+            logits = gated_logits(logits, fired)
         return PolicyOutput(
-            logits=self.actor(core),
+            logits=logits,
             value=self.critic(core).squeeze(-1),
             state=new_state,
             auxiliary_loss=auxiliary,
             goal_losses=goal_losses,
+            found_logit=found_logit,
         )
 
     def _recurrent(
@@ -334,7 +367,8 @@ class RecurrentPolicy(nn.Module):
     ) -> Replay:
         """Replay a (T, B) sequence: log-probs of ``actions``, entropies, values, auxiliary loss
         and the logits."""
-        out = self(frames, prev_action, episode_start, state)
+        fired = actions == FOUND if self.found_head is not None else None
+        out = self(frames, prev_action, episode_start, state, fired)
         dist = Categorical(logits=out.logits)
         return Replay(
             dist.log_prob(actions),
@@ -343,7 +377,21 @@ class RecurrentPolicy(nn.Module):
             out.auxiliary_loss,
             out.logits,
             out.goal_losses,
+            out.found_logit,
         )
+
+
+def gated_logits(actor_logits: Tensor, fired: Tensor) -> Tensor:
+    """The action logits (..., A) of a policy whose FOUND a head decides: where ``fired`` (...)
+    FOUND alone (probability 1), elsewhere the actor's movements with FOUND impossible. A
+    replay that gates as the acting did gives a FOUND step log-probability 0 (PPO's ratio 1:
+    the actor is not taught by it) and a movement the actor's own renormalised log-probability."""
+    lowest = torch.finfo(actor_logits.dtype).min
+    found = torch.zeros_like(actor_logits, dtype=torch.bool)
+    found[..., FOUND] = True
+    only_found = torch.full_like(actor_logits, lowest).masked_fill(found, 0.0)
+    moves = actor_logits.masked_fill(found, lowest)
+    return torch.where(fired.unsqueeze(-1), only_found, moves)
 
 
 def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...]) -> Batch:

@@ -24,9 +24,12 @@ from multion_agents.learned.distributed import average_gradients
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
     FoundTargets,
+    found_head_loss,
     found_loss,
-    found_probability_at_goal,
+    found_probabilities,
     found_targets,
+    mean_where,
+    needs_found_labels,
 )
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.precision import update_precision
@@ -84,7 +87,7 @@ def ppo_update(
     if args.normalize_advantages:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
     targets = None
-    if args.found_supervision > 0 and FOUND_LABEL_SENSOR in rollout.frames:
+    if needs_found_labels(args) and FOUND_LABEL_SENSOR in rollout.frames:
         targets = found_targets(rollout.frames[FOUND_LABEL_SENSOR], success_distance)
     device = policy.device
     precision = update_precision(args.mixed_precision, device, optimizer)
@@ -169,10 +172,16 @@ def ppo_loss(
     heads = replay.goal_losses
     if heads is not None:
         loss = loss + args.goal_head_coef * heads.total
-    found_term = found_at_goal = None
+    found_term = found_at_goal = found_elsewhere = None
     if found is not None:
-        found_at_goal = found_probability_at_goal(replay.logits.detach(), found.labels)
-        if found.weights is not None:
+        at_goal = found.labels.reshape(-1) > 0.5
+        chances = found_probabilities(replay.logits.detach(), replay.found_logit)
+        found_at_goal = mean_where(chances.detach(), at_goal)
+        found_elsewhere = mean_where(chances.detach(), ~at_goal)
+        if replay.found_logit is not None and args.found_head > 0:
+            found_term = found_head_loss(replay.found_logit, found.labels)
+            loss = loss + args.found_head * found_term
+        elif found.weights is not None and args.found_supervision > 0:
             found_term = found_loss(replay.logits, found.labels, found.weights)
             loss = loss + args.found_supervision * found_term
     imitation = None
@@ -192,6 +201,7 @@ def ppo_loss(
         "found_loss": found_term.detach() if found_term is not None else None,
         "found_positive_share": found.labels.mean() if found is not None else None,
         "found_prob_at_goal": found_at_goal,
+        "found_prob_elsewhere": found_elsewhere,
         "clip_fraction": ((ratio - 1).abs() > clip).float().mean().detach(),
         "goal_seen_loss": heads.seen.detach() if heads is not None else None,
         "goal_direction_loss": heads.direction.detach() if heads is not None else None,

@@ -202,6 +202,19 @@ class Args:
             group=BEYOND_PAPER,
         ),
     )
+    found_head: float = setting(
+        0.0,
+        low=0,
+        high=10,
+        cli=Option(
+            "weight of the cross-entropy of a FOUND head that alone decides FOUND (the policy "
+            "calls it where the head's probability exceeds 0.5, and PPO teaches only the "
+            "movements), trained from the goal_distance oracle that only training receives, "
+            "in [0, 10] (default 0: off, FOUND is one of the actor's actions as in the paper)",
+            group=BEYOND_PAPER,
+        ),
+    )
+    """Not with ``--found-supervision``, which teaches the actor's own FOUND."""
     pretrain_vision: VisionPretraining = setting(
         default_factory=VisionPretraining,
         cli=Option(
@@ -308,3 +321,8 @@ class Args:
 
     def __post_init__(self) -> None:
         check_settings(self)
+        if self.found_head > 0 and self.found_supervision > 0:
+            raise ConfigError(
+                "--found-head and --found-supervision: pick one (the head decides FOUND, "
+                "the supervision teaches the actor's FOUND)"
+            )

@@ -47,7 +47,7 @@ from multion_agents.learned.distributed import (
     weights_digest,
 )
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
-from multion_agents.learned.found_supervision import FOUND_LABEL_SENSOR
+from multion_agents.learned.found_supervision import FOUND_LABEL_SENSOR, needs_found_labels
 from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.models import build_policy, model_spec
@@ -216,7 +216,7 @@ class TrainingRun:
         args, placement = self.args, self.placement
         self._next_stage_when_due()
         tick = time.perf_counter()
-        labels = (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
+        labels = (FOUND_LABEL_SENSOR,) if needs_found_labels(args) else ()
         rollout, next_value, timing = collect(
             self.envs, self.policy, self.live, args.rollout_steps, self.window, labels
         )
@@ -394,7 +394,7 @@ def run_env_config(args: Args) -> EnvConfig:
     then fixes the map geometry, crop size and camera even if the env's defaults change)."""
     spec = model_spec(args.agent)
     sensors = spec.train_sensors + ((GOAL_VECTOR,) if args.goal_heads else ())
-    sensors += (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
+    sensors += (FOUND_LABEL_SENSOR,) if needs_found_labels(args) else ()
     config = training_env_config(
         parse_task(args.task),
         sensors,
@@ -455,7 +455,9 @@ def _prepare(
     check_map_pretraining(args.pretrain_map, args.agent, model_spec(args.agent).sensors)
     check_vision_pretraining(args.pretrain_vision, args.agent, model_spec(args.agent).sensors)
     torch.manual_seed(args.seed)
-    policy = build_policy(args.agent, env_config, args.hidden_size, args.goal_heads).to(device)
+    policy = build_policy(
+        args.agent, env_config, args.hidden_size, args.goal_heads, args.found_head > 0
+    ).to(device)
     if args.balanced_recognition:
         if not isinstance(policy.memory, ObjRecogMap):
             raise ConfigError(
