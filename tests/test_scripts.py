@@ -214,6 +214,8 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-all-sup",
             "no-map-found-sup-curricula",
             "no-map-found-sup10-curricula",
+            "no-map-found-head-near",
+            "no-map-found-head-all",
         ]  # fmt: skip
     )
     for line in trains:
@@ -233,8 +235,14 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--found-supervision 1 --curriculum 400:4 --curriculum 700:10" in curricula
     assert "--found-curriculum 400:0.5" in curricula
     assert "--found-supervision 10 --curriculum" in by_run["no-map-found-sup10-curricula"]
+    near = by_run["no-map-found-head-near"]
+    assert "--found-head 1 --curriculum 400:4 --curriculum 700:10" in near
+    assert not any(flag in near for flag in (*extras, "--found-supervision"))
+    assert all(
+        flag in by_run["no-map-found-head-all"] for flag in ("--goal-heads", "--found-head 1")
+    )
     evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
-    assert len(evals) == 9 and all("--split val --episodes 100" in line for line in evals)
+    assert len(evals) == 11 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip

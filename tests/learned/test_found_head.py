@@ -1,0 +1,129 @@
+"""``--found-head`` (issue 51): a supervised head that alone decides FOUND. The gate, the replay
+that gates as the acting did, the loss against hand computation, and the checkpoint that acts
+with the head while never reading the oracle."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+import torch
+from rollouts import sample_frames, space_for
+from test_recipe_options import tiny_args
+
+from multion.config.ranges import ConfigError
+from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint, load_policy
+from multion_agents.learned.found_supervision import (
+    FOUND_LABEL_SENSOR,
+    found_head_loss,
+    found_probabilities,
+)
+from multion_agents.learned.models import model_spec
+from multion_agents.learned.policy import FOUND_HEAD_PRIOR, RecurrentPolicy, gated_logits
+from multion_agents.learned.train_settings import Args
+from multion_agents.learned.training_run import run_env_config, train
+from multion_client.constants import Action
+
+FOUND = int(Action.FOUND)
+
+
+def test_the_gate_calls_found_alone_or_only_moves() -> None:
+    actor = torch.tensor([[1.0, 2.0, 0.5, 3.0], [1.0, 2.0, 0.5, 3.0]])
+    probabilities = torch.softmax(gated_logits(actor, torch.tensor([True, False])), dim=-1)
+    assert probabilities[0, FOUND] == 1.0
+    assert probabilities[1, FOUND] == 0.0
+    others = [a for a in range(4) if a != FOUND]
+    moves = torch.softmax(actor[1, others], dim=0)  # the actor's own, FOUND left out
+    assert probabilities[1, others].tolist() == pytest.approx(moves.tolist())
+
+
+def _policy(seed: int = 0) -> tuple[RecurrentPolicy, dict[str, torch.Tensor]]:
+    torch.manual_seed(seed)
+    space = space_for("no-map")
+    policy = model_spec("no-map").build(space, found_head=True)
+    frames = {k: v for k, v in sample_frames(space, 5, 3, seed).items() if k in policy.sensors}
+    return policy, frames
+
+
+def _run(policy: RecurrentPolicy, frames: dict[str, torch.Tensor], actions: torch.Tensor | None):
+    starts = torch.zeros(5, 3)
+    starts[0] = 1
+    previous = torch.zeros(5, 3, dtype=torch.long)
+    state = policy.initial_state(3)
+    if actions is None:
+        return policy(frames, previous, starts, state)
+    return policy.evaluate_actions(frames, previous, starts, state, actions)
+
+
+def test_an_untrained_head_never_calls_found_and_an_open_one_always_does() -> None:
+    policy, frames = _policy()
+    assert policy.found_head is not None
+    out = _run(policy, frames, None)
+    assert out.found_logit is not None
+    chances = found_probabilities(out.logits, out.found_logit)
+    assert chances.detach() == pytest.approx(torch.full((15,), FOUND_HEAD_PRIOR), abs=0.01)
+    assert float(torch.softmax(out.logits.detach(), -1)[..., FOUND].max()) == 0.0
+    with torch.no_grad():
+        policy.found_head.bias.fill_(5.0)
+    assert torch.softmax(_run(policy, frames, None).logits, -1)[..., FOUND].min() == 1.0
+
+
+def test_a_replay_gates_as_the_actions_were_taken_and_found_steps_teach_the_actor_nothing() -> None:
+    policy, frames = _policy()
+    move = [a for a in range(4) if a != FOUND]
+    actions = torch.tensor(
+        [[FOUND, move[0], move[1]], [move[2], FOUND, move[0]], [move[1], move[1], FOUND],
+         [move[0], move[2], move[1]], [FOUND] * 3]
+    )  # fmt: skip
+    replay = _run(policy, frames, actions)  # the head is shut now; the FOUNDs were called
+    fired = actions == FOUND
+    assert replay.logprob[fired].tolist() == pytest.approx([0.0] * int(fired.sum()))
+    assert replay.entropy[fired].tolist() == pytest.approx([0.0] * int(fired.sum()))
+    actor = policy.actor  # the actor's own log-probabilities over the movements
+    with torch.no_grad():
+        logits = _run(policy, frames, None).logits  # gate shut: FOUND impossible
+    moves = torch.log_softmax(logits[..., move], dim=-1)  # (T, B, 3)
+    index = torch.tensor([[move.index(a) if a != FOUND else 0 for a in row] for row in actions])
+    expected = moves.gather(-1, index[..., None])[..., 0]
+    assert replay.logprob[~fired].tolist() == pytest.approx(expected[~fired].tolist(), abs=1e-5)
+    replay.logprob[fired].sum().backward()  # PPO's ratio at a FOUND step is 1, whatever the actor
+    assert actor.weight.grad is None or float(actor.weight.grad.abs().sum()) == 0.0
+
+
+def test_the_loss_is_the_unweighted_binary_cross_entropy_computed_by_hand() -> None:
+    logits = torch.tensor([2.0, -1.0, 0.5])
+    labels = torch.tensor([1.0, 0.0, 0.0])
+    p = torch.sigmoid(logits)
+    expected = -(torch.log(p[0]) + torch.log(1 - p[1]) + torch.log(1 - p[2])) / 3
+    assert float(found_head_loss(logits, labels)) == pytest.approx(float(expected), rel=1e-6)
+    head = torch.zeros(2, requires_grad=True)
+    found_head_loss(head, torch.tensor([1.0, 0.0])).backward()
+    assert head.grad is not None and head.grad[0] < 0 < head.grad[1]  # up at the goal, down away
+
+
+def test_options_are_bounded_and_exclusive() -> None:
+    with pytest.raises(ValueError, match=r"--found-head must be in \[0, 10\]"):
+        Args(found_head=11.0)
+    with pytest.raises(ConfigError, match="--found-head and --found-supervision"):
+        Args(found_head=1.0, found_supervision=1.0)
+
+
+def test_a_run_trains_the_head_and_its_checkpoint_acts_with_it(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    args = tiny_args(tmp_path, room_dataset, frames=128, found_head=1.0)
+    assert FOUND_LABEL_SENSOR in run_env_config(args).sensors
+    train(args)
+    rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
+    assert rows and all(math.isfinite(float(row["found_loss"])) for row in rows)
+    assert all(0.0 < float(row["found_prob_elsewhere"]) < 1.0 for row in rows)
+    path = tmp_path / "run" / "checkpoint.pt"
+    assert "found_head.weight" in load_checkpoint(path)["model"]
+    policy, _, _ = load_policy(path)
+    assert policy.found_head is not None  # it decides FOUND: kept to act
+    assert FOUND_LABEL_SENSOR not in policy.sensors
+    with pytest.raises(CheckpointError, match="--found-head"):
+        train(dataclasses.replace(args, frames=256, resume=True, found_head=0.0))
