@@ -26,6 +26,7 @@ from multion.config.codec import env_config_from_dict
 from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import ConfigOverrides, merge_overrides
+from multion_agents.learned.found_supervision import found_probabilities
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
 from multion_agents.learned.train_options import VisionPretraining
@@ -39,9 +40,6 @@ from multion_agents.learned.vision_pretrain import (
     predict_goal_in_view,
     sample_frames,
 )
-from multion_client.constants import Action
-
-FOUND = int(Action.FOUND)
 
 
 @dataclass(frozen=True)
@@ -67,7 +65,7 @@ def found_calls(
     policy: RecurrentPolicy, config: EnvConfig, episodes: int, seed: int, progress: bool = False
 ) -> FoundCalls:
     """Play the first ``episodes`` val episodes of ``config`` with ``policy`` (actions sampled
-    with ``seed``), recording FOUND's probability at every step."""
+    with ``seed``), recording FOUND's probability at every step (a FOUND head's own)."""
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, "goal_distance"))))
     reach = config.task.success_distance
     rng = np.random.default_rng(seed)
@@ -94,7 +92,10 @@ def found_calls(
                 state, start = out.state, False
                 probabilities = torch.softmax(out.logits[0, 0].double(), 0).cpu().numpy()
                 distance = float(observation["goal_distance"][0])
-                (near if distance <= reach else far).append(float(probabilities[FOUND]))
+                # with --found-head, the head's probability (its gate opens above 0.5)
+                head = None if out.found_logit is None else out.found_logit[0, 0]
+                chance = float(found_probabilities(out.logits[0, 0], head)[0])
+                (near if distance <= reach else far).append(chance)
                 previous = int(
                     rng.choice(len(probabilities), p=probabilities / probabilities.sum())
                 )
