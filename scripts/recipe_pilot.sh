@@ -68,6 +68,10 @@ pilot "$agent-found-sup10-curricula" --found-supervision 10 --curriculum "$found
 # not that FOUND succeeds. Near goals first, so that steps at a goal are common.
 pilot "$agent-found-head-near" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10"
+# The head pretrained too: vision pretraining teaches it on the rendered frames (the policy's
+# first step; FOUND would succeed within the success distance) before PPO.
+pilot "$agent-found-head-vision" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --pretrain-vision 2000
 # The same with the goal heads and vision pretraining.
 pilot "$agent-found-head-all" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000

@@ -215,6 +215,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-sup-curricula",
             "no-map-found-sup10-curricula",
             "no-map-found-head-near",
+            "no-map-found-head-vision",
             "no-map-found-head-all",
         ]  # fmt: skip
     )
@@ -242,7 +243,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
         flag in by_run["no-map-found-head-all"] for flag in ("--goal-heads", "--found-head 1")
     )
     evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
-    assert len(evals) == 11 and all("--split val --episodes 100" in line for line in evals)
+    assert "--found-head 1" in by_run["no-map-found-head-vision"]
+    assert "--pretrain-vision 2000" in by_run["no-map-found-head-vision"]
+    assert len(evals) == 12 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip

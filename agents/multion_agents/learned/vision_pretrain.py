@@ -8,7 +8,9 @@ in train houses, half of them facing a goal within ``max_distance`` (class-balan
 by ``goal_mask``: for each of the 8 categories, whether it shows and in which third of the
 image (left, centre, right) the centre of its pixels lies. A linear head on the 512-d image
 embedding ``v_i`` predicts the 8 labels; the head is dropped after, and PPO starts from the
-encoder. Marza et al. (ICCV 2023) report that pre-trained perception lifts NoMap from 16.7 to
+encoder. A policy with a FOUND head (``--found-head``) learns its decision on the same frames:
+the whole policy's first step of an episode that starts at the frame, labelled "FOUND would
+succeed" where the goal is within the success distance. Marza et al. (ICCV 2023) report that pre-trained perception lifts NoMap from 16.7 to
 42.3 % Success; their object locator is a pre-trained segmentation head.
 """
 
@@ -27,7 +29,9 @@ from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion.task.maps import can_see
+from multion.task.spaces import build_observation_space
 from multion_agents.learned.encoders import ImageEncoder
+from multion_agents.learned.found_supervision import found_head_loss
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.pretrain import reset_randomly
 from multion_agents.learned.train_options import VisionPretraining
@@ -175,6 +179,70 @@ def class_weights(labels: np.ndarray) -> Tensor:
     return torch.as_tensor(weights / mean, dtype=torch.float32)
 
 
+@dataclass(frozen=True)
+class FoundPretraining:
+    """What pretraining a FOUND head needs besides the frames: the ``policy`` whose first step
+    decides, zero readings of its other sensors at an episode's start (``blank``, e.g. GPS and
+    compass) and the task's ``success_distance``."""
+
+    policy: RecurrentPolicy
+    blank: dict[str, np.ndarray]
+    success_distance: float
+
+    @classmethod
+    def of(cls, policy: RecurrentPolicy, env_config: EnvConfig) -> FoundPretraining | None:
+        """None for a policy without a FOUND head."""
+        if policy.found_head is None:
+            return None
+        space = build_observation_space(replace(env_config, sensors=policy.sensors))
+        own = ("rgb", "depth", "goal")
+        blank = {
+            key: np.zeros(box.shape or (), dtype=box.dtype)
+            for key, box in space.spaces.items()
+            if key not in own
+        }
+        return cls(policy, blank, env_config.task.success_distance)
+
+    def logits(self, frames: VisionFrames, index: np.ndarray) -> Tensor:
+        """The FOUND head's logits (N,) at the first step of episodes starting at the frames."""
+        device, count = self.policy.device, len(index)
+        batch = {
+            "rgb": torch.as_tensor(frames.rgb[index]),
+            "depth": torch.as_tensor(frames.depth[index]),
+            "goal": torch.as_tensor(frames.goal[index]),
+            **{k: torch.as_tensor(np.stack([v] * count)) for k, v in self.blank.items()},
+        }
+        batch = {k: v[None].to(device) for k, v in batch.items() if k in self.policy.sensors}
+        out = self.policy(
+            batch,
+            torch.zeros(1, count, dtype=torch.long, device=device),
+            torch.ones(1, count, device=device),
+            self.policy.initial_state(count),
+        )
+        assert out.found_logit is not None  # FoundPretraining.of: a policy with the head
+        return out.found_logit[0]
+
+    def labels(self, frames: VisionFrames, index: np.ndarray) -> Tensor:
+        """1.0 where the frame's goal is within the success distance (straight-line), else 0."""
+        near = frames.distance[index] <= self.success_distance
+        return torch.as_tensor(near, dtype=torch.float32, device=self.policy.device)
+
+    def held_out(self, frames: VisionFrames, chunk: int = 256) -> tuple[float, float]:
+        """The head's mean probability on frames within the success distance, and farther."""
+        chances = []
+        with torch.no_grad():
+            for start in range(0, len(frames), chunk):
+                index = np.arange(start, min(start + chunk, len(frames)))
+                chances.append(torch.sigmoid(self.logits(frames, index)).cpu().numpy())
+        chance = np.concatenate(chances)
+        near = frames.distance <= self.success_distance
+        return _mean(chance[near]), _mean(chance[~near])
+
+
+def _mean(values: np.ndarray) -> float:
+    return float(values.mean()) if len(values) else math.nan
+
+
 def _embed(
     encoder: ImageEncoder, frames: VisionFrames, index: np.ndarray, device: torch.device
 ) -> Tensor:
@@ -249,13 +317,17 @@ def fit_head(
     log: TrainingLog | None = None,
     held_out: VisionFrames | None = None,
     progress: bool = False,
+    found: FoundPretraining | None = None,
 ) -> float:
     """Train ``head`` (and the encoder when ``train_encoder``; else a probe of frozen features)
     with class-weighted cross-entropy; returns the last loss. Every 100 steps a row goes to
-    ``log`` ("pretrain_vision") with the held-out recall and precision over all bands."""
+    ``log`` ("pretrain_vision") with the held-out recall and precision over all bands.
+    ``found``: the policy's FOUND head learns too (its binary cross-entropy added; the policy's
+    weights trained), and the log gives its held-out mean probability near the goal and far."""
     device = next(head.parameters()).device
     weights = class_weights(frames.labels).to(device)
-    parameters = list(head.parameters()) + (list(encoder.parameters()) if train_encoder else [])
+    trained = found.policy if found is not None else encoder
+    parameters = list(head.parameters()) + (list(trained.parameters()) if train_encoder else [])
     optimizer = torch.optim.Adam(parameters, lr=settings.learning_rate, eps=1e-5)
     rng = np.random.default_rng(settings.seed)
     loss_value = math.nan
@@ -270,6 +342,8 @@ def fit_head(
         loss = nn.functional.cross_entropy(
             logits.reshape(-1, PLACES), labels.reshape(-1), weight=weights
         )
+        if found is not None:
+            loss = loss + found_head_loss(found.logits(frames, index), found.labels(frames, index))
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -277,15 +351,15 @@ def fit_head(
         if log is not None and held_out is not None and (step % 100 == 0 or step == settings.steps):
             predicted = predict_goal_in_view(encoder, head, held_out)
             recall, precision = recall_precision(predicted, goal_in_view(held_out))
-            log.write(
-                "pretrain_vision",
-                {
-                    "step": step,
-                    "loss": loss_value,
-                    "held_out_recall": recall,
-                    "held_out_precision": precision,
-                },
-            )
+            row = {
+                "step": step,
+                "loss": loss_value,
+                "held_out_recall": recall,
+                "held_out_precision": precision,
+            }
+            if found is not None:
+                row["found_near"], row["found_far"] = found.held_out(held_out)
+            log.write("pretrain_vision", row)
     return loss_value
 
 
@@ -321,7 +395,8 @@ def pretrain_vision(
     head = PlaceHead(encoder.out_dim).to(policy.device)
     log = TrainingLog(out, tensorboard=False)
     try:
-        fit_head(encoder, head, train, settings, True, log, held_out, progress)
+        found = FoundPretraining.of(policy, env_config)
+        fit_head(encoder, head, train, settings, True, log, held_out, progress, found)
     finally:
         log.close()
     scores = band_scores(
