@@ -9,22 +9,26 @@ import dataclasses
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
-from rollouts import sample_frames, space_for
+from rollouts import SIZE, sample_frames, space_for
 from test_recipe_options import tiny_args
 
 from multion.config.ranges import ConfigError
+from multion.config.task import CameraConfig, EnvConfig
 from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint, load_policy
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
     found_head_loss,
     found_probabilities,
 )
-from multion_agents.learned.models import model_spec
+from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import FOUND_HEAD_PRIOR, RecurrentPolicy, gated_logits
+from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
+from multion_agents.learned.vision_pretrain import FoundPretraining, VisionFrames
 from multion_client.constants import Action
 
 FOUND = int(Action.FOUND)
@@ -127,3 +131,36 @@ def test_a_run_trains_the_head_and_its_checkpoint_acts_with_it(
     assert FOUND_LABEL_SENSOR not in policy.sensors
     with pytest.raises(CheckpointError, match="--found-head"):
         train(dataclasses.replace(args, frames=256, resume=True, found_head=0.0))
+
+
+def test_vision_pretraining_labels_the_head_within_the_success_distance() -> None:
+    policy, _ = _policy()
+    frames = VisionFrames(
+        rgb=np.zeros((3, SIZE, SIZE, 3), dtype=np.uint8),
+        depth=np.zeros((3, SIZE, SIZE, 1), dtype=np.float32),
+        labels=np.zeros((3, 8), dtype=np.int64),
+        goal=np.array([0, 3, 5]),
+        distance=np.array([0.4, 1.5, 1.6], dtype=np.float32),
+    )
+    config = EnvConfig(sensors=policy.sensors, camera=CameraConfig(width=SIZE, height=SIZE))
+    found = FoundPretraining.of(policy, config)
+    assert found is not None and found.success_distance == config.task.success_distance == 1.5
+    index = np.arange(3)
+    assert found.labels(frames, index).tolist() == [1.0, 1.0, 0.0]
+    assert found.logits(frames, index).shape == (3,)
+    without, _ = _policy()
+    without.found_head = None
+    assert FoundPretraining.of(without, config) is None
+
+
+def test_vision_pretraining_trains_the_head_before_ppo(tmp_path: Path, room_dataset: Path) -> None:
+    vision = VisionPretraining(steps=100, samples=200, held_out=100, max_distance=4.0)
+    args = tiny_args(tmp_path, room_dataset, frames=64, found_head=1.0, pretrain_vision=vision)
+    train(args)
+    rows = list(csv.DictReader((tmp_path / "run" / "pretrain_vision.csv").open()))
+    assert rows and all(0.0 < float(row["found_near"]) < 1.0 for row in rows)
+    assert all(0.0 < float(row["found_far"]) < 1.0 for row in rows)
+    untrained = build_policy("no-map", run_env_config(args), found_head=True)
+    weights = load_checkpoint(tmp_path / "run" / "checkpoint.pt")["model"]
+    assert untrained.found_head is not None
+    assert not torch.equal(weights["found_head.bias"], untrained.found_head.bias.detach())
