@@ -216,6 +216,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-sup10-curricula",
             "no-map-found-head-near",
             "no-map-found-head-vision",
+            "no-map-found-head-free",
             "no-map-found-head-all",
         ]  # fmt: skip
     )
@@ -245,7 +246,8 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
     assert "--found-head 1" in by_run["no-map-found-head-vision"]
     assert "--pretrain-vision 2000" in by_run["no-map-found-head-vision"]
-    assert len(evals) == 12 and all("--split val --episodes 100" in line for line in evals)
+    assert "--found-curriculum 400:0" in by_run["no-map-found-head-free"]
+    assert len(evals) == 13 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
