@@ -65,7 +65,7 @@ pilot "$agent-found-sup10-curricula" --found-supervision 10 --curriculum "$found
   --curriculum "$((frames * 7 / 10)):10" --found-curriculum "$found_frames:$found_penalty"
 # FOUND decided by a supervised head, not by the actor (--found-head): PPO teaches only the
 # movements, so nothing teaches "never FOUND"; the gate opens where the head is more sure than
-# not that FOUND succeeds. Near goals first, so that steps at a goal are common.
+# not that FOUND succeeds with the goal in view. Near goals first, so that such steps are common.
 pilot "$agent-found-head-near" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10"
 # The head pretrained too: vision pretraining teaches it on the rendered frames (the policy's

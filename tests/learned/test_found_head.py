@@ -20,8 +20,12 @@ from multion.config.task import CameraConfig, EnvConfig
 from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint, load_policy
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
+    IN_VIEW_SENSOR,
     found_head_loss,
+    found_label_sensors,
     found_probabilities,
+    found_targets,
+    goal_in_view,
 )
 from multion_agents.learned.models import build_policy, model_spec
 from multion_agents.learned.policy import FOUND_HEAD_PRIOR, RecurrentPolicy, gated_logits
@@ -108,6 +112,27 @@ def test_the_loss_is_the_unweighted_binary_cross_entropy_computed_by_hand() -> N
     assert head.grad is not None and head.grad[0] < 0 < head.grad[1]  # up at the goal, down away
 
 
+def test_the_heads_label_is_the_goal_within_reach_and_in_view() -> None:
+    mask = torch.zeros(2, 2, 4, 4, dtype=torch.uint8)  # (T, B, H, W) goal_mask
+    mask[0, 0, 1, 2] = 3  # category 2 shows
+    mask[0, 1, 0, 0] = 5  # category 4 shows, but env 1's goal is 1
+    mask[1, 0, 3, 3] = 3
+    goal = torch.tensor([[2, 1], [2, 1]])
+    assert goal_in_view(mask, goal).tolist() == [[True, False], [True, False]]
+    distance = torch.tensor([[[1.0], [1.0]], [[2.0], [0.5]]])  # (T, B, 1)
+    targets = found_targets(distance, 1.5, goal_in_view(mask, goal))
+    assert targets.labels.tolist() == [[1.0, 0.0], [0.0, 0.0]]
+    assert found_targets(distance, 1.5).labels.tolist() == [[1.0, 1.0], [0.0, 1.0]]
+
+
+def test_a_head_run_carries_both_label_sensors(tmp_path: Path, room_dataset: Path) -> None:
+    args = tiny_args(tmp_path, room_dataset, found_head=1.0)
+    assert found_label_sensors(args) == (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR)
+    assert found_label_sensors(tiny_args(tmp_path, room_dataset)) == ()
+    sup = tiny_args(tmp_path, room_dataset, found_supervision=1.0)
+    assert found_label_sensors(sup) == (FOUND_LABEL_SENSOR,)
+
+
 def test_options_are_bounded_and_exclusive() -> None:
     with pytest.raises(ValueError, match=r"--found-head must be in \[0, 10\]"):
         Args(found_head=11.0)
@@ -119,7 +144,7 @@ def test_a_run_trains_the_head_and_its_checkpoint_acts_with_it(
     tmp_path: Path, room_dataset: Path
 ) -> None:
     args = tiny_args(tmp_path, room_dataset, frames=128, found_head=1.0)
-    assert FOUND_LABEL_SENSOR in run_env_config(args).sensors
+    assert {FOUND_LABEL_SENSOR, IN_VIEW_SENSOR} <= set(run_env_config(args).sensors)
     train(args)
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
     assert rows and all(math.isfinite(float(row["found_loss"])) for row in rows)
@@ -128,7 +153,7 @@ def test_a_run_trains_the_head_and_its_checkpoint_acts_with_it(
     assert "found_head.weight" in load_checkpoint(path)["model"]
     policy, _, _ = load_policy(path)
     assert policy.found_head is not None  # it decides FOUND: kept to act
-    assert FOUND_LABEL_SENSOR not in policy.sensors
+    assert FOUND_LABEL_SENSOR not in policy.sensors and IN_VIEW_SENSOR not in policy.sensors
     with pytest.raises(CheckpointError, match="--found-head"):
         train(dataclasses.replace(args, frames=256, resume=True, found_head=0.0))
 
@@ -136,18 +161,20 @@ def test_a_run_trains_the_head_and_its_checkpoint_acts_with_it(
 def test_vision_pretraining_labels_the_head_within_the_success_distance() -> None:
     policy, _ = _policy()
     frames = VisionFrames(
-        rgb=np.zeros((3, SIZE, SIZE, 3), dtype=np.uint8),
-        depth=np.zeros((3, SIZE, SIZE, 1), dtype=np.float32),
-        labels=np.zeros((3, 8), dtype=np.int64),
-        goal=np.array([0, 3, 5]),
-        distance=np.array([0.4, 1.5, 1.6], dtype=np.float32),
+        rgb=np.zeros((4, SIZE, SIZE, 3), dtype=np.uint8),
+        depth=np.zeros((4, SIZE, SIZE, 1), dtype=np.float32),
+        labels=np.zeros((4, 8), dtype=np.int64),
+        goal=np.array([0, 3, 5, 2]),
+        distance=np.array([0.4, 1.5, 1.6, 1.0], dtype=np.float32),
     )
+    frames.labels[[0, 1, 2], [0, 3, 5]] = [2, 1, 3]  # goals 0, 3, 5 show; goal 2 does not
+    frames.labels[3, 4] = 2  # frame 3 shows another category
     config = EnvConfig(sensors=policy.sensors, camera=CameraConfig(width=SIZE, height=SIZE))
     found = FoundPretraining.of(policy, config)
     assert found is not None and found.success_distance == config.task.success_distance == 1.5
-    index = np.arange(3)
-    assert found.labels(frames, index).tolist() == [1.0, 1.0, 0.0]
-    assert found.logits(frames, index).shape == (3,)
+    index = np.arange(4)
+    assert found.labels(frames, index).tolist() == [1.0, 1.0, 0.0, 0.0]  # near and in view
+    assert found.logits(frames, index).shape == (4,)
     without, _ = _policy()
     without.found_head = None
     assert FoundPretraining.of(without, config) is None

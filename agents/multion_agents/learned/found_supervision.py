@@ -27,10 +27,23 @@ from multion_client.constants import Action
 FOUND_LABEL_SENSOR = "goal_distance"
 
 
-def needs_found_labels(args: Args) -> bool:
-    """Whether the run learns FOUND from the oracle (``--found-supervision`` or ``--found-head``),
-    so that its rollouts carry the ``goal_distance`` readings."""
-    return args.found_supervision > 0 or args.found_head > 0
+IN_VIEW_SENSOR = "goal_mask"
+"""``--found-head``'s second label sensor: whether the frame shows the current goal."""
+
+
+def found_label_sensors(args: Args) -> tuple[str, ...]:
+    """The training-only sensors a run's rollouts carry to learn FOUND from: ``goal_distance``
+    for ``--found-supervision``, and ``goal_mask`` too for ``--found-head`` (none without)."""
+    if args.found_head > 0:
+        return (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR)
+    return (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
+
+
+def goal_in_view(goal_mask: Tensor, goal: Tensor) -> Tensor:
+    """Per frame, whether any pixel of ``goal_mask`` (T, B, H, W; category + 1, 0 for none)
+    shows the current ``goal`` category (T, B)."""
+    wanted = (goal.long() + 1).reshape(*goal.shape[:2], 1)
+    return (goal_mask.flatten(2).long() == wanted).any(-1)
 
 
 def found_labels(distance: Tensor, success_distance: float) -> Tensor:
@@ -49,9 +62,14 @@ class FoundTargets:
     weights: tuple[float, float] | None
 
 
-def found_targets(distance: Tensor, success_distance: float) -> FoundTargets:
-    """The targets of a rollout from its ``goal_distance`` readings (T, B, 1)."""
+def found_targets(
+    distance: Tensor, success_distance: float, in_view: Tensor | None = None
+) -> FoundTargets:
+    """The targets of a rollout from its ``goal_distance`` readings (T, B, 1); with ``in_view``
+    (T, B), only where the frame also shows the goal (``--found-head``: what one can see)."""
     labels = found_labels(distance, success_distance).view(distance.shape[:2])
+    if in_view is not None:
+        labels = labels * in_view.to(labels.dtype)
     return FoundTargets(labels, class_weights(labels))
 
 

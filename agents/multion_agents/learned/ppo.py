@@ -23,13 +23,15 @@ from multion.config.task import TaskConfig
 from multion_agents.learned.distributed import average_gradients
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
+    IN_VIEW_SENSOR,
     FoundTargets,
     found_head_loss,
+    found_label_sensors,
     found_loss,
     found_probabilities,
     found_targets,
+    goal_in_view,
     mean_where,
-    needs_found_labels,
 )
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.precision import update_precision
@@ -87,8 +89,10 @@ def ppo_update(
     if args.normalize_advantages:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
     targets = None
-    if needs_found_labels(args) and FOUND_LABEL_SENSOR in rollout.frames:
-        targets = found_targets(rollout.frames[FOUND_LABEL_SENSOR], success_distance)
+    frames = rollout.frames
+    if found_label_sensors(args) and all(k in frames for k in found_label_sensors(args)):
+        in_view = goal_in_view(frames[IN_VIEW_SENSOR], frames["goal"]) if args.found_head else None
+        targets = found_targets(frames[FOUND_LABEL_SENSOR], success_distance, in_view)
     device = policy.device
     precision = update_precision(args.mixed_precision, device, optimizer)
     totals: dict[str, float] = {}

@@ -47,7 +47,7 @@ from multion_agents.learned.distributed import (
     weights_digest,
 )
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
-from multion_agents.learned.found_supervision import FOUND_LABEL_SENSOR, needs_found_labels
+from multion_agents.learned.found_supervision import found_label_sensors
 from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.models import build_policy, model_spec
@@ -216,7 +216,7 @@ class TrainingRun:
         args, placement = self.args, self.placement
         self._next_stage_when_due()
         tick = time.perf_counter()
-        labels = (FOUND_LABEL_SENSOR,) if needs_found_labels(args) else ()
+        labels = found_label_sensors(args)
         rollout, next_value, timing = collect(
             self.envs, self.policy, self.live, args.rollout_steps, self.window, labels
         )
@@ -394,7 +394,7 @@ def run_env_config(args: Args) -> EnvConfig:
     then fixes the map geometry, crop size and camera even if the env's defaults change)."""
     spec = model_spec(args.agent)
     sensors = spec.train_sensors + ((GOAL_VECTOR,) if args.goal_heads else ())
-    sensors += (FOUND_LABEL_SENSOR,) if needs_found_labels(args) else ()
+    sensors += found_label_sensors(args)
     config = training_env_config(
         parse_task(args.task),
         sensors,

@@ -10,7 +10,7 @@ image (left, centre, right) the centre of its pixels lies. A linear head on the 
 embedding ``v_i`` predicts the 8 labels; the head is dropped after, and PPO starts from the
 encoder. A policy with a FOUND head (``--found-head``) learns its decision on the same frames:
 the whole policy's first step of an episode that starts at the frame, labelled "FOUND would
-succeed" where the goal is within the success distance. Marza et al. (ICCV 2023) report that pre-trained perception lifts NoMap from 16.7 to
+succeed, and one can see it" where the frame shows the goal within the success distance. Marza et al. (ICCV 2023) report that pre-trained perception lifts NoMap from 16.7 to
 42.3 % Success; their object locator is a pre-trained segmentation head.
 """
 
@@ -223,19 +223,22 @@ class FoundPretraining:
         return out.found_logit[0]
 
     def labels(self, frames: VisionFrames, index: np.ndarray) -> Tensor:
-        """1.0 where the frame's goal is within the success distance (straight-line), else 0."""
+        """1.0 where the frame shows its goal within the success distance (straight-line),
+        else 0: the label PPO's rollouts give the head (``found_supervision.found_targets``)."""
         near = frames.distance[index] <= self.success_distance
-        return torch.as_tensor(near, dtype=torch.float32, device=self.policy.device)
+        shows = frames.labels[index, frames.goal[index]] > 0
+        return torch.as_tensor(near & shows, dtype=torch.float32, device=self.policy.device)
 
     def held_out(self, frames: VisionFrames, chunk: int = 256) -> tuple[float, float]:
-        """The head's mean probability on frames within the success distance, and farther."""
+        """The head's mean probability on frames that show the goal within the success
+        distance, and on the rest."""
         chances = []
         with torch.no_grad():
             for start in range(0, len(frames), chunk):
                 index = np.arange(start, min(start + chunk, len(frames)))
                 chances.append(torch.sigmoid(self.logits(frames, index)).cpu().numpy())
         chance = np.concatenate(chances)
-        near = frames.distance <= self.success_distance
+        near = (frames.distance <= self.success_distance) & goal_in_view(frames)
         return _mean(chance[near]), _mean(chance[~near])
 
 
