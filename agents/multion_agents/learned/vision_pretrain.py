@@ -32,7 +32,7 @@ from multion.task.maps import can_see
 from multion.task.spaces import build_observation_space
 from multion_agents.learned.encoders import ImageEncoder
 from multion_agents.learned.found_supervision import found_head_loss
-from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy
 from multion_agents.learned.pretrain import reset_randomly
 from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.training_log import TrainingLog
@@ -213,7 +213,7 @@ class FoundPretraining:
             **{k: torch.as_tensor(np.stack([v] * count)) for k, v in self.blank.items()},
         }
         batch = {k: v[None].to(device) for k, v in batch.items() if k in self.policy.sensors}
-        out = self.policy(
+        out: PolicyOutput = self.policy(
             batch,
             torch.zeros(1, count, dtype=torch.long, device=device),
             torch.ones(1, count, device=device),
