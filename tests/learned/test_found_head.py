@@ -191,3 +191,20 @@ def test_vision_pretraining_trains_the_head_before_ppo(tmp_path: Path, room_data
     weights = load_checkpoint(tmp_path / "run" / "checkpoint.pt")["model"]
     assert untrained.found_head is not None
     assert not torch.equal(weights["found_head.bias"], untrained.found_head.bias.detach())
+
+
+@pytest.mark.parametrize("agent", ["proj-neural-map", "obj-recog-map", "oracle-ego-map"])
+def test_every_agent_with_a_map_pretrains_its_head_from_blank_readings(agent: str) -> None:
+    space = space_for(agent)
+    policy = model_spec(agent).build(space, found_head=True)
+    config = EnvConfig(sensors=policy.sensors, camera=CameraConfig(width=SIZE, height=SIZE))
+    found = FoundPretraining.of(policy, config)
+    assert found is not None and set(found.blank) == set(policy.sensors) - {"rgb", "depth", "goal"}
+    frames = VisionFrames(
+        rgb=np.zeros((2, SIZE, SIZE, 3), dtype=np.uint8),
+        depth=np.zeros((2, SIZE, SIZE, 1), dtype=np.float32),
+        labels=np.zeros((2, 8), dtype=np.int64),
+        goal=np.array([0, 3]),
+        distance=np.array([0.4, 3.0], dtype=np.float32),
+    )
+    assert torch.isfinite(found.logits(frames, np.arange(2))).all()
