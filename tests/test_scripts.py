@@ -270,7 +270,8 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
                               "proj-neural-map"]  # fmt: skip
     for agent, call in trains.items():
         assert "--frames 3000000 " in call and "--out runs/central-learn-to-see/" in call
-        assert "--goal-heads --found-curriculum 1200000:2.5 --pretrain-vision 2000" in call
+        assert "--found-head 1 --pretrain-vision 2000 --curriculum 1200000:4" in call
+        assert "--curriculum 2100000:10 --found-curriculum 1200000:0" in call
         assert ("--balanced-recognition" in call) == (agent == "obj-recog-map"), call
     report = next(c for c in calls if c.startswith("report "))
     assert "docs/learned/central " in report
