@@ -33,16 +33,13 @@ from multion_agents.learned.found_supervision import (
     goal_in_view,
     mean_where,
 )
-from multion_agents.learned.policy import RecurrentPolicy
+from multion_agents.learned.policy import FOUND, RecurrentPolicy
 from multion_agents.learned.precision import update_precision
 from multion_agents.learned.rollout import Rollout
 from multion_agents.learned.rollout_envs import NO_LABEL
 from multion_agents.learned.train_settings import Args
-from multion_client.constants import Action
 
 SUCCESS_DISTANCE = TaskConfig().success_distance
-
-FOUND = int(Action.FOUND)
 
 
 def set_found_prior(policy: RecurrentPolicy, probability: float) -> None:
@@ -90,7 +87,8 @@ def ppo_update(
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
     targets = None
     frames = rollout.frames
-    if found_label_sensors(args) and all(k in frames for k in found_label_sensors(args)):
+    label_sensors = found_label_sensors(args)
+    if label_sensors and all(k in frames for k in label_sensors):
         in_view = goal_in_view(frames[IN_VIEW_SENSOR], frames["goal"]) if args.found_head else None
         targets = found_targets(frames[FOUND_LABEL_SENSOR], success_distance, in_view)
     device = policy.device
@@ -179,9 +177,10 @@ def ppo_loss(
     found_term = found_at_goal = found_elsewhere = None
     if found is not None:
         at_goal = found.labels.reshape(-1) > 0.5
-        chances = found_probabilities(replay.logits.detach(), replay.found_logit)
-        found_at_goal = mean_where(chances.detach(), at_goal)
-        found_elsewhere = mean_where(chances.detach(), ~at_goal)
+        with torch.no_grad():
+            chances = found_probabilities(replay.logits, replay.found_logit)
+        found_at_goal = mean_where(chances, at_goal)
+        found_elsewhere = mean_where(chances, ~at_goal)
         if replay.found_logit is not None and args.found_head > 0:
             found_term = found_head_loss(replay.found_logit, found.labels)
             loss = loss + args.found_head * found_term

@@ -209,8 +209,9 @@ class Args:
         cli=Option(
             "weight of the cross-entropy of a FOUND head that alone decides FOUND (the policy "
             "calls it where the head's probability exceeds 0.5, and PPO teaches only the "
-            "movements), trained from the goal_distance oracle that only training receives, "
-            "in [0, 10] (default 0: off, FOUND is one of the actor's actions as in the paper)",
+            "movements), trained where FOUND would succeed with the goal in view, from the "
+            "goal_distance and goal_mask oracles that only training receives, in [0, 10] "
+            "(default 0: off, FOUND is one of the actor's actions as in the paper)",
             group=BEYOND_PAPER,
         ),
     )

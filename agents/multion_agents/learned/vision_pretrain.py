@@ -10,8 +10,9 @@ image (left, centre, right) the centre of its pixels lies. A linear head on the 
 embedding ``v_i`` predicts the 8 labels; the head is dropped after, and PPO starts from the
 encoder. A policy with a FOUND head (``--found-head``) learns its decision on the same frames:
 the whole policy's first step of an episode that starts at the frame, labelled "FOUND would
-succeed, and one can see it" where the frame shows the goal within the success distance. Marza et al. (ICCV 2023) report that pre-trained perception lifts NoMap from 16.7 to
-42.3 % Success; their object locator is a pre-trained segmentation head.
+succeed, and one can see it" where the frame shows the goal within the success distance.
+Marza et al. (ICCV 2023) report that pre-trained perception lifts NoMap from 16.7 to 42.3 %
+Success; their object locator is a pre-trained segmentation head.
 """
 
 from __future__ import annotations
@@ -226,7 +227,7 @@ class FoundPretraining:
         """1.0 where the frame shows its goal within the success distance (straight-line),
         else 0: the label PPO's rollouts give the head (``found_supervision.found_targets``)."""
         near = frames.distance[index] <= self.success_distance
-        shows = frames.labels[index, frames.goal[index]] > 0
+        shows = goal_in_view(frames)[index]
         return torch.as_tensor(near & shows, dtype=torch.float32, device=self.policy.device)
 
     def held_out(self, frames: VisionFrames, chunk: int = 256) -> tuple[float, float]:
@@ -238,7 +239,7 @@ class FoundPretraining:
                 index = np.arange(start, min(start + chunk, len(frames)))
                 chances.append(torch.sigmoid(self.logits(frames, index)).cpu().numpy())
         chance = np.concatenate(chances)
-        near = (frames.distance <= self.success_distance) & goal_in_view(frames)
+        near = self.labels(frames, np.arange(len(frames))).cpu().numpy() > 0.5
         return _mean(chance[near]), _mean(chance[~near])
 
 
