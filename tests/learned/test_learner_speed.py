@@ -14,12 +14,13 @@ from typing import Any
 from unittest import mock
 
 import torch
-from rollouts import actor_rollout, assert_same_loss_and_gradients
+from rollouts import actor_rollout, assert_same_loss_and_gradients, random_rollout, space_for
 from torch import Tensor
 
 from multion_agents.learned import policy as policy_module
+from multion_agents.learned.encoders import MapCNN
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
-from multion_agents.learned.models import build_policy
+from multion_agents.learned.models import MODELS, build_policy
 from multion_agents.learned.oracle_maps import OracleMapMemory
 from multion_agents.learned.policy import Batch
 from multion_agents.learned.ppo import Args, ppo_loss
@@ -150,3 +151,34 @@ def test_two_groups_of_environments_play_the_rollout_of_one(room_dataset: Path) 
         assert torch.equal(getattr(pipelined, name), getattr(plain, name)), name
     assert torch.allclose(pipelined.values, plain.values, atol=1e-5)
     assert torch.allclose(pipelined.logprobs, plain.logprobs, atol=1e-5)
+
+
+def _loss_and_gradients(agent: str, rollout_seed: int) -> tuple[float, dict[str, Tensor]]:
+    """PPO's loss and every gradient of a fresh ``agent`` on a random 6-step rollout of 2
+    environments, its memory starting empty."""
+    space = space_for(agent)
+    rollout = random_rollout(space, seed=rollout_seed)
+    torch.manual_seed(0)
+    policy = MODELS[agent].build(space)
+    rollout.initial_state = policy.initial_state(2)
+    loss, _ = ppo_loss(policy, rollout, 0.2, Args())
+    loss.backward()
+    grads = {n: p.grad.clone() for n, p in policy.named_parameters() if p.grad is not None}
+    return float(loss.detach()), grads
+
+
+def test_channels_last_map_cnn_learns_what_the_contiguous_one_learned() -> None:
+    """The map CNN's kernels and input in channels-last memory (faster on a CPU) compute the
+    same function and gradients as in the default layout."""
+    loss, grads = _loss_and_gradients("proj-neural-map", rollout_seed=4)
+    assert grads["memory.cnn.net.0.weight"].abs().sum() > 0
+
+    def contiguous(self: MapCNN, grid: Tensor) -> Tensor:
+        self.net.to(memory_format=torch.contiguous_format)
+        out: Tensor = self.net(grid.contiguous())
+        return out
+
+    with mock.patch.object(MapCNN, "forward", contiguous):
+        loss_before, grads_before = _loss_and_gradients("proj-neural-map", rollout_seed=4)
+    assert grads_before["memory.cnn.net.0.weight"].is_contiguous()
+    assert_same_loss_and_gradients(loss, grads, loss_before, grads_before)

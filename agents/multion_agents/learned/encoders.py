@@ -81,9 +81,12 @@ class MapCNN(nn.Module):
         layers += [nn.Conv2d(channels, 32, 3, stride=1, padding=1), nn.ReLU(), nn.Flatten()]
         self.net = nn.Sequential(*layers, nn.Linear(32 * side * side, out_dim), nn.ReLU())
         self.out_dim = out_dim
+        # channels-last kernels and maps: the same function, and on a CPU (oneDNN) 2.2× faster
+        # forward and backward than a (B, C, S, S)-contiguous crop (docs/training-speed.md)
+        self.net.to(memory_format=torch.channels_last)
 
     def forward(self, grid: Tensor) -> Tensor:
-        out: Tensor = self.net(grid)
+        out: Tensor = self.net(grid.contiguous(memory_format=torch.channels_last))
         return out
 
     def forward_cells(self, cells: Tensor, tables: Sequence[Tensor]) -> Tensor:
