@@ -31,12 +31,13 @@
 #   PYTHONPATH=$PWD/server:$PWD/client:$PWD/agents MULTION=$OLDPWD/.venv/bin/multion \
 #     OUT=$OLDPWD/runs/central bash scripts/central_comparison.sh
 # RECIPE (default paper) picks the training options: `paper`, the paper's PPO; `learn-to-see`,
-# issue 51's options beyond the paper for every agent, its pilot's best no-map run so far
-# (docs/learned.md, 25 % val Success at 500k frames against the paper recipe's 2 %): FOUND
-# decided by a supervised head, pretrained with the image encoder on rendered frames; goals
-# within 4 m until 40 % of the frames and 10 m until 70 %; wrong FOUNDs free until 40 %; and the
-# balanced recogniser for obj-recog-map; 3M frames by default; a recipe other than the paper's
-# is a variant of its own (runs/central-learn-to-see, docs/learned/central-learn-to-see).
+# issue 51's options beyond the paper for every agent, those of its pilot's best no-map run
+# (`no-map-found-head-all`, docs/learned.md: 29 % val Success at 500k frames against the paper
+# recipe's 2 %): FOUND decided by a supervised head, pretrained with the image encoder on
+# rendered frames; Marza et al.'s goal heads; goals within 4 m until 40 % of the frames and
+# 10 m until 70 %; and the balanced recogniser for obj-recog-map; 3M frames by default; a
+# recipe other than the paper's is a variant of its own (runs/central-learn-to-see,
+# docs/learned/central-learn-to-see).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 recipe_name=${RECIPE:-paper}
@@ -45,8 +46,8 @@ case $recipe_name in
   paper) frames=${FRAMES:-720000} ;;
   learn-to-see)
     frames=${FRAMES:-3000000}
-    options=(--found-head 1 --pretrain-vision 2000 --curriculum "$((frames * 2 / 5)):4"
-      --curriculum "$((frames * 7 / 10)):10" --found-curriculum "$((frames * 2 / 5)):0") ;;
+    options=(--found-head 1 --goal-heads --pretrain-vision 2000
+      --curriculum "$((frames * 2 / 5)):4" --curriculum "$((frames * 7 / 10)):10") ;;
   *) echo "unknown RECIPE $recipe_name (paper, learn-to-see)" >&2; exit 2 ;;
 esac
 image_size=${IMAGE_SIZE:-36}
