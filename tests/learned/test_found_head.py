@@ -122,7 +122,10 @@ def test_the_heads_label_is_the_goal_within_reach_and_in_view() -> None:
     distance = torch.tensor([[[1.0], [1.0]], [[2.0], [0.5]]])  # (T, B, 1)
     targets = found_targets(distance, 1.5, goal_in_view(mask, goal))
     assert targets.labels.tolist() == [[1.0, 0.0], [0.0, 0.0]]
-    assert found_targets(distance, 1.5).labels.tolist() == [[1.0, 1.0], [0.0, 1.0]]
+    assert targets.weights is None  # the head's loss weighs every step alike
+    supervision = found_targets(distance, 1.5)
+    assert supervision.labels.tolist() == [[1.0, 1.0], [0.0, 1.0]]
+    assert supervision.weights == (4 / 6, 4 / 2)  # found_supervision's balanced classes
 
 
 def test_a_head_run_carries_both_label_sensors(tmp_path: Path, room_dataset: Path) -> None:

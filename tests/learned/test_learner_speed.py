@@ -174,7 +174,8 @@ def test_channels_last_map_cnn_learns_what_the_contiguous_one_learned() -> None:
     assert grads["memory.cnn.net.0.weight"].abs().sum() > 0
 
     def contiguous(self: MapCNN, grid: Tensor) -> Tensor:
-        self.net.to(memory_format=torch.contiguous_format)
+        for kernel in self.net.parameters():
+            kernel.data = kernel.data.contiguous()
         out: Tensor = self.net(grid.contiguous())
         return out
 

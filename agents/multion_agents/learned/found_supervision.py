@@ -65,12 +65,14 @@ class FoundTargets:
 def found_targets(
     distance: Tensor, success_distance: float, in_view: Tensor | None = None
 ) -> FoundTargets:
-    """The targets of a rollout from its ``goal_distance`` readings (T, B, 1); with ``in_view``
-    (T, B), only where the frame also shows the goal (``--found-head``: what one can see)."""
+    """The targets of a rollout from its ``goal_distance`` readings (T, B, 1), weighted by
+    :func:`class_weights` (``--found-supervision``); with ``in_view`` (T, B), the FOUND head's:
+    only where the frame also shows the goal (what one can see), unweighted
+    (:func:`found_head_loss`)."""
     labels = found_labels(distance, success_distance).view(distance.shape[:2])
-    if in_view is not None:
-        labels = labels * in_view.to(labels.dtype)
-    return FoundTargets(labels, class_weights(labels))
+    if in_view is None:
+        return FoundTargets(labels, class_weights(labels))
+    return FoundTargets(labels * in_view.to(labels.dtype), None)
 
 
 def class_weights(labels: Tensor) -> tuple[float, float] | None:
