@@ -103,16 +103,6 @@ class MapMemory(Memory):
     def read(self, views: Tensor, frames: Batch) -> Tensor:
         """``v_m`` (N, out_dim) of N views; ``frames`` are the same N frames (flat)."""
 
-    def views(self, frames: Batch, episode_start: Tensor, state: State) -> tuple[Tensor, State]:
-        """The views (T, B, ...) of a (T, B) sequence of frames (observations and precomputed
-        tensors) and the state after it; each episode's memory starts empty."""
-        views = []
-        for t in range(episode_start.shape[0]):
-            state = _clear(state, 1.0 - episode_start[t].float())
-            view, state = self.advance({k: v[t] for k, v in frames.items()}, state)
-            views.append(view)
-        return torch.stack(views), state
-
     def step(self, frame: Batch, query: Tensor, state: State) -> tuple[Tensor, State]:
         view, state = self.advance(frame, state)
         return self.read(view, frame), state
@@ -278,18 +268,20 @@ class RecurrentPolicy(nn.Module):
             core = torch.stack(cores)
         else:
             # The memory does not read the GRU state, so its loop runs first, over all steps.
-            if isinstance(self.memory, MapMemory):  # every step's view read in one batch
-                views, memory_state = self.memory.views(per_step, episode_start, memory_state)
-                v_ms = self.memory.read(views.flatten(0, 1), {**flat, **precomputed})
-                v_ms = v_ms.view(steps, batch, -1)
-            else:
-                memory_out = []
-                for t in range(steps):
-                    memory_state = _clear(memory_state, 1.0 - episode_start[t].float())
-                    frame = {k: v[t] for k, v in per_step.items()}
+            memory_out = []
+            for t in range(steps):
+                memory_state = _clear(memory_state, 1.0 - episode_start[t].float())
+                frame = {k: v[t] for k, v in per_step.items()}
+                if isinstance(self.memory, MapMemory):
+                    view, memory_state = self.memory.advance(frame, memory_state)
+                    memory_out.append(view)
+                else:
                     v_m, memory_state = self.memory.step(frame, query[t], memory_state)
                     memory_out.append(v_m)
-                v_ms = torch.stack(memory_out)
+            v_ms = torch.stack(memory_out)
+            if isinstance(self.memory, MapMemory):  # every step's view read in one batch
+                views = v_ms.flatten(0, 1)
+                v_ms = self.memory.read(views, {**flat, **precomputed}).view(steps, batch, -1)
             core, hidden = self._recurrent(torch.cat([query, v_ms], dim=2), episode_start, hidden)
         new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
         auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
