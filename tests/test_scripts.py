@@ -261,7 +261,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
 
 def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -> None:
     """RECIPE=learn-to-see trains every agent with the options beyond the paper at 3M frames
-    (near goals over the first 1.2M), obj-recog-map with its balanced recogniser, into
+    (near goals over the first 200k, as in its pilot), obj-recog-map with its balanced recogniser, into
     runs/central-learn-to-see, reported beside the paper's published runs; an unknown recipe is
     refused."""
     (tmp_path / "scripts").mkdir()
@@ -274,8 +274,8 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
                               "proj-neural-map"]  # fmt: skip
     for agent, call in trains.items():
         assert "--frames 3000000 " in call and "--out runs/central-learn-to-see/" in call
-        assert "--found-head 1 --goal-heads --pretrain-vision 2000 --curriculum 1200000:4" in call
-        assert "--curriculum 2100000:10" in call and "--found-curriculum" not in call
+        assert "--found-head 1 --goal-heads --pretrain-vision 2000 --curriculum 200000:4" in call
+        assert "--curriculum 350000:10" in call and "--found-curriculum" not in call
         assert ("--balanced-recognition" in call) == (agent == "obj-recog-map"), call
     report = next(c for c in calls if c.startswith("report "))
     assert "docs/learned/central " in report
