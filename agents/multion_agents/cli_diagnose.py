@@ -4,11 +4,14 @@ Examples::
 
     multion diagnose runs/pilot/no-map-paper/checkpoint.pt
     multion diagnose runs/pilot/no-map-all/checkpoint.pt --episodes 50 --out runs/pilot/no-map-all
+    multion diagnose runs/pilot/no-map-found-head-all/checkpoint.pt --split train --no-probe
 
 Prints, for the checkpoint: a linear probe's recall and precision of "the goal shows" on its
 frozen image embedding by distance band (and ObjRecogMap's own recogniser), FOUND's mean
 probability within the success distance of the goal and farther, and how the episodes it
-plays end; ``--out`` also writes them to ``diagnosis.json``.
+plays end; for a FOUND head, how they would have ended with its gate lower (``--gates``; read
+off the same episodes, :mod:`multion_agents.learned.found_gate`). ``--out`` also writes them to
+``diagnosis.json``.
 """
 
 from __future__ import annotations
@@ -25,7 +28,22 @@ from typing import Any
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("checkpoint", help="a training checkpoint (checkpoint.pt)")
     parser.add_argument(
-        "--episodes", type=int, default=20, help="val episodes to play (default %(default)s)"
+        "--episodes", type=int, default=20, help="episodes to play (default %(default)s)"
+    )
+    parser.add_argument(
+        "--split",
+        choices=("val", "train"),
+        default="val",
+        help="houses of the played episodes (default %(default)s; train: to choose a gate "
+        "without looking at val)",
+    )
+    parser.add_argument(
+        "--gates",
+        default="0.05,0.1,0.2,0.3,0.4,0.5",
+        help="FOUND head gates to read off the played episodes, in (0, 0.5] (default %(default)s)",
+    )
+    parser.add_argument(
+        "--no-probe", action="store_true", help="skip the image-embedding probe: only play"
     )
     parser.add_argument(
         "--probe-frames",
@@ -58,10 +76,15 @@ def run(args: argparse.Namespace) -> int:
         recogniser_scores,
         view_frames,
     )
+    from multion_agents.learned.found_gate import parse_gates
     from multion_agents.learned.train_options import VisionPretraining
 
     if not 1 <= args.episodes <= 1000:
         return _fail(f"--episodes must be in [1, 1000], got {args.episodes}")
+    try:
+        gates = parse_gates(args.gates)
+    except ValueError as error:
+        return _fail(str(error))
     try:
         settings = VisionPretraining(
             steps=args.probe_steps,
@@ -78,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(error))
     config = diagnosis_config(overrides, policy.sensors)
     result: dict[str, Any] = {"checkpoint": str(args.checkpoint), "model": model}
-    print(f"multion diagnose {args.checkpoint}: {model}, 1-ON val, {config.camera.width}² camera")
-    if policy.image_encoder is not None:
+    print(f"multion diagnose {args.checkpoint}: {model}, 1-ON, {config.camera.width}² camera")
+    if policy.image_encoder is not None and not args.no_probe:
         train, held_out = view_frames(config, settings, progress)
         probe = probe_scores(policy, train, held_out, settings)
         result["probe"] = [dataclasses.asdict(row) for row in probe]
@@ -93,10 +116,13 @@ def run(args: argparse.Namespace) -> int:
         if recogniser is not None:
             result["recogniser"] = [dataclasses.asdict(row) for row in recogniser]
             _print_bands("the agent's own recogniser on the same val frames", recogniser)
-    calls = found_calls(policy, config, args.episodes, args.seed, progress)
-    result["found_calls"] = dataclasses.asdict(calls)
+    played = dataclasses.replace(config, split=args.split)
+    calls = found_calls(policy, played, args.episodes, args.seed, progress, gates)
+    result["found_calls"] = {"split": args.split, **dataclasses.asdict(calls)}
     reach = config.task.success_distance
-    print(f"calling FOUND ({args.episodes} val episodes, sampled actions, seed {args.seed}):")
+    print(
+        f"calling FOUND ({args.episodes} {args.split} episodes, sampled actions, seed {args.seed}):"
+    )
     for label, steps, probability in (
         (f"within {reach:g} m of the goal:", calls.near_steps, calls.near_probability),
         ("farther:", calls.far_steps, calls.far_probability),
@@ -104,6 +130,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {label:<28}{steps:>7} steps, mean P(FOUND) {_share(probability)}")
     endings = ", ".join(f"{name} {count}" for name, count in sorted(calls.endings.items()))
     print(f"  episodes ended: {endings}")
+    if calls.gate_endings:
+        print(
+            f"the FOUND head's gate (played at {policy.found_gate:g}; at 1-ON the first FOUND "
+            "ends the episode, so each lower gate is read off the same episodes):"
+        )
+        print(f"  {'gate':>6} {'success':>8} {'wrong FOUND':>12} {'step limit':>11}")
+        for gate, counts in calls.gate_endings.items():
+            print(
+                f"  {gate:>6} {counts.get('success', 0):>8} "
+                f"{counts.get('wrong_found', 0):>12} {counts.get('max_steps', 0):>11}"
+            )
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

@@ -78,6 +78,18 @@ class EvalSettings:
         False,
         cli=Option("learned agents take the most likely action instead of sampling"),
     )
+    found_gate: float | None = setting(
+        None,
+        low=0.0,
+        high=1.0,
+        low_open=True,
+        high_open=True,
+        cli=Option(
+            "learned agents trained with --found-head: call FOUND where the head's probability "
+            "exceeds this (default 0.5; `multion diagnose` reads lower gates off played episodes)"
+        ),
+    )
+    """The FOUND head's gate (``RecurrentPolicy.found_gate``); None: the policy's own."""
     env_overrides: ConfigOverrides = setting(
         default_factory=dict,
         cli=Option(

@@ -193,21 +193,27 @@ def configured_agent(cls: type[Agent], seed: int, resolved: dict[str, Any]) -> A
 def resolve_agent(settings: EvalSettings) -> type[Agent]:
     """The agent class: a registered or import-path agent, or a learned one from a checkpoint."""
     if settings.checkpoint is None:
+        if settings.found_gate is not None:
+            raise AgentError("--found-gate is for learned agents (--checkpoint)")
         return agent_class(settings.agent)
     if not torch_installed():
         raise AgentError(f"--checkpoint {settings.checkpoint}: {SETUP_TORCH}")
-    return _learned_class(settings.agent, settings.checkpoint, settings.deterministic)
+    return _learned_class(
+        settings.agent, settings.checkpoint, settings.deterministic, settings.found_gate
+    )
 
 
 @functools.cache
-def _learned_class(agent: str, checkpoint: str, deterministic: bool) -> type[Agent]:
+def _learned_class(
+    agent: str, checkpoint: str, deterministic: bool, found_gate: float | None
+) -> type[Agent]:
     # cached: the evaluator resolves the agent more than once, and a checkpoint is read once
     from multion_agents.learned.agent import learned_agent_class
     from multion_agents.learned.models import MODELS
 
     if agent not in MODELS:
         raise AgentError(f"--checkpoint is for learned agents ({', '.join(MODELS)}), not {agent!r}")
-    cls = learned_agent_class(checkpoint, deterministic)
+    cls = learned_agent_class(checkpoint, deterministic, found_gate)
     if cls.model != agent:
         raise AgentError(f"{checkpoint} holds a {cls.model!r} agent, not {agent!r}")
     return cls

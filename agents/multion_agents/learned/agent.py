@@ -52,6 +52,12 @@ class LearnedAgent(Agent):
                 + "; leave these fields as the checkpoint recorded them"
             )
 
+    def recorded_settings(self) -> dict[str, Any]:
+        """A FOUND head's gate (``multion eval --found-gate``); nothing for other policies."""
+        if self.policy is None or self.policy.found_head is None:
+            return {}
+        return {"found_gate": self.policy.found_gate}
+
     def reset(self) -> None:
         assert self.policy is not None
         self._state = self.policy.initial_state(1)
@@ -100,9 +106,19 @@ def agent_class_for_policy(
     return type(f"Learned[{model or 'policy'}]", (LearnedAgent,), attributes)
 
 
-def learned_agent_class(checkpoint: str | Path, deterministic: bool = False) -> type[LearnedAgent]:
-    """The Agent class of a training checkpoint (its model, weights and camera size)."""
+def learned_agent_class(
+    checkpoint: str | Path, deterministic: bool = False, found_gate: float | None = None
+) -> type[LearnedAgent]:
+    """The Agent class of a training checkpoint (its model, weights and camera size), with its
+    FOUND head's gate at ``found_gate`` (None: the policy's own)."""
     from multion_agents.learned.checkpoint import load_policy
 
     policy, overrides, model = load_policy(checkpoint)
+    if found_gate is not None:
+        if policy.found_head is None:
+            raise AgentError(
+                f"--found-gate {found_gate:g}: {checkpoint} has no FOUND head (it was trained "
+                "without --found-head; its actor calls FOUND)"
+            )
+        policy.found_gate = found_gate
     return agent_class_for_policy(policy, overrides, deterministic, model)

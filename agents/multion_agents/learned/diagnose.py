@@ -8,13 +8,15 @@ Three measurements, each aimed at one reason an agent that must see its goal may
   goal shows", by distance band. ObjRecogMap's own recogniser is scored on the same frames.
 * **calling FOUND**: the policy's probability of FOUND at steps within the success distance of
   the goal against steps farther away, on val episodes it plays (sampled actions).
-* **endings**: how those episodes end (success, wrong FOUND, step limit).
+* **endings**: how those episodes end (success, wrong FOUND, step limit), and for a FOUND
+  head, how they would have ended with its gate lower (:mod:`.found_gate`).
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -26,6 +28,7 @@ from multion.config.codec import env_config_from_dict
 from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import ConfigOverrides, merge_overrides
+from multion_agents.learned.found_gate import GateTrace, gate_endings
 from multion_agents.learned.found_supervision import found_probabilities
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
@@ -53,21 +56,33 @@ class FoundCalls:
     far_probability: float
     endings: dict[str, int] = field(default_factory=dict)
     """Episodes by how they ended (``end_reason``)."""
+    gate_endings: dict[str, dict[str, int]] = field(default_factory=dict)
+    """With a FOUND head: per gate (a probability, as text), the episodes by how they would
+    have ended with it (:func:`.found_gate.gate_endings`)."""
 
 
-def diagnosis_config(overrides: ConfigOverrides, sensors: tuple[str, ...]) -> EnvConfig:
-    """A 1-ON val env config with the checkpoint's camera and maps (``overrides``)."""
-    base: dict[str, Any] = {"task": {"num_goals": 1}, "split": "val", "sensors": list(sensors)}
+def diagnosis_config(
+    overrides: ConfigOverrides, sensors: tuple[str, ...], split: str = "val"
+) -> EnvConfig:
+    """A 1-ON env config of ``split`` with the checkpoint's camera and maps (``overrides``)."""
+    base: dict[str, Any] = {"task": {"num_goals": 1}, "split": split, "sensors": list(sensors)}
     return env_config_from_dict(merge_overrides(base, overrides))
 
 
 def found_calls(
-    policy: RecurrentPolicy, config: EnvConfig, episodes: int, seed: int, progress: bool = False
+    policy: RecurrentPolicy,
+    config: EnvConfig,
+    episodes: int,
+    seed: int,
+    progress: bool = False,
+    gates: Sequence[float] = (),
 ) -> FoundCalls:
-    """Play the first ``episodes`` val episodes of ``config`` with ``policy`` (actions sampled
-    with ``seed``), recording FOUND's probability at every step (a FOUND head's own)."""
+    """Play the first ``episodes`` episodes of ``config`` with ``policy`` (actions sampled
+    with ``seed``), recording FOUND's probability at every step (a FOUND head's own), and with
+    a FOUND head, how the episodes would have ended with each of ``gates``."""
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, "goal_distance"))))
     reach = config.task.success_distance
+    traces: list[GateTrace] = []
     rng = np.random.default_rng(seed)
     near: list[float] = []
     far: list[float] = []
@@ -80,6 +95,8 @@ def found_calls(
             observation, _ = env.reset(seed=index)
             state, previous, start, done = policy.initial_state(1), 0, True, False
             info: dict[str, Any] = {}
+            chances: list[float] = []
+            in_reach: list[bool] = []
             while not done:
                 frame = frames_to_tensors(observation, policy.sensors)
                 with torch.no_grad():
@@ -96,12 +113,16 @@ def found_calls(
                 head = None if out.found_logit is None else out.found_logit[0, 0]
                 chance = float(found_probabilities(out.logits[0, 0], head)[0])
                 (near if distance <= reach else far).append(chance)
+                chances.append(chance)
+                in_reach.append(distance <= reach)
                 previous = int(
                     rng.choice(len(probabilities), p=probabilities / probabilities.sum())
                 )
                 observation, _, terminated, truncated, info = env.step(previous)
                 done = terminated or truncated
-            endings[str(info["metrics"]["end_reason"])] += 1
+            ending = str(info["metrics"]["end_reason"])
+            endings[ending] += 1
+            traces.append(GateTrace(np.asarray(chances), np.asarray(in_reach), ending))
     finally:
         env.close()
     return FoundCalls(
@@ -110,6 +131,12 @@ def found_calls(
         far_steps=len(far),
         far_probability=float(np.mean(far)) if far else math.nan,
         endings=dict(endings),
+        gate_endings={
+            f"{gate:g}": counts
+            for gate, counts in gate_endings(traces, gates, policy.found_gate).items()
+        }
+        if policy.found_head is not None
+        else {},
     )
 
 

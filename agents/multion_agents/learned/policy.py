@@ -51,6 +51,9 @@ FOUND = int(Action.FOUND)
 FOUND_HEAD_PRIOR = 0.02
 """The untrained FOUND head's probability (its bias): well under the gate's 0.5, so an untrained
 policy never calls FOUND."""
+FOUND_GATE = 0.5
+"""The FOUND head's probability above which the policy calls FOUND, unless told otherwise
+(``RecurrentPolicy.found_gate``; ``multion eval --found-gate``)."""
 
 
 class Memory(nn.Module, ABC):
@@ -142,8 +145,9 @@ class RecurrentPolicy(nn.Module):
 
     ``found_head``: FOUND is decided by a binary head on the GRU output, trained by supervision
     only (``--found-head``, :mod:`.found_supervision`), not by the actor: the policy calls FOUND
-    when the head's probability exceeds 0.5 (:func:`gated_logits`), and otherwise samples a
-    movement from the actor. It is part of the agent, kept at evaluation."""
+    when the head's probability exceeds ``found_gate`` (:data:`FOUND_GATE`, not a weight: an
+    evaluation may lower it; :func:`gated_logits`), and otherwise samples a movement from the
+    actor. It is part of the agent, kept at evaluation."""
 
     def __init__(
         self,
@@ -180,6 +184,7 @@ class RecurrentPolicy(nn.Module):
         self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
         self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
         self.found_head: nn.Linear | None = None
+        self.found_gate = FOUND_GATE
         if found_head:
             self.found_head = _layer(nn.Linear(hidden_size, 1), std=0.01)
             prior = math.log(FOUND_HEAD_PRIOR / (1.0 - FOUND_HEAD_PRIOR))
@@ -292,7 +297,10 @@ class RecurrentPolicy(nn.Module):
         found_logit = None
         if self.found_head is not None:
             found_logit = self.found_head(core).squeeze(-1)
-            fired = found_logit.detach() > 0 if found_fired is None else found_fired.bool()
+            if found_fired is None:
+                fired = found_logit.detach() > _logit(self.found_gate)
+            else:
+                fired = found_fired.bool()
             logits = gated_logits(logits, fired)
         return PolicyOutput(
             logits=logits,
@@ -379,6 +387,12 @@ class RecurrentPolicy(nn.Module):
             out.goal_losses,
             out.found_logit,
         )
+
+
+def _logit(probability: float) -> float:
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"found_gate must be in (0, 1), got {probability!r}")
+    return math.log(probability / (1.0 - probability))
 
 
 def gated_logits(actor_logits: Tensor, fired: Tensor) -> Tensor:

@@ -1,0 +1,137 @@
+"""The FOUND head's gate (issue 51): lower gates read off episodes played at one gate, checked
+against hand-made traces and against episodes actually played with those gates; the gate an
+evaluation sets, refused for a policy without a head and recorded in metrics.json."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from rollouts import SIZE
+from test_recipe_options import tiny_args
+
+from multion_agents.agent import AgentError
+from multion_agents.learned.agent import learned_agent_class
+from multion_agents.learned.diagnose import diagnosis_config, found_calls
+from multion_agents.learned.found_gate import GateTrace, ending_at_gate, parse_gates
+from multion_agents.learned.models import model_spec
+from multion_agents.learned.policy import FOUND_GATE, RecurrentPolicy
+from multion_agents.learned.training_run import train
+from multion_client.constants import Action
+
+FOUND = int(Action.FOUND)
+
+
+def _trace(probability: list[float], in_reach: list[bool], ending: str) -> GateTrace:
+    return GateTrace(np.array(probability), np.array(in_reach), ending)
+
+
+def test_a_lower_gate_ends_the_episode_at_the_first_step_above_it() -> None:
+    trace = _trace([0.1, 0.3, 0.2, 0.6], [False, True, False, True], "success")
+    assert ending_at_gate(trace, 0.5) == "success"  # as played: the FOUND at step 3
+    assert ending_at_gate(trace, 0.4) == "success"  # step 3 still the first above 0.4
+    assert ending_at_gate(trace, 0.25) == "success"  # step 1, within reach
+    assert ending_at_gate(trace, 0.05) == "wrong_found"  # step 0, out of reach
+    assert ending_at_gate(trace, 0.3) == "success"  # 0.3 does not exceed 0.3: step 3
+    wandered = _trace([0.1, 0.45, 0.2], [False, False, True], "max_steps")
+    assert ending_at_gate(wandered, 0.5) == "max_steps"
+    assert ending_at_gate(wandered, 0.15) == "wrong_found"
+    assert ending_at_gate(wandered, 0.46) == "max_steps"
+
+
+@pytest.mark.parametrize("gate", [0.0, 0.6, -0.1])
+def test_a_gate_above_the_one_played_cannot_be_read(gate: float) -> None:
+    with pytest.raises(ValueError, match=r"a gate must be in \(0, 0.5\]"):
+        ending_at_gate(_trace([0.1], [False], "max_steps"), gate)
+
+
+def test_gates_parse_sorted_and_bounded() -> None:
+    assert parse_gates("0.3, 0.1,0.3") == (0.1, 0.3)
+    for text in ("0.7", "0", "", "a,b"):
+        with pytest.raises(ValueError, match="--gates"):
+            parse_gates(text)
+
+
+def _spread_head(policy: RecurrentPolicy) -> None:
+    """A head whose probability wanders between about 0.05 and 0.6 from step to step."""
+    assert policy.found_head is not None
+    with torch.no_grad():
+        policy.found_head.weight.mul_(40.0)
+        policy.found_head.bias.fill_(-1.2)
+
+
+def test_the_gate_sets_where_the_policy_calls_found() -> None:
+    torch.manual_seed(0)
+    from rollouts import sample_frames, space_for
+
+    space = space_for("no-map")
+    policy = model_spec("no-map").build(space, found_head=True)
+    assert policy.found_gate == FOUND_GATE
+    frames = {k: v for k, v in sample_frames(space, 1, 4).items() if k in policy.sensors}
+    assert policy.found_head is not None
+    with torch.no_grad():
+        policy.found_head.bias.fill_(-0.85)  # probability about 0.3
+        out = policy(frames, torch.zeros(1, 4, dtype=torch.long), torch.ones(1, 4),
+                     policy.initial_state(4))  # fmt: skip
+        assert float(torch.softmax(out.logits, -1)[..., FOUND].max()) == 0.0
+        policy.found_gate = 0.2
+        out = policy(frames, torch.zeros(1, 4, dtype=torch.long), torch.ones(1, 4),
+                     policy.initial_state(4))  # fmt: skip
+    assert float(torch.softmax(out.logits, -1)[..., FOUND].min()) == 1.0
+
+
+def test_gates_read_off_played_episodes_match_episodes_played_with_them() -> None:
+    """The claim of ``found_gate``: replaying nothing, the endings read for a lower gate are
+    those of the same episodes (same seed) played with that gate."""
+    torch.manual_seed(1)
+    config = diagnosis_config({"camera": {"width": SIZE, "height": SIZE}}, ("rgb", "depth", "goal"))
+    config = dataclasses.replace(config, task=dataclasses.replace(config.task, max_steps=60))
+    from multion.task.spaces import build_observation_space
+
+    policy = model_spec("no-map").build(build_observation_space(config), found_head=True)
+    _spread_head(policy)
+    gates = (0.1, 0.2, 0.3, 0.4, 0.5)
+    played = found_calls(policy, config, episodes=6, seed=3, gates=gates)
+    assert played.gate_endings["0.5"] == played.endings
+    read = {gate: played.gate_endings[f"{gate:g}"] for gate in gates}
+    assert len({tuple(sorted(r.items())) for r in read.values()}) > 1, read  # gates matter here
+    for gate in (0.1, 0.3):
+        policy.found_gate = gate
+        assert found_calls(policy, config, episodes=6, seed=3).endings == read[gate], gate
+
+
+def test_an_evaluation_sets_the_gate_and_a_policy_without_a_head_refuses_it(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    train(tiny_args(tmp_path / "head", room_dataset, found_head=1.0, frames=128))
+    checkpoint = tmp_path / "head" / "run" / "checkpoint.pt"
+    cls = learned_agent_class(checkpoint, found_gate=0.2)
+    assert cls.policy is not None and cls.policy.found_gate == 0.2
+    assert cls(seed=0).recorded_settings() == {"found_gate": 0.2}
+    assert learned_agent_class(checkpoint)(seed=0).recorded_settings() == {"found_gate": 0.5}
+    train(tiny_args(tmp_path / "plain", room_dataset, frames=128))
+    plain = tmp_path / "plain" / "run" / "checkpoint.pt"
+    with pytest.raises(AgentError, match="--found-gate 0.2: .* has no FOUND head"):
+        learned_agent_class(plain, found_gate=0.2)
+    assert learned_agent_class(plain)(seed=0).recorded_settings() == {}
+
+
+def test_eval_records_the_gate_and_names_a_bad_one(
+    tmp_path: Path, room_dataset: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from multion_agents.cli import main
+
+    train(tiny_args(tmp_path, room_dataset, found_head=1.0, frames=128))
+    checkpoint = str(tmp_path / "run" / "checkpoint.pt")
+    common = ["eval", "--agent", "no-map", "--checkpoint", checkpoint, "--task", "1-on",
+              "--dataset", str(room_dataset), "--episodes", "1", "--in-process",
+              "--max-steps", "20", "--quiet"]  # fmt: skip
+    assert main([*common, "--found-gate", "0.3", "--out", str(tmp_path / "e")]) == 0
+    run = json.loads((tmp_path / "e" / "metrics.json").read_text())["run"]
+    assert run["agent_settings"] == {"found_gate": 0.3}
+    assert main([*common, "--found-gate", "1.5"]) == 2
+    assert "--found-gate must be" in capsys.readouterr().err
