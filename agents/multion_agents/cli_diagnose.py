@@ -130,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {label:<28}{steps:>7} steps, mean P(FOUND) {_share(probability)}")
     endings = ", ".join(f"{name} {count}" for name, count in sorted(calls.endings.items()))
     print(f"  episodes ended: {endings}")
+    print(f"  episodes that came within {reach:g} m of the goal: {calls.reached}")
     if calls.gate_endings:
         print(
             f"the FOUND head's gate (played at {policy.found_gate:g}; at 1-ON the first FOUND "

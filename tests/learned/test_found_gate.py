@@ -97,6 +97,7 @@ def test_gates_read_off_played_episodes_match_episodes_played_with_them() -> Non
     gates = (0.1, 0.2, 0.3, 0.4, 0.5)
     played = found_calls(policy, config, episodes=6, seed=3, gates=gates)
     assert played.gate_endings["0.5"] == played.endings
+    assert played.endings.get("success", 0) <= played.reached <= 6
     read = {gate: played.gate_endings[f"{gate:g}"] for gate in gates}
     assert len({tuple(sorted(r.items())) for r in read.values()}) > 1, read  # gates matter here
     for gate in (0.1, 0.3):

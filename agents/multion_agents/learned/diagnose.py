@@ -56,6 +56,9 @@ class FoundCalls:
     far_probability: float
     endings: dict[str, int] = field(default_factory=dict)
     """Episodes by how they ended (``end_reason``)."""
+    reached: int = 0
+    """Episodes that came within the success distance of the goal at least once: those a FOUND
+    called at the right step would have won (``random-oracle-found``'s way of calling it)."""
     gate_endings: dict[str, dict[str, int]] = field(default_factory=dict)
     """With a FOUND head: per gate (a probability, as text), the episodes by how they would
     have ended with it (:func:`.found_gate.gate_endings`)."""
@@ -77,8 +80,8 @@ def found_calls(
     progress: bool = False,
     gates: Sequence[float] = (),
 ) -> FoundCalls:
-    """Play the first ``episodes`` episodes of ``config`` with ``policy`` (actions sampled
-    with ``seed``), recording FOUND's probability at every step (a FOUND head's own), and with
+    """Play ``episodes`` episodes of ``config`` with ``policy`` (actions sampled with ``seed``):
+    of a dataset, evenly spaced ones, those ``multion eval --episodes`` plays; recording FOUND's probability at every step (a FOUND head's own), and with
     a FOUND head, how the episodes would have ended with each of ``gates``."""
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, "goal_distance"))))
     reach = config.task.success_distance
@@ -92,7 +95,9 @@ def found_calls(
     policy.eval()
     try:
         for index in tqdm(range(episodes), desc="episodes", disable=not progress):
-            observation, _ = env.reset(seed=index)
+            listed = env.episodes  # None: sampled online (train houses)
+            options = {} if listed is None else {"episode_index": index * len(listed) // episodes}
+            observation, _ = env.reset(seed=index, options=options)
             state, previous, start, done = policy.initial_state(1), 0, True, False
             info: dict[str, Any] = {}
             chances: list[float] = []
@@ -131,6 +136,7 @@ def found_calls(
         far_steps=len(far),
         far_probability=float(np.mean(far)) if far else math.nan,
         endings=dict(endings),
+        reached=sum(bool(trace.in_reach.any()) for trace in traces),
         gate_endings={
             f"{gate:g}": counts
             for gate, counts in gate_endings(traces, gates, policy.found_gate).items()
