@@ -19,6 +19,7 @@ from pathlib import Path
 
 from multion.common.files import replacing, write_atomically
 from multion.config.errors import UsageError
+from multion_agents.report.distances import by_distance
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.tables import (
@@ -88,6 +89,7 @@ def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
         found_budget(runs, labels, paper),
         goal_sets(runs, labels, paper),
         cameras(runs, labels, paper),
+        by_distance(runs, labels, paper),
         paired(runs, labels, paper),
         run_list(runs, labels, paper),
     ]
