@@ -130,7 +130,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {label:<28}{steps:>7} steps, mean P(FOUND) {_share(probability)}")
     endings = ", ".join(f"{name} {count}" for name, count in sorted(calls.endings.items()))
     print(f"  episodes ended: {endings}")
-    print(f"  episodes that came within {reach:g} m of the goal: {calls.reached}")
+    print(
+        f"  episodes that came within {reach:g} m of the goal: {calls.reached}; with the goal "
+        f"in view there: {calls.seen_in_reach} ({calls.in_view_steps} steps, mean P(FOUND) "
+        f"{_share(calls.in_view_probability)})"
+    )
     if calls.gate_endings:
         print(
             f"the FOUND head's gate (played at {policy.found_gate:g}; at 1-ON the first FOUND "

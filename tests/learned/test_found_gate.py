@@ -27,7 +27,7 @@ FOUND = int(Action.FOUND)
 
 
 def _trace(probability: list[float], in_reach: list[bool], ending: str) -> GateTrace:
-    return GateTrace(np.array(probability), np.array(in_reach), ending)
+    return GateTrace(np.array(probability), np.array(in_reach), np.array(in_reach), ending)
 
 
 def test_a_lower_gate_ends_the_episode_at_the_first_step_above_it() -> None:
@@ -98,6 +98,8 @@ def test_gates_read_off_played_episodes_match_episodes_played_with_them() -> Non
     played = found_calls(policy, config, episodes=6, seed=3, gates=gates)
     assert played.gate_endings["0.5"] == played.endings
     assert played.endings.get("success", 0) <= played.reached <= 6
+    assert played.seen_in_reach <= played.reached
+    assert played.in_view_steps <= played.near_steps
     read = {gate: played.gate_endings[f"{gate:g}"] for gate in gates}
     assert len({tuple(sorted(r.items())) for r in read.values()}) > 1, read  # gates matter here
     for gate in (0.1, 0.3):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -59,6 +59,13 @@ class FoundCalls:
     reached: int = 0
     """Episodes that came within the success distance of the goal at least once: those a FOUND
     called at the right step would have won (``random-oracle-found``'s way of calling it)."""
+    seen_in_reach: int = 0
+    """Episodes with a step within reach where the frame shows the goal (``goal_mask``): those
+    a FOUND head's label says FOUND in."""
+    in_view_steps: int = 0
+    """Steps within reach where the frame shows the goal."""
+    in_view_probability: float = math.nan
+    """Mean probability of FOUND on those steps (nan: none)."""
     gate_endings: dict[str, dict[str, int]] = field(default_factory=dict)
     """With a FOUND head: per gate (a probability, as text), the episodes by how they would
     have ended with it (:func:`.found_gate.gate_endings`)."""
@@ -81,9 +88,11 @@ def found_calls(
     gates: Sequence[float] = (),
 ) -> FoundCalls:
     """Play ``episodes`` episodes of ``config`` with ``policy`` (actions sampled with ``seed``):
-    of a dataset, evenly spaced ones, those ``multion eval --episodes`` plays; recording FOUND's probability at every step (a FOUND head's own), and with
-    a FOUND head, how the episodes would have ended with each of ``gates``."""
-    config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, "goal_distance"))))
+    of a dataset, evenly spaced ones, those ``multion eval --episodes`` plays. Records FOUND's
+    probability at every step (a FOUND head's own), where the goal is within reach and in view,
+    and with a FOUND head, how the episodes would have ended with each of ``gates``."""
+    oracles = ("goal_distance", "goal_mask")
+    config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
     reach = config.task.success_distance
     traces: list[GateTrace] = []
     rng = np.random.default_rng(seed)
@@ -102,6 +111,7 @@ def found_calls(
             info: dict[str, Any] = {}
             chances: list[float] = []
             in_reach: list[bool] = []
+            in_view: list[bool] = []
             while not done:
                 frame = frames_to_tensors(observation, policy.sensors)
                 with torch.no_grad():
@@ -120,6 +130,8 @@ def found_calls(
                 (near if distance <= reach else far).append(chance)
                 chances.append(chance)
                 in_reach.append(distance <= reach)
+                goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
+                in_view.append(bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
                 previous = int(
                     rng.choice(len(probabilities), p=probabilities / probabilities.sum())
                 )
@@ -127,7 +139,9 @@ def found_calls(
                 done = terminated or truncated
             ending = str(info["metrics"]["end_reason"])
             endings[ending] += 1
-            traces.append(GateTrace(np.asarray(chances), np.asarray(in_reach), ending))
+            traces.append(
+                GateTrace(np.asarray(chances), np.asarray(in_reach), np.asarray(in_view), ending)
+            )
     finally:
         env.close()
     return FoundCalls(
@@ -137,6 +151,9 @@ def found_calls(
         far_probability=float(np.mean(far)) if far else math.nan,
         endings=dict(endings),
         reached=sum(bool(trace.in_reach.any()) for trace in traces),
+        seen_in_reach=sum(bool((trace.in_reach & trace.in_view).any()) for trace in traces),
+        in_view_steps=sum(int((trace.in_reach & trace.in_view).sum()) for trace in traces),
+        in_view_probability=_mean_where(traces, lambda t: t.in_reach & t.in_view),
         gate_endings={
             f"{gate:g}": counts
             for gate, counts in gate_endings(traces, gates, policy.found_gate).items()
@@ -192,3 +209,10 @@ def view_frames(
         sample_frames(train, settings.samples, settings.seed, settings, "train", progress),
         sample_frames(config, settings.held_out, settings.seed + 1, settings, "val", progress),
     )
+
+
+def _mean_where(traces: Sequence[GateTrace], where: Callable[[GateTrace], np.ndarray]) -> float:
+    """The mean probability over the steps of ``traces`` where ``where`` holds (nan: none)."""
+    chosen = [trace.probability[where(trace)] for trace in traces]
+    values = np.concatenate(chosen) if chosen else np.empty(0)
+    return float(values.mean()) if values.size else math.nan

@@ -31,6 +31,8 @@ class GateTrace:
     """(steps,) the FOUND head's probability at each step."""
     in_reach: np.ndarray
     """(steps,) whether FOUND would have succeeded at that step."""
+    in_view: np.ndarray
+    """(steps,) whether the frame showed the goal (``goal_mask``)."""
     ending: str
     """How the episode ended (``end_reason``: success, wrong_found, max_steps)."""
 
