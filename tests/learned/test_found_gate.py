@@ -5,7 +5,10 @@ evaluation sets, refused for a policy without a head and recorded in metrics.jso
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -138,3 +141,43 @@ def test_eval_records_the_gate_and_names_a_bad_one(
     assert run["agent_settings"] == {"found_gate": 0.3}
     assert main([*common, "--found-gate", "1.5"]) == 2
     assert "--found-gate must be" in capsys.readouterr().err
+
+
+def _probe_script():
+    path = Path(__file__).resolve().parents[2] / "scripts" / "found_head_probe.py"
+    spec = importlib.util.spec_from_file_location("found_head_probe", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module, path
+
+
+def test_the_probe_scripts_auc_is_the_share_of_pairs_ranked_right() -> None:
+    module, _ = _probe_script()
+    labels = np.array([False, True, False, True, False])
+    assert module.auc(np.array([0.1, 0.9, 0.2, 0.8, 0.3]), labels) == 1.0
+    assert module.auc(np.array([0.9, 0.1, 0.8, 0.2, 0.7]), labels) == 0.0
+    assert module.auc(np.array([0.1, 0.5, 0.6, 0.9, 0.2]), labels) == pytest.approx(5 / 6)
+    assert np.isnan(module.auc(np.array([0.1, 0.2]), np.array([False, False])))
+
+
+def test_the_probe_script_scores_head_and_probe_of_a_checkpoint(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    _, script = _probe_script()
+    train(tiny_args(tmp_path, room_dataset, found_head=1.0, frames=128))
+    checkpoint = str(tmp_path / "run" / "checkpoint.pt")
+    done = subprocess.run(
+        [sys.executable, str(script), checkpoint, "--episodes", "1", "--max-steps", "20"],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "the trained head" in done.stdout and "a balanced probe of its input" in done.stdout
+    assert "20 train-house steps" in done.stdout and "20 val-house steps" in done.stdout
+    plain = tmp_path / "plain"
+    train(tiny_args(plain, room_dataset, frames=128))
+    refused = subprocess.run(
+        [sys.executable, str(script), str(plain / "run" / "checkpoint.pt")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert refused.returncode == 2 and "has no FOUND head" in refused.stderr
