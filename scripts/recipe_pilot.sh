@@ -85,6 +85,12 @@ pilot "$agent-found-head-all" --found-head 1 --curriculum "$found_frames:4" \
 pilot "$agent-found-head-smooth" --found-head 1 --goal-heads --pretrain-vision 2000 \
   --curriculum "$((frames / 5)):4" --curriculum "$found_frames:7" \
   --curriculum "$((frames * 11 / 20)):10" --curriculum "$((frames * 7 / 10)):15"
+# The head fired on 2 % of the val steps where the goal shows within reach, where a balanced
+# linear probe of its input finds them (ROC AUC 0.987, scripts/found_head_probe.py): the
+# learn-to-see options with the head's positive steps weighed 10 times.
+pilot "$agent-found-head-weighted" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
+  --found-head-positive-weight 10
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1

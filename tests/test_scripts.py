@@ -219,6 +219,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-free",
             "no-map-found-head-all",
             "no-map-found-head-smooth",
+            "no-map-found-head-weighted",
         ]  # fmt: skip
     )
     for line in trains:
@@ -251,7 +252,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     smooth = by_run["no-map-found-head-smooth"]
     assert "--found-head 1 --goal-heads --pretrain-vision 2000 --curriculum 200:4" in smooth
     assert "--curriculum 400:7 --curriculum 550:10 --curriculum 700:15" in smooth
-    assert len(evals) == 14 and all("--split val --episodes 100" in line for line in evals)
+    weighted = by_run["no-map-found-head-weighted"]
+    assert "--goal-heads --pretrain-vision 2000 --found-head-positive-weight 10" in weighted
+    assert len(evals) == 15 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip

@@ -112,6 +112,29 @@ def test_the_loss_is_the_unweighted_binary_cross_entropy_computed_by_hand() -> N
     assert head.grad is not None and head.grad[0] < 0 < head.grad[1]  # up at the goal, down away
 
 
+def test_weighted_positives_count_that_many_times_in_the_loss() -> None:
+    logits = torch.tensor([2.0, -1.0, 0.5])
+    labels = torch.tensor([1.0, 0.0, 0.0])
+    p = torch.sigmoid(logits)
+    expected = -(10 * torch.log(p[0]) + torch.log(1 - p[1]) + torch.log(1 - p[2])) / 3
+    assert float(found_head_loss(logits, labels, 10.0)) == pytest.approx(float(expected), rel=1e-6)
+    with pytest.raises(ValueError, match="--found-head-positive-weight .* needs --found-head"):
+        Args(found_head_positive_weight=10.0)
+    with pytest.raises(ValueError, match=r"--found-head-positive-weight must be in \[1, 1000\]"):
+        Args(found_head=1.0, found_head_positive_weight=0.5)
+
+
+def test_a_weighted_head_run_refuses_to_resume_unweighted(
+    tmp_path: Path, room_dataset: Path
+) -> None:
+    args = tiny_args(tmp_path, room_dataset, found_head=1.0, frames=128)
+    train(dataclasses.replace(args, found_head_positive_weight=10.0))
+    recorded = load_checkpoint(tmp_path / "run" / "checkpoint.pt")["args"]
+    assert recorded["found_head_positive_weight"] == 10.0
+    with pytest.raises(CheckpointError, match="--found-head-positive-weight 10.0"):
+        train(dataclasses.replace(args, frames=256, resume=True))
+
+
 def test_the_heads_label_is_the_goal_within_reach_and_in_view() -> None:
     mask = torch.zeros(2, 2, 4, 4, dtype=torch.uint8)  # (T, B, H, W) goal_mask
     mask[0, 0, 1, 2] = 3  # category 2 shows

@@ -138,6 +138,7 @@ RECIPE_OPTIONS = (
     "goal_heads",
     "found_supervision",
     "found_head",
+    "found_head_positive_weight",
     "found_curriculum",
     "pretrain_vision",
     "pretrain_map",

@@ -106,13 +106,15 @@ def found_loss(logits: Tensor, labels: Tensor, weights: tuple[float, float]) -> 
     return terms.mean()
 
 
-def found_head_loss(found_logit: Tensor, labels: Tensor) -> Tensor:
+def found_head_loss(found_logit: Tensor, labels: Tensor, positive_weight: float = 1.0) -> Tensor:
     """``--found-head``'s loss: the binary cross-entropy of the head's logits (one per step)
-    against ``labels``, unweighted, so that its probability estimates how likely FOUND is to
-    succeed and the gate (probability above 0.5) opens only where success is the likelier
-    outcome: a wrong FOUND ends the episode, a FOUND called one step late costs a step."""
+    against ``labels``. Unweighted (``positive_weight`` 1), its probability estimates how likely
+    FOUND is to succeed and the gate (probability above 0.5) opens only where success is the
+    likelier outcome: a wrong FOUND ends the episode, a FOUND called one step late costs a step.
+    ``positive_weight`` (``--found-head-positive-weight``) weighs the positive steps more."""
+    weight = torch.tensor(positive_weight, device=found_logit.device)
     return torch.nn.functional.binary_cross_entropy_with_logits(
-        found_logit.reshape(-1).float(), labels.reshape(-1)
+        found_logit.reshape(-1).float(), labels.reshape(-1), pos_weight=weight
     )
 
 

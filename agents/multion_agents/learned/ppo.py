@@ -182,7 +182,9 @@ def ppo_loss(
         found_at_goal = mean_where(chances, at_goal)
         found_elsewhere = mean_where(chances, ~at_goal)
         if replay.found_logit is not None and args.found_head > 0:
-            found_term = found_head_loss(replay.found_logit, found.labels)
+            found_term = found_head_loss(
+                replay.found_logit, found.labels, args.found_head_positive_weight
+            )
             loss = loss + args.found_head * found_term
         elif found.weights is not None and args.found_supervision > 0:
             found_term = found_loss(replay.logits, found.labels, found.weights)

@@ -216,6 +216,17 @@ class Args:
         ),
     )
     """Not with ``--found-supervision``, which teaches the actor's own FOUND."""
+    found_head_positive_weight: float = setting(
+        1.0,
+        low=1,
+        high=1000,
+        cli=Option(
+            "weight of the FOUND head's positive steps (FOUND would succeed, goal in view) in "
+            "its PPO-time cross-entropy, in [1, 1000] (default 1: unweighted); they are 0.2-0.6 "
+            "%% of steps, and unweighted the head fires on few of them",
+            group=BEYOND_PAPER,
+        ),
+    )
     pretrain_vision: VisionPretraining = setting(
         default_factory=VisionPretraining,
         cli=Option(
@@ -322,6 +333,10 @@ class Args:
 
     def __post_init__(self) -> None:
         check_settings(self)
+        if self.found_head_positive_weight != 1 and self.found_head == 0:
+            raise ConfigError(
+                "--found-head-positive-weight weighs the FOUND head's loss: it needs --found-head"
+            )
         if self.found_head > 0 and self.found_supervision > 0:
             raise ConfigError(
                 "--found-head and --found-supervision: pick one (the head decides FOUND, "
