@@ -17,15 +17,16 @@ import argparse
 import dataclasses
 import math
 import sys
+from typing import Any
 
 import numpy as np
 import torch
 from torch import Tensor, nn
 
-from multion.task.env import MultiONEnv
+from multion_agents.agent import ConfigOverrides
 from multion_agents.learned.checkpoint import load_policy
-from multion_agents.learned.diagnose import diagnosis_config
-from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
+from multion_agents.learned.diagnose import diagnosis_config, play
+from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy
 
 LABEL_SENSORS = ("goal_distance", "goal_mask")
 
@@ -37,9 +38,9 @@ class Steps:
     head_logits: np.ndarray  # (N,)
 
 
-def play(policy: RecurrentPolicy, overrides: dict, split: str, episodes: int, seed: int,
-         max_steps: int | None) -> Steps:  # fmt: skip
-    """``episodes`` episodes of ``split`` (a dataset's evenly spaced ones), step by step."""
+def record(policy: RecurrentPolicy, overrides: ConfigOverrides, split: str, episodes: int,
+           seed: int, max_steps: int | None) -> Steps:  # fmt: skip
+    """``episodes`` episodes of ``split`` played by ``diagnose.play``, step by step."""
     assert policy.found_head is not None
     config = diagnosis_config(overrides, policy.sensors, split)
     sensors = tuple(dict.fromkeys((*config.sensors, *LABEL_SENSORS)))
@@ -47,44 +48,25 @@ def play(policy: RecurrentPolicy, overrides: dict, split: str, episodes: int, se
         config.task if max_steps is None else dataclasses.replace(config.task, max_steps=max_steps)
     )
     config = dataclasses.replace(config, sensors=sensors, task=task)
+    reach = config.task.success_distance
     captured: list[Tensor] = []
-    hook = policy.found_head.register_forward_hook(lambda _m, i, _o: captured.append(i[0]))
-    env, rng = MultiONEnv(config), np.random.default_rng(seed)
     inputs, labels, logits = [], [], []
+
+    def on_step(episode: int, observation: dict[str, Any], out: PolicyOutput) -> None:
+        assert out.found_logit is not None
+        inputs.append(captured[-1].reshape(-1).numpy().copy())
+        captured.clear()
+        logits.append(float(out.found_logit[0, 0]))
+        goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
+        near = float(observation["goal_distance"][0]) <= reach
+        labels.append(near and bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
+
+    hook = policy.found_head.register_forward_hook(lambda _m, i, _o: captured.append(i[0]))
     try:
-        for index in range(episodes):
-            listed = env.episodes
-            options = {} if listed is None else {"episode_index": index * len(listed) // episodes}
-            observation, _ = env.reset(seed=index, options=options)
-            state, previous, start, done = policy.initial_state(1), 0, True, False
-            while not done:
-                frame = frames_to_tensors(observation, policy.sensors)
-                captured.clear()
-                with torch.no_grad():
-                    out = policy.step(
-                        {k: v.unsqueeze(0) for k, v in frame.items()},
-                        torch.tensor([previous]),
-                        torch.tensor([float(start)]),
-                        state,
-                    )
-                assert out.found_logit is not None
-                state, start = out.state, False
-                inputs.append(captured[-1].reshape(-1).numpy().copy())
-                logits.append(float(out.found_logit[0, 0]))
-                goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
-                near = float(observation["goal_distance"][0]) <= config.task.success_distance
-                labels.append(
-                    near and bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1))
-                )
-                chances = torch.softmax(out.logits[0, 0].double(), 0).numpy()
-                previous = int(rng.choice(len(chances), p=chances / chances.sum()))
-                observation, _, terminated, truncated, _ = env.step(previous)
-                done = terminated or truncated
-            print(f"{split} episode {index + 1}/{episodes}: {len(labels)} steps, "
-                  f"{sum(labels)} positive", file=sys.stderr, flush=True)  # fmt: skip
+        play(policy, config, episodes, seed, on_step, progress=True)
     finally:
         hook.remove()
-        env.close()
+    print(f"{split}: {len(labels)} steps, {sum(labels)} positive", file=sys.stderr)
     return Steps(np.stack(inputs), np.array(labels, dtype=bool), np.array(logits))
 
 
@@ -146,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
     if policy.found_head is None:
         parser.error(f"{args.checkpoint} has no FOUND head (trained without --found-head)")
     policy.eval()
-    train = play(policy, overrides, "train", args.episodes, args.seed, args.max_steps)
-    val = play(policy, overrides, "val", args.episodes, args.seed + 1, args.max_steps)
+    train = record(policy, overrides, "train", args.episodes, args.seed, args.max_steps)
+    val = record(policy, overrides, "val", args.episodes, args.seed + 1, args.max_steps)
     probe = fit_probe(train)
     with torch.no_grad():
         probe_logits = probe(torch.tensor(val.inputs, dtype=torch.float32)).squeeze(1).numpy()

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import copy
 import functools
-import hashlib
 import queue
 import threading
 import time
@@ -31,7 +30,13 @@ import numpy as np
 from tqdm import tqdm
 
 from multion.config.codec import env_config_from_dict, env_config_to_dict, session_config_from_dict
-from multion.config.datasets import load_dataset, packaged_dataset_path, read_header, task_name
+from multion.config.datasets import (
+    dataset_sha256,
+    load_dataset,
+    packaged_dataset_path,
+    read_header,
+    task_name,
+)
 from multion.config.episode import Episode
 from multion.config.errors import UsageError
 from multion.config.ranges import ConfigError
@@ -119,11 +124,6 @@ def select_episodes(settings: EvalSettings) -> list[Episode]:
 def dataset_file(settings: EvalSettings) -> Path:
     """The dataset file the evaluated episodes are read from."""
     return Path(settings.dataset or packaged_dataset_path(settings.num_goals, settings.split))
-
-
-def dataset_sha256(path: Path) -> str:
-    """SHA-256 of a dataset file: tells runs over different dataset versions apart."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:

@@ -31,7 +31,7 @@ from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.found_gate import GateTrace, gate_endings
 from multion_agents.learned.found_supervision import found_probabilities
 from multion_agents.learned.learned_maps import ObjRecogMap
-from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
+from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy, frames_to_tensors
 from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.vision_pretrain import (
     BandScores,
@@ -79,26 +79,23 @@ def diagnosis_config(
     return env_config_from_dict(merge_overrides(base, overrides))
 
 
-def found_calls(
+StepHook = Callable[[int, dict[str, Any], PolicyOutput], None]
+"""Called at each step of :func:`play`, before acting: (episode, observation, policy output)."""
+
+
+def play(
     policy: RecurrentPolicy,
     config: EnvConfig,
     episodes: int,
     seed: int,
+    on_step: StepHook,
     progress: bool = False,
-    gates: Sequence[float] = (),
-) -> FoundCalls:
+) -> list[str]:
     """Play ``episodes`` episodes of ``config`` with ``policy`` (actions sampled with ``seed``):
-    of a dataset, evenly spaced ones, those ``multion eval --episodes`` plays. Records FOUND's
-    probability at every step (a FOUND head's own), where the goal is within reach and in view,
-    and with a FOUND head, how the episodes would have ended with each of ``gates``."""
-    oracles = ("goal_distance", "goal_mask")
-    config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
-    reach = config.task.success_distance
-    traces: list[GateTrace] = []
+    of a dataset, evenly spaced ones, those ``multion eval --episodes`` plays. Calls ``on_step``
+    at every step; returns how each episode ended (``end_reason``)."""
     rng = np.random.default_rng(seed)
-    near: list[float] = []
-    far: list[float] = []
-    endings: Counter[str] = Counter()
+    endings: list[str] = []
     env = MultiONEnv(config)
     device = policy.device
     policy.eval()
@@ -109,9 +106,6 @@ def found_calls(
             observation, _ = env.reset(seed=index, options=options)
             state, previous, start, done = policy.initial_state(1), 0, True, False
             info: dict[str, Any] = {}
-            chances: list[float] = []
-            in_reach: list[bool] = []
-            in_view: list[bool] = []
             while not done:
                 frame = frames_to_tensors(observation, policy.sensors)
                 with torch.no_grad():
@@ -122,34 +116,56 @@ def found_calls(
                         state,
                     )
                 state, start = out.state, False
+                on_step(index, observation, out)
                 probabilities = torch.softmax(out.logits[0, 0].double(), 0).cpu().numpy()
-                distance = float(observation["goal_distance"][0])
-                # with --found-head, the head's probability (its gate opens above 0.5)
-                head = None if out.found_logit is None else out.found_logit[0, 0]
-                chance = float(found_probabilities(out.logits[0, 0], head)[0])
-                (near if distance <= reach else far).append(chance)
-                chances.append(chance)
-                in_reach.append(distance <= reach)
-                goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
-                in_view.append(bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
                 previous = int(
                     rng.choice(len(probabilities), p=probabilities / probabilities.sum())
                 )
                 observation, _, terminated, truncated, info = env.step(previous)
                 done = terminated or truncated
-            ending = str(info["metrics"]["end_reason"])
-            endings[ending] += 1
-            traces.append(
-                GateTrace(np.asarray(chances), np.asarray(in_reach), np.asarray(in_view), ending)
-            )
+            endings.append(str(info["metrics"]["end_reason"]))
     finally:
         env.close()
+    return endings
+
+
+def found_calls(
+    policy: RecurrentPolicy,
+    config: EnvConfig,
+    episodes: int,
+    seed: int,
+    progress: bool = False,
+    gates: Sequence[float] = (),
+) -> FoundCalls:
+    """Play ``episodes`` episodes of ``config`` with ``policy`` (:func:`play`), recording
+    FOUND's probability at every step (a FOUND head's own), where the goal is within reach and
+    in view, and with a FOUND head, how the episodes would have ended with each of ``gates``."""
+    oracles = ("goal_distance", "goal_mask")
+    config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
+    reach = config.task.success_distance
+    chances: list[list[float]] = [[] for _ in range(episodes)]
+    in_reach: list[list[bool]] = [[] for _ in range(episodes)]
+    in_view: list[list[bool]] = [[] for _ in range(episodes)]
+
+    def record(episode: int, observation: dict[str, Any], out: PolicyOutput) -> None:
+        # with --found-head, the head's probability (its gate opens above found_gate)
+        head = None if out.found_logit is None else out.found_logit[0, 0]
+        chances[episode].append(float(found_probabilities(out.logits[0, 0], head)[0]))
+        in_reach[episode].append(float(observation["goal_distance"][0]) <= reach)
+        goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
+        in_view[episode].append(bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
+
+    endings = play(policy, config, episodes, seed, record, progress)
+    traces = [
+        GateTrace(np.asarray(c), np.asarray(r, dtype=bool), np.asarray(v, dtype=bool), ending)
+        for c, r, v, ending in zip(chances, in_reach, in_view, endings, strict=True)
+    ]
     return FoundCalls(
-        near_steps=len(near),
-        near_probability=float(np.mean(near)) if near else math.nan,
-        far_steps=len(far),
-        far_probability=float(np.mean(far)) if far else math.nan,
-        endings=dict(endings),
+        near_steps=sum(int(trace.in_reach.sum()) for trace in traces),
+        near_probability=_mean_where(traces, lambda t: t.in_reach),
+        far_steps=sum(int((~trace.in_reach).sum()) for trace in traces),
+        far_probability=_mean_where(traces, lambda t: ~t.in_reach),
+        endings=dict(Counter(endings)),
         reached=sum(bool(trace.in_reach.any()) for trace in traces),
         seen_in_reach=sum(bool((trace.in_reach & trace.in_view).any()) for trace in traces),
         in_view_steps=sum(int((trace.in_reach & trace.in_view).sum()) for trace in traces),

@@ -11,16 +11,15 @@ on any other dataset is left out, and a note says so.
 from __future__ import annotations
 
 import functools
-import hashlib
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from multion.config.datasets import DATA_DIR, load_dataset, task_name
+from multion.config.datasets import DATA_DIR, dataset_sha256, load_dataset, task_name
 from multion_agents.report.paper import PaperResults
-from multion_agents.report.runs import Run
+from multion_agents.report.runs import Run, dataset_label
 from multion_agents.report.tables import Table, display_order
 
 QUARTERS = ("nearest quarter", "second", "third", "farthest quarter")
@@ -37,7 +36,7 @@ def shortest_paths(run: Run) -> dict[str, float] | None:
 
 @functools.cache
 def _checksum(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:12]  # as runs.py labels a dataset
+    return dataset_label(dataset_sha256(path))
 
 
 @functools.cache

@@ -292,9 +292,14 @@ def _read_episodes(path: Path, num_goals: int) -> tuple[EpisodeResult, ...]:
     return tuple(episodes)
 
 
+def dataset_label(sha256: str) -> str:
+    """How a run names its dataset file: the first 12 hex digits of its SHA-256."""
+    return sha256[:12]
+
+
 def _dataset_label(run: dict[str, Any]) -> str:
     if run.get("dataset_sha256"):
-        return str(run["dataset_sha256"])[:12]
+        return dataset_label(str(run["dataset_sha256"]))
     return str(run.get("dataset") or "packaged (no checksum recorded)")
 
 

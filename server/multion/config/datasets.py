@@ -20,6 +20,7 @@ were made for the first houses.
 from __future__ import annotations
 
 import gzip
+import hashlib
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -78,6 +79,11 @@ def variant_name(num_goals: int, num_distractors: int = 0) -> str:
 
 def packaged_dataset_path(num_goals: int, split: str, num_distractors: int = 0) -> Path:
     return DATA_DIR / variant_name(num_goals, num_distractors) / f"{split}.json.gz"
+
+
+def dataset_sha256(path: Path) -> str:
+    """SHA-256 of a dataset file: tells runs over different dataset versions apart."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def read_header(path: str | Path) -> dict[str, Any]:
