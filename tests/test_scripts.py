@@ -220,6 +220,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-all",
             "no-map-found-head-smooth",
             "no-map-found-head-weighted",
+            "no-map-found-head-coverage",
         ]  # fmt: skip
     )
     for line in trains:
@@ -254,7 +255,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--curriculum 400:7 --curriculum 550:10 --curriculum 700:15" in smooth
     weighted = by_run["no-map-found-head-weighted"]
     assert "--goal-heads --pretrain-vision 2000 --found-head-positive-weight 10" in weighted
-    assert len(evals) == 15 and all("--split val --episodes 100" in line for line in evals)
+    coverage = by_run["no-map-found-head-coverage"]
+    assert "--goal-heads --pretrain-vision 2000 --coverage-reward 0.25" in coverage
+    assert len(evals) == 16 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip

@@ -140,6 +140,7 @@ RECIPE_OPTIONS = (
     "found_head",
     "found_head_positive_weight",
     "found_curriculum",
+    "coverage_reward",
     "pretrain_vision",
     "pretrain_map",
     "balanced_recognition",

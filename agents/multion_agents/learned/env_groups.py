@@ -21,7 +21,7 @@ import numpy as np
 from gymnasium.vector import AsyncVectorEnv, VectorEnv
 
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
-from multion_agents.learned.rollout_envs import make_vector_env
+from multion_agents.learned.rollout_envs import TrainingWrappers, make_vector_env
 
 StepResult = tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
 
@@ -78,14 +78,17 @@ def make_env_groups(
     config: dict[str, Any],
     num_envs: int,
     servers: Sequence[str] = (),
-    expert: bool = False,
+    wrappers: TrainingWrappers = TrainingWrappers(),
     envs_per_process: int = 1,
 ) -> EnvGroups:
     """Two groups of local worker processes (one when there is a single environment), or one
     group on ``servers``; ``envs_per_process`` local environments share each process."""
     if servers or num_envs < 2:
-        return EnvGroups([make_vector_env(config, num_envs, servers, expert, envs_per_process)])
+        return EnvGroups([make_vector_env(config, num_envs, servers, wrappers, envs_per_process)])
     half = num_envs // 2
     return EnvGroups(
-        [make_vector_env(config, n, (), expert, envs_per_process) for n in (half, num_envs - half)]
+        [
+            make_vector_env(config, n, (), wrappers, envs_per_process)
+            for n in (half, num_envs - half)
+        ]
     )

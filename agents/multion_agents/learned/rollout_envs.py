@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import gymnasium as gym
@@ -22,6 +22,7 @@ from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
+from multion_agents.learned.coverage import COVERAGE_SENSORS, CoverageBonus
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
 from multion_agents.learned.train_options import (
@@ -97,35 +98,58 @@ def stage_config(
     return env_config
 
 
-def _make_local_env(config: dict[str, Any], expert: bool = False) -> gym.Env:
+@dataclass(frozen=True)
+class TrainingWrappers:
+    """What local training environments add to the task, for training only."""
+
+    expert: bool = False
+    """Infos carry the oracle planner's action (:mod:`.expert`, ``--imitation-coef``)."""
+    coverage_reward: float = 0.0
+    """Rewards carry an exploration bonus (:mod:`.coverage`, ``--coverage-reward``; 0: none)."""
+
+    def options(self) -> tuple[tuple[str, bool], ...]:
+        """Each wrapper's training option and whether it is on."""
+        return (("--imitation-coef", self.expert), ("--coverage-reward", self.coverage_reward > 0))
+
+
+def _make_local_env(config: dict[str, Any], wrappers: TrainingWrappers) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
-
-    if not expert:
-        return MultiONEnv(env_config_from_dict(config))
-
-    sensors = list(dict.fromkeys([*config["sensors"], *EXPERT_SENSORS]))
-    return OraclePlannerLabels(MultiONEnv(env_config_from_dict({**config, "sensors": sensors})))
+    sensors = list(config["sensors"])
+    if wrappers.expert:
+        sensors += EXPERT_SENSORS
+    if wrappers.coverage_reward > 0:
+        sensors += COVERAGE_SENSORS
+    simulator = MultiONEnv(
+        env_config_from_dict({**config, "sensors": list(dict.fromkeys(sensors))})
+    )
+    env: gym.Env[dict[str, np.ndarray], int] = (
+        OraclePlannerLabels(simulator) if wrappers.expert else simulator
+    )
+    if wrappers.coverage_reward > 0:
+        env = CoverageBonus(env, wrappers.coverage_reward)
+    return env
 
 
 def make_vector_env(
     config: dict[str, Any],
     num_envs: int,
     servers: Sequence[str] = (),
-    expert: bool = False,
+    wrappers: TrainingWrappers = TrainingWrappers(),
     envs_per_process: int = 1,
 ) -> VectorEnv:
     """``num_envs`` environments: on ``servers`` (spread evenly) or in local worker processes,
     ``envs_per_process`` in each (1: gymnasium's ``AsyncVectorEnv``, one process each; more:
     :class:`.env_workers.SharedProcessVectorEnv`, whose envs share a process's goal-site cache).
-    ``expert``: local environments whose infos carry the oracle planner's action
-    (:mod:`.expert`)."""
+    ``wrappers``: what local environments add for training (the oracle planner's action in
+    their infos, an exploration bonus in their rewards)."""
     if envs_per_process < 1:
         raise ConfigError(f"--envs-per-process {envs_per_process}: at least 1")
     if servers:
-        if expert:
+        local_only = [option for option, on in wrappers.options() if on]
+        if local_only:
             raise ConfigError(
-                "--imitation-coef labels steps with a planner beside the simulator: it needs "
-                "local environments, not --server"
+                f"{' and '.join(local_only)} work beside the simulator: each needs local "
+                "environments, not --server"
             )
 
         counts = [
@@ -134,7 +158,7 @@ def make_vector_env(
         if min(counts) < 1:
             raise ConfigError(f"{num_envs} envs cannot be spread over {len(servers)} servers")
         return RemoteVectorEnv(list(servers), counts, config)
-    factories = [functools.partial(_make_local_env, config, expert) for _ in range(num_envs)]
+    factories = [functools.partial(_make_local_env, config, wrappers) for _ in range(num_envs)]
     if envs_per_process > 1:
         return SharedProcessVectorEnv(factories, envs_per_process)
     return AsyncVectorEnv(

@@ -227,6 +227,18 @@ class Args:
             group=BEYOND_PAPER,
         ),
     )
+    coverage_reward: float = setting(
+        0.0,
+        low=0,
+        high=10,
+        cli=Option(
+            "exploration bonus R added to the task's reward while training: R x 0.995^t / n at "
+            "step t, n the steps spent so far in the agent's 2.5 m cell (Ye et al. 2021), "
+            "in [0, 10] (default 0: none, as in the paper); needs local environments",
+            group=BEYOND_PAPER,
+        ),
+    )
+    """``learned/coverage.py``."""
     pretrain_vision: VisionPretraining = setting(
         default_factory=VisionPretraining,
         cli=Option(

@@ -58,6 +58,7 @@ from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_
 from multion_agents.learned.rollout_envs import (
     NO_LABEL,
     SUMMARY_METRICS,
+    TrainingWrappers,
     check_curriculum,
     stage_config,
     training_env_config,
@@ -312,7 +313,7 @@ class TrainingRun:
             env_config_to_dict(stage),
             args.envs,
             self._servers,
-            args.imitation_coef > 0,
+            TrainingWrappers(args.imitation_coef > 0, args.coverage_reward),
             args.envs_per_process,
         )
 
