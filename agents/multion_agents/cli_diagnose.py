@@ -135,6 +135,10 @@ def run(args: argparse.Namespace) -> int:
         f"in view there: {calls.seen_in_reach} ({calls.in_view_steps} steps, mean P(FOUND) "
         f"{_share(calls.in_view_probability)})"
     )
+    print(
+        f"  2.5 m cells entered per episode: {_number(calls.cells_visited)}; in the episodes "
+        f"that reached the step limit: {_number(calls.cells_at_step_limit)}"
+    )
     if calls.gate_endings:
         print(
             f"the FOUND head's gate (played at {policy.found_gate:g}; at 1-ON the first FOUND "
@@ -171,6 +175,10 @@ def _print_bands(title: str, rows: list[Any]) -> None:
 
 def _share(value: float) -> str:
     return "-" if math.isnan(value) else f"{value:.2f}"
+
+
+def _number(value: float) -> str:
+    return "-" if math.isnan(value) else f"{value:.1f}"
 
 
 def _finite(value: Any) -> Any:

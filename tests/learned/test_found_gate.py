@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -103,6 +104,8 @@ def test_gates_read_off_played_episodes_match_episodes_played_with_them() -> Non
     assert played.endings.get("success", 0) <= played.reached <= 6
     assert played.seen_in_reach <= played.reached
     assert played.in_view_steps <= played.near_steps
+    # 60 steps of 0.25 m cross at most 15 m * sqrt(2) / 2.5 m cell borders
+    assert 1 <= played.cells_visited <= 1 + 15 * math.sqrt(2) / 2.5
     read = {gate: played.gate_endings[f"{gate:g}"] for gate in gates}
     assert len({tuple(sorted(r.items())) for r in read.values()}) > 1, read  # gates matter here
     for gate in (0.1, 0.3):

@@ -28,6 +28,7 @@ from multion.config.codec import env_config_from_dict
 from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import ConfigOverrides, merge_overrides
+from multion_agents.learned.coverage import COVERAGE_SENSORS, visit_cell
 from multion_agents.learned.found_gate import GateTrace, gate_endings
 from multion_agents.learned.found_supervision import found_probabilities
 from multion_agents.learned.learned_maps import ObjRecogMap
@@ -66,6 +67,11 @@ class FoundCalls:
     """Steps within reach where the frame shows the goal."""
     in_view_probability: float = math.nan
     """Mean probability of FOUND on those steps (nan: none)."""
+    cells_visited: float = math.nan
+    """Mean per episode of the 2.5 m cells of the start frame it entered (:mod:`.coverage`'s
+    grid): how much ground it searched."""
+    cells_at_step_limit: float = math.nan
+    """The same mean over the episodes that reached the step limit (nan: none did)."""
     gate_endings: dict[str, dict[str, int]] = field(default_factory=dict)
     """With a FOUND head: per gate (a probability, as text), the episodes by how they would
     have ended with it (:func:`.found_gate.gate_endings`)."""
@@ -140,12 +146,13 @@ def found_calls(
     """Play ``episodes`` episodes of ``config`` with ``policy`` (:func:`play`), recording
     FOUND's probability at every step (a FOUND head's own), where the goal is within reach and
     in view, and with a FOUND head, how the episodes would have ended with each of ``gates``."""
-    oracles = ("goal_distance", "goal_mask")
+    oracles = ("goal_distance", "goal_mask", *COVERAGE_SENSORS)
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
     reach = config.task.success_distance
     chances: list[list[float]] = [[] for _ in range(episodes)]
     in_reach: list[list[bool]] = [[] for _ in range(episodes)]
     in_view: list[list[bool]] = [[] for _ in range(episodes)]
+    cells: list[set[tuple[int, int]]] = [set() for _ in range(episodes)]
 
     def record(episode: int, observation: dict[str, Any], out: PolicyOutput) -> None:
         # with --found-head, the head's probability (its gate opens above found_gate)
@@ -154,6 +161,7 @@ def found_calls(
         in_reach[episode].append(float(observation["goal_distance"][0]) <= reach)
         goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
         in_view[episode].append(bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
+        cells[episode].add(visit_cell(observation["gps"]))
 
     endings = play(policy, config, episodes, seed, record, progress)
     traces = [
@@ -170,6 +178,14 @@ def found_calls(
         seen_in_reach=sum(bool((trace.in_reach & trace.in_view).any()) for trace in traces),
         in_view_steps=sum(int((trace.in_reach & trace.in_view).sum()) for trace in traces),
         in_view_probability=_mean_where(traces, lambda t: t.in_reach & t.in_view),
+        cells_visited=_mean([len(visited) for visited in cells]),
+        cells_at_step_limit=_mean(
+            [
+                len(visited)
+                for visited, ending in zip(cells, endings, strict=True)
+                if ending == "max_steps"
+            ]
+        ),  # fmt: skip
         gate_endings={
             f"{gate:g}": counts
             for gate, counts in gate_endings(traces, gates, policy.found_gate).items()
@@ -232,3 +248,7 @@ def _mean_where(traces: Sequence[GateTrace], where: Callable[[GateTrace], np.nda
     chosen = [trace.probability[where(trace)] for trace in traces]
     values = np.concatenate(chosen) if chosen else np.empty(0)
     return float(values.mean()) if values.size else math.nan
+
+
+def _mean(values: Sequence[int]) -> float:
+    return float(np.mean(values)) if values else math.nan
