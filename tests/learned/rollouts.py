@@ -7,8 +7,10 @@ from pathlib import Path
 
 import torch
 
+from multion.config.codec import env_config_from_dict
 from multion.config.sim import CameraConfig
 from multion.config.task import EnvConfig
+from multion.task.env import MultiONEnv
 from multion.task.spaces import build_observation_space
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.rollout import Rollout, compute_gae
@@ -114,3 +116,15 @@ def tiny_args(tmp_path: Path, dataset: Path, agent: str = "oracle-map", **change
     )
     values.update(changes)
     return Args(**values)
+
+
+def room_env(dataset: Path, sensors: tuple[str, ...]) -> MultiONEnv:
+    """A 1-ON env of ``dataset``'s train episodes (the room) with 16² images and ``sensors``."""
+    config = {
+        "task": {"num_goals": 1},
+        "camera": {"width": 16, "height": 16},
+        "sensors": list(sensors),
+        "dataset": str(dataset),
+        "split": "train",
+    }
+    return MultiONEnv(env_config_from_dict(config))

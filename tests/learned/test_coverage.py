@@ -7,28 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rollouts import room_env
 from test_recipe_options import tiny_args
 
-from multion.config.codec import env_config_from_dict
 from multion.config.ranges import ConfigError
-from multion.task.env import MultiONEnv
 from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint
 from multion_agents.learned.coverage import CoverageBonus, coverage_bonus, visit_cell
 from multion_agents.learned.rollout_envs import TrainingWrappers, make_vector_env
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import train
 from multion_client.constants import Action
-
-
-def _room_env(dataset: Path, sensors: tuple[str, ...]) -> MultiONEnv:
-    config = {
-        "task": {"num_goals": 1},
-        "camera": {"width": 16, "height": 16},
-        "sensors": list(sensors),
-        "dataset": str(dataset),
-        "split": "train",
-    }
-    return MultiONEnv(env_config_from_dict(config))
 
 
 def test_the_bonus_decays_with_the_step_and_the_visits() -> None:
@@ -56,8 +44,8 @@ def test_the_wrapper_adds_the_bonus_of_the_cell_the_step_ends_in(room_dataset: P
         + [int(Action.TURN_LEFT)] * 3
         + [int(Action.MOVE_FORWARD)] * 4
     )
-    plain = _room_env(room_dataset, ("rgb", "gps"))
-    wrapped = CoverageBonus(_room_env(room_dataset, ("rgb", "gps")), 0.25)
+    plain = room_env(room_dataset, ("rgb", "gps"))
+    wrapped = CoverageBonus(room_env(room_dataset, ("rgb", "gps")), 0.25)
     observation, _ = plain.reset(options={"episode_index": 0})
     wrapped.reset(options={"episode_index": 0})
     visits = {visit_cell(observation["gps"]): 1}
@@ -78,9 +66,9 @@ def test_the_wrapper_adds_the_bonus_of_the_cell_the_step_ends_in(room_dataset: P
 
 def test_the_wrapper_needs_gps_and_a_positive_reward(room_dataset: Path) -> None:
     with pytest.raises(ValueError, match="needs sensors"):
-        CoverageBonus(_room_env(room_dataset, ("rgb",)), 0.25)
+        CoverageBonus(room_env(room_dataset, ("rgb",)), 0.25)
     with pytest.raises(ValueError, match="above 0"):
-        CoverageBonus(_room_env(room_dataset, ("rgb", "gps")), 0.0)
+        CoverageBonus(room_env(room_dataset, ("rgb", "gps")), 0.0)
 
 
 def test_the_option_is_bounded_and_local_only() -> None:

@@ -9,9 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from rollouts import SIZE, random_rollout, space_for
+from rollouts import SIZE, random_rollout, room_env, space_for
 
-from multion.config.codec import env_config_from_dict
 from multion.task.env import MultiONEnv
 from multion_agents.learned.env_groups import EnvGroups
 from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
@@ -24,14 +23,7 @@ from multion_client.constants import Action
 
 
 def _room_env(dataset: Path, sensors: tuple[str, ...] = ("rgb", *EXPERT_SENSORS)) -> MultiONEnv:
-    config = {
-        "task": {"num_goals": 1},
-        "camera": {"width": 16, "height": 16},
-        "sensors": list(sensors),
-        "dataset": str(dataset),
-        "split": "train",
-    }
-    return MultiONEnv(env_config_from_dict(config))
+    return room_env(dataset, sensors)
 
 
 def test_following_the_labels_finds_every_goal(room_dataset: Path) -> None:
