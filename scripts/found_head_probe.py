@@ -25,7 +25,7 @@ from torch import Tensor, nn
 
 from multion_agents.agent import ConfigOverrides
 from multion_agents.learned.checkpoint import load_policy
-from multion_agents.learned.diagnose import diagnosis_config, play
+from multion_agents.learned.diagnose import diagnosis_config, play, shows_goal
 from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy
 
 LABEL_SENSORS = ("goal_distance", "goal_mask")
@@ -57,9 +57,8 @@ def record(policy: RecurrentPolicy, overrides: ConfigOverrides, split: str, epis
         inputs.append(captured[-1].reshape(-1).numpy().copy())
         captured.clear()
         logits.append(float(out.found_logit[0, 0]))
-        goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
         near = float(observation["goal_distance"][0]) <= reach
-        labels.append(near and bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
+        labels.append(near and shows_goal(observation))
 
     hook = policy.found_head.register_forward_hook(lambda _m, i, _o: captured.append(i[0]))
     try:

@@ -135,6 +135,12 @@ def play(
     return endings
 
 
+def shows_goal(observation: dict[str, Any]) -> bool:
+    """Whether the frame shows the current goal: a ``goal_mask`` pixel holds its category + 1."""
+    goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
+    return bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1))
+
+
 def found_calls(
     policy: RecurrentPolicy,
     config: EnvConfig,
@@ -159,8 +165,7 @@ def found_calls(
         head = None if out.found_logit is None else out.found_logit[0, 0]
         chances[episode].append(float(found_probabilities(out.logits[0, 0], head)[0]))
         in_reach[episode].append(float(observation["goal_distance"][0]) <= reach)
-        goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
-        in_view[episode].append(bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1)))
+        in_view[episode].append(shows_goal(observation))
         cells[episode].add(visit_cell(observation["gps"]))
 
     endings = play(policy, config, episodes, seed, record, progress)
@@ -185,7 +190,7 @@ def found_calls(
                 for visited, ending in zip(cells, endings, strict=True)
                 if ending == "max_steps"
             ]
-        ),  # fmt: skip
+        ),
         gate_endings={
             f"{gate:g}": counts
             for gate, counts in gate_endings(traces, gates, policy.found_gate).items()
