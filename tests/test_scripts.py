@@ -221,6 +221,8 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-smooth",
             "no-map-found-head-weighted",
             "no-map-found-head-coverage",
+            "no-map-found-head-coverage-2.5",
+            "no-map-found-head-long",
         ]  # fmt: skip
     )
     for line in trains:
@@ -257,7 +259,10 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--goal-heads --pretrain-vision 2000 --found-head-positive-weight 10" in weighted
     coverage = by_run["no-map-found-head-coverage"]
     assert "--goal-heads --pretrain-vision 2000 --coverage-reward 0.25" in coverage
-    assert len(evals) == 16 and all("--split val --episodes 100" in line for line in evals)
+    assert "--coverage-reward 2.5" in by_run["no-map-found-head-coverage-2.5"]
+    long = by_run["no-map-found-head-long"]
+    assert "--max-steps 500" in long and long.endswith("--max-steps 2500")  # the last one wins
+    assert len(evals) == 18 and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
