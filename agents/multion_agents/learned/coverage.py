@@ -21,16 +21,15 @@ the bonus; the task's metrics are unchanged, only the reward PPO learns from.
 
 from __future__ import annotations
 
-import math
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
+from multion.task import measures
+
 COVERAGE_SENSORS = ("gps",)
 """What the bonus reads each step (the training env adds it; the policy ignores it)."""
-CELL_SIZE = 2.5
-"""Side of the visit grid, metres (Ye et al.'s ``GRID_DELTA``)."""
 ATTENUATION = 0.995
 """The bonus's decay per step of the episode (Ye et al.'s ``ATTENUATION``)."""
 
@@ -42,12 +41,9 @@ def coverage_bonus(reward: float, step: int, visits: int) -> float:
 
 
 def visit_cell(gps: np.ndarray) -> tuple[int, int]:
-    """The visit-grid cell holding ``gps`` (ahead, left metres in the start frame); the start
-    lies at a cell's centre."""
-    return (
-        math.floor(float(gps[0]) / CELL_SIZE + 0.5),
-        math.floor(float(gps[1]) / CELL_SIZE + 0.5),
-    )
+    """The cell of the task's ``cells_visited`` grid (2.5 m, Ye et al.'s ``GRID_DELTA``) holding
+    ``gps`` (ahead, left metres in the start frame)."""
+    return measures.visit_cell(float(gps[0]), float(gps[1]))
 
 
 class CoverageBonus(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]):

@@ -28,7 +28,6 @@ from multion.config.codec import env_config_from_dict
 from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import ConfigOverrides, merge_overrides
-from multion_agents.learned.coverage import COVERAGE_SENSORS, visit_cell
 from multion_agents.learned.found_gate import GateTrace, gate_endings
 from multion_agents.learned.found_supervision import found_probabilities
 from multion_agents.learned.learned_maps import ObjRecogMap
@@ -68,8 +67,8 @@ class FoundCalls:
     in_view_probability: float = math.nan
     """Mean probability of FOUND on those steps (nan: none)."""
     cells_visited: float = math.nan
-    """Mean per episode of the 2.5 m cells of the start frame it entered (:mod:`.coverage`'s
-    grid): how much ground it searched."""
+    """Mean per episode of the task's ``cells_visited`` (the 2.5 m cells of the start frame it
+    entered): how much ground it searched."""
     cells_at_step_limit: float = math.nan
     """The same mean over the episodes that reached the step limit (nan: none did)."""
     gate_endings: dict[str, dict[str, int]] = field(default_factory=dict)
@@ -96,12 +95,12 @@ def play(
     seed: int,
     on_step: StepHook,
     progress: bool = False,
-) -> list[str]:
+) -> list[dict[str, Any]]:
     """Play ``episodes`` episodes of ``config`` with ``policy`` (actions sampled with ``seed``):
     of a dataset, evenly spaced ones, those ``multion eval --episodes`` plays. Calls ``on_step``
-    at every step; returns how each episode ended (``end_reason``)."""
+    at every step; returns each episode's final metrics (``end_reason``, ``cells_visited``, …)."""
     rng = np.random.default_rng(seed)
-    endings: list[str] = []
+    finals: list[dict[str, Any]] = []
     env = MultiONEnv(config)
     device = policy.device
     policy.eval()
@@ -129,10 +128,10 @@ def play(
                 )
                 observation, _, terminated, truncated, info = env.step(previous)
                 done = terminated or truncated
-            endings.append(str(info["metrics"]["end_reason"]))
+            finals.append(dict(info["metrics"]))
     finally:
         env.close()
-    return endings
+    return finals
 
 
 def shows_goal(observation: dict[str, Any]) -> bool:
@@ -152,13 +151,12 @@ def found_calls(
     """Play ``episodes`` episodes of ``config`` with ``policy`` (:func:`play`), recording
     FOUND's probability at every step (a FOUND head's own), where the goal is within reach and
     in view, and with a FOUND head, how the episodes would have ended with each of ``gates``."""
-    oracles = ("goal_distance", "goal_mask", *COVERAGE_SENSORS)
+    oracles = ("goal_distance", "goal_mask")
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
     reach = config.task.success_distance
     chances: list[list[float]] = [[] for _ in range(episodes)]
     in_reach: list[list[bool]] = [[] for _ in range(episodes)]
     in_view: list[list[bool]] = [[] for _ in range(episodes)]
-    cells: list[set[tuple[int, int]]] = [set() for _ in range(episodes)]
 
     def record(episode: int, observation: dict[str, Any], out: PolicyOutput) -> None:
         # with --found-head, the head's probability (its gate opens above found_gate)
@@ -166,9 +164,10 @@ def found_calls(
         chances[episode].append(float(found_probabilities(out.logits[0, 0], head)[0]))
         in_reach[episode].append(float(observation["goal_distance"][0]) <= reach)
         in_view[episode].append(shows_goal(observation))
-        cells[episode].add(visit_cell(observation["gps"]))
 
-    endings = play(policy, config, episodes, seed, record, progress)
+    finals = play(policy, config, episodes, seed, record, progress)
+    endings = [str(final["end_reason"]) for final in finals]
+    cells = [int(final["cells_visited"]) for final in finals]
     traces = [
         GateTrace(np.asarray(c), np.asarray(r, dtype=bool), np.asarray(v, dtype=bool), ending)
         for c, r, v, ending in zip(chances, in_reach, in_view, endings, strict=True)
@@ -183,13 +182,9 @@ def found_calls(
         seen_in_reach=sum(bool((trace.in_reach & trace.in_view).any()) for trace in traces),
         in_view_steps=sum(int((trace.in_reach & trace.in_view).sum()) for trace in traces),
         in_view_probability=_mean_where(traces, lambda t: t.in_reach & t.in_view),
-        cells_visited=_mean([len(visited) for visited in cells]),
+        cells_visited=_mean(cells),
         cells_at_step_limit=_mean(
-            [
-                len(visited)
-                for visited, ending in zip(cells, endings, strict=True)
-                if ending == "max_steps"
-            ]
+            [n for n, ending in zip(cells, endings, strict=True) if ending == "max_steps"]
         ),
         gate_endings={
             f"{gate:g}": counts

@@ -22,6 +22,7 @@ from multion.config.errors import UsageError
 from multion_agents.report.distances import by_distance
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
+from multion_agents.report.search import search_coverage
 from multion_agents.report.tables import (
     Table,
     paired,
@@ -90,6 +91,7 @@ def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
         goal_sets(runs, labels, paper),
         cameras(runs, labels, paper),
         by_distance(runs, labels, paper),
+        search_coverage(runs, labels, paper),
         paired(runs, labels, paper),
         run_list(runs, labels, paper),
     ]

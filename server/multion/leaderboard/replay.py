@@ -33,7 +33,13 @@ class ReplayedEpisode:
 
     @property
     def same(self) -> bool:
-        return self.stored == self.replayed
+        return self.stored == as_stored(self.replayed, self.stored)
+
+
+def as_stored(metrics: dict[str, Any], stored: dict[str, Any]) -> dict[str, Any]:
+    """``metrics`` without the measures that ``stored`` lacks: a measure added to the task
+    after a run was stored (``cells_visited``) is no difference in its replay."""
+    return {key: value for key, value in metrics.items() if key in stored}
 
 
 def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterator[ReplayedEpisode]:
@@ -62,7 +68,8 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
                 yield ReplayedEpisode(record.position, record.metrics, record.metrics)
                 continue
             placeholder = missed_metrics(track.num_goals, record.end_reason)
-            if not record.actions and record.metrics == placeholder:  # never started
+            if not record.actions and record.metrics == as_stored(placeholder, record.metrics):
+                # never started
                 yield ReplayedEpisode(record.position, record.metrics, placeholder)
                 continue
             episode = hidden.episode(track, phase, draw, record.position)

@@ -7,6 +7,7 @@ in dependency order.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -339,6 +340,45 @@ def seen_split(metrics: Iterable[Mapping[str, Any]], goal: int) -> tuple[list[fl
     return seen, unseen
 
 
+VISIT_CELL_SIZE = 2.5
+"""Side of the grid :class:`CellsVisited` counts, metres: Ye et al.'s coverage grid
+(joel99/objectnav ``configs/tasks/objectnav_mp3d_full.yaml`` l. 52-58, ``GRID_DELTA`` 2.5)."""
+
+
+def visit_cell(ahead: float, left: float) -> tuple[int, int]:
+    """The :data:`VISIT_CELL_SIZE` cell holding a point ``ahead``, ``left`` metres of the
+    episode's start in its start frame (the ``gps`` sensor's frame); the start lies at a cell's
+    centre."""
+    return (
+        math.floor(ahead / VISIT_CELL_SIZE + 0.5),
+        math.floor(left / VISIT_CELL_SIZE + 0.5),
+    )
+
+
+class CellsVisited(Measure):
+    """How many cells of a 2.5 m grid in the start frame the agent has stood in, the start's
+    included: how much ground its search covered (beyond the paper; issue 51's measurement of
+    agents that search without a map)."""
+
+    name = "cells_visited"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._start = np.asarray(state.episode.start_position[:2], dtype=np.float64)
+        yaw = state.episode.start_yaw
+        self._cos, self._sin = math.cos(yaw), math.sin(yaw)
+        self._cells: set[tuple[int, int]] = set()
+        self.update(state, measures)
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        dx, dy = np.asarray(state.position[:2], dtype=np.float64) - self._start
+        ahead, left = self._cos * dx + self._sin * dy, -self._sin * dx + self._cos * dy
+        self._cells.add(visit_cell(float(ahead), float(left)))
+
+    @property
+    def value(self) -> int:
+        return len(self._cells)
+
+
 class EndReason(Measure):
     """``success``, ``wrong_found``, ``max_steps``, or None while the episode runs."""
 
@@ -370,6 +410,7 @@ DEFAULT_MEASURES: tuple[type[Measure], ...] = (
     PathLengthAtFound,
     ReferencePPL,
     SeenBeforeCurrent,
+    CellsVisited,
     EndReason,
 )
 
