@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from multion.config.episode import Episode
+from multion.task.sensors import start_frame
 
 MetricValue = float | int | str | None | list[float] | list[bool]
 
@@ -364,15 +365,12 @@ class CellsVisited(Measure):
 
     def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
         self._start = np.asarray(state.episode.start_position[:2], dtype=np.float64)
-        yaw = state.episode.start_yaw
-        self._cos, self._sin = math.cos(yaw), math.sin(yaw)
         self._cells: set[tuple[int, int]] = set()
         self.update(state, measures)
 
     def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
-        dx, dy = np.asarray(state.position[:2], dtype=np.float64) - self._start
-        ahead, left = self._cos * dx + self._sin * dy, -self._sin * dx + self._cos * dy
-        self._cells.add(visit_cell(float(ahead), float(left)))
+        position = np.asarray(state.position[:2], dtype=np.float64)
+        self._cells.add(visit_cell(*start_frame(position, self._start, state.episode.start_yaw)))
 
     @property
     def value(self) -> int:

@@ -141,6 +141,16 @@ class GoalOnehot(Sensor):
         return onehot
 
 
+def start_frame(
+    position: np.ndarray, start_position: np.ndarray, start_yaw: float
+) -> tuple[float, float]:
+    """``position`` (x, y world metres) as the displacement from the episode's start in its
+    start frame: metres ahead, metres left (the ``gps`` sensor's reading)."""
+    c, s = math.cos(start_yaw), math.sin(start_yaw)
+    dx, dy = position - start_position
+    return float(c * dx + s * dy), float(-s * dx + c * dy)
+
+
 class GPS(Sensor):
     spec = sensor_spec("gps")
 
@@ -148,10 +158,8 @@ class GPS(Sensor):
         return spaces.Box(-np.inf, np.inf, (2,), np.float32)
 
     def observe(self, inputs: SensorInputs) -> np.ndarray:
-        # the displacement in the start frame: x ahead, y left
-        c, s = math.cos(inputs.start_yaw), math.sin(inputs.start_yaw)
-        dx, dy = inputs.position - inputs.start_position
-        return np.array([c * dx + s * dy, -s * dx + c * dy], dtype=np.float32)
+        ahead_left = start_frame(inputs.position, inputs.start_position, inputs.start_yaw)
+        return np.array(ahead_left, dtype=np.float32)
 
 
 class Compass(Sensor):
