@@ -20,6 +20,7 @@ from pathlib import Path
 from multion.common.files import replacing, write_atomically
 from multion.config.errors import UsageError
 from multion_agents.report.distances import by_distance
+from multion_agents.report.movement import movement
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.search import search_coverage
@@ -92,6 +93,7 @@ def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
         cameras(runs, labels, paper),
         by_distance(runs, labels, paper),
         search_coverage(runs, labels, paper),
+        movement(runs, labels, paper),
         paired(runs, labels, paper),
         run_list(runs, labels, paper),
     ]

@@ -41,6 +41,9 @@ class EpisodeResult:
     index: int = 0
     """The episode's position in the run's evaluated list (``index`` in ``episodes.jsonl``; its
     line number for runs without it): what the ``"index"`` seed scheme seeded from."""
+    actions: str = ""
+    """The actions taken, one digit each (0 FOUND, 1 forward, 2 left, 3 right); '' for runs
+    written before ``episodes.jsonl`` kept them."""
 
 
 @dataclass(frozen=True)
@@ -284,8 +287,16 @@ def _read_episodes(path: Path, num_goals: int) -> tuple[EpisodeResult, ...]:
         index = item.get("index", len(episodes))
         if not isinstance(index, int):
             raise RunError(f"{path}, line {number}: index {index!r} is not an integer")
+        actions = item.get("actions", "")
+        if not isinstance(actions, str) or actions.strip("0123") != "":
+            raise RunError(
+                f"{path}, line {number}: actions must be a string of the digits 0-3 "
+                "(FOUND, forward, left, right)"
+            )
         episodes.append(
-            EpisodeResult(item["episode_id"], str(item.get("scene_id", "")), metrics, index)
+            EpisodeResult(
+                item["episode_id"], str(item.get("scene_id", "")), metrics, index, actions
+            )
         )
     if not episodes:
         raise RunError(f"{path}: no episodes")
