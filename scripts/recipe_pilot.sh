@@ -8,6 +8,9 @@
 #   bash scripts/recipe_pilot.sh                       # every run, in the order below
 #   ONLY="no-map-all no-map-paper" bash scripts/recipe_pilot.sh
 #   OUT=runs/pilot FRAMES=500000 AGENT=no-map bash scripts/recipe_pilot.sh
+#   AGENT=proj-neural-map ONLY=proj-neural-map-found-head-all bash scripts/recipe_pilot.sh
+#                                                      # the learn-to-see options on a learned map
+# For AGENT=obj-recog-map every run adds --balanced-recognition, as the learn-to-see recipe does.
 #   PUBLISH=1 bash scripts/recipe_pilot.sh             # keep the runs in docs/learned/pilot
 # To keep working in the tree while it runs, run it from a copy (see central_comparison.sh).
 set -euo pipefail
@@ -38,8 +41,10 @@ pilot() {
   [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
   local resume=()
   [ -f "$dir/checkpoint.pt" ] && resume=(--resume)
+  local extra=()
+  [ "$agent" != obj-recog-map ] || extra=(--balanced-recognition)
   echo "== train $name ($agent, $frames frames) $(date -u +%FT%TZ)"
-  $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "$@"
+  $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "${extra[@]}" "$@"
   echo "== eval $name $(date -u +%FT%TZ)"
   rm -rf "$dir/eval-val"
   $multion eval --agent "$agent" --checkpoint "$dir/checkpoint.pt" "${evaluation[@]}" \

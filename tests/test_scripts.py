@@ -270,6 +270,31 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert not any(line.startswith(("train", "eval")) for line in calls.read_text().splitlines())
 
 
+def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> None:
+    """AGENT=proj-neural-map (or obj-recog-map) with ONLY trains and evaluates that agent with the
+    run's options under its own name; obj-recog-map's runs add its balanced recogniser, as the
+    learn-to-see recipe of the central comparison does, and no other agent's do."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "recipe_pilot.sh", tmp_path / "scripts")
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    calls = tmp_path / "calls.txt"
+    for agent in ("proj-neural-map", "obj-recog-map"):
+        env = {**os.environ, "FRAMES": "1000", "CALLS": str(calls), "MULTION": f"bash {fake}",
+               "AGENT": agent, "ONLY": f"{agent}-found-head-all"}  # fmt: skip
+        done = subprocess.run(["bash", "scripts/recipe_pilot.sh"], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+        lines = calls.read_text().splitlines()
+        train, evaluation = (line for line in lines if line.startswith(("train", "eval")))
+        assert train.startswith(f"train --agent {agent} ")
+        assert f"--out runs/pilot/{agent}-found-head-all" in train
+        assert "--found-head 1 --curriculum 400:4 --curriculum 700:10 --goal-heads" in train
+        assert ("--balanced-recognition" in train) == (agent == "obj-recog-map"), train
+        assert evaluation.startswith(f"eval --agent {agent} --checkpoint ")
+        calls.unlink()
+
+
 def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -> None:
     """RECIPE=learn-to-see trains every agent with the options beyond the paper at 3M frames
     (near goals over the first 200k, as in its pilot), obj-recog-map with its balanced recogniser, into
