@@ -7,6 +7,7 @@ plus `random` on 2-ON with found budgets 0 and 2: every table of the report has 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from multion.config.datasets import save_dataset
 from multion.sim.simulator import Simulator
 from multion.task.sampling import sample_episode
 from multion_agents import cli_eval
+from multion_agents.report.runs import EpisodeResult, Run
 
 ROOM = "room-6x4"
 EPISODES = 4
@@ -59,3 +61,20 @@ def report_runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
         argv = [*argv, *common, *extra, "--dataset", str(datasets[m]), "--out", str(root / name)]
         assert run_eval(argv) == 0, name
     return root
+
+
+OneGoalRun = Callable[..., Run]
+
+
+@pytest.fixture
+def one_goal_run() -> OneGoalRun:
+    """Builds a 1-ON val run of the given episodes, without files: ``(name, episodes,
+    dataset="0123456789ab")``; the agent is named as the run."""
+
+    def build(name: str, episodes: Sequence[EpisodeResult], dataset: str = "0123456789ab") -> Run:
+        return Run(path=Path(name), agent=name, num_goals=1, split="val", dataset=dataset,
+                   found_budget=0, goal_set="colours", settings={}, camera_width=36,
+                   renderer="tiny", seed=0, multion_version="test",
+                   episodes=tuple(episodes))  # fmt: skip
+
+    return build

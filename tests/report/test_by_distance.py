@@ -4,7 +4,7 @@ dataset's shortest paths, each episode counted once, a run on another dataset le
 from __future__ import annotations
 
 import hashlib
-from pathlib import Path
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -14,25 +14,24 @@ from multion_agents.report.distances import by_distance
 from multion_agents.report.paper import paper_results
 from multion_agents.report.runs import EpisodeResult, Run
 
+RunOf = Callable[..., Run]
 
-def _run(name: str, dataset: str, successes: dict[str, float]) -> Run:
-    episodes = tuple(
+
+def _episodes(successes: dict[str, float]) -> list[EpisodeResult]:
+    return [
         EpisodeResult(episode_id, "house", {"success": won}, index)
         for index, (episode_id, won) in enumerate(successes.items())
-    )
-    return Run(path=Path(name), agent=name, num_goals=1, split="val", dataset=dataset,
-               found_budget=0, goal_set="colours", settings={}, camera_width=36,
-               renderer="tiny", seed=0, multion_version="test", episodes=episodes)  # fmt: skip
+    ]
 
 
-def test_quarters_of_the_shortest_path_count_each_episode_once() -> None:
+def test_quarters_of_the_shortest_path_count_each_episode_once(one_goal_run: RunOf) -> None:
     path = packaged_dataset_path(1, "val")
     checksum = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
     chosen = load_dataset(path)[:12]
     metres = {e.episode_id: sum(e.geodesic_distances) for e in chosen}
     nearest = sorted(metres, key=metres.__getitem__)[:6]  # the near half succeeds
-    near = _run("near", checksum, {i: float(i in nearest) for i in metres})
-    other = _run("elsewhere", "0123456789ab", {i: 1.0 for i in metres})
+    near = one_goal_run("near", _episodes({i: float(i in nearest) for i in metres}), checksum)
+    other = one_goal_run("elsewhere", _episodes({i: 1.0 for i in metres}))
     table = by_distance([near, other], ["near", "elsewhere"], paper_results())
     assert table is not None
     assert [row[0] for row in table.rows] == ["near"]
@@ -49,6 +48,6 @@ def test_quarters_of_the_shortest_path_count_each_episode_once() -> None:
     assert f"{cuts[1]:g}" in table.notes[0]
 
 
-def test_no_table_without_a_packaged_dataset() -> None:
-    run = _run("elsewhere", "0123456789ab", {"a": 1.0})
+def test_no_table_without_a_packaged_dataset(one_goal_run: RunOf) -> None:
+    run = one_goal_run("elsewhere", _episodes({"a": 1.0}))
     assert by_distance([run], ["elsewhere"], paper_results()) is None

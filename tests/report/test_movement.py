@@ -5,6 +5,7 @@ actions string refused with the line named."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,28 +15,29 @@ from multion_agents.report.movement import movement
 from multion_agents.report.paper import paper_results
 from multion_agents.report.runs import EpisodeResult, Run, RunError, _read_episodes
 
+RunOf = Callable[..., Run]
 
-def _run(name: str, episodes: list[tuple[str, dict[str, Any]]]) -> Run:
-    results = tuple(
+
+def _episodes(played: list[tuple[str, dict[str, Any]]]) -> list[EpisodeResult]:
+    return [
         EpisodeResult(f"e{index}", "house", metrics, index, actions)
-        for index, (actions, metrics) in enumerate(episodes)
-    )
-    return Run(path=Path(name), agent=name, num_goals=1, split="val", dataset="0123456789ab",
-               found_budget=0, goal_set="colours", settings={}, camera_width=36,
-               renderer="tiny", seed=0, multion_version="test", episodes=results)  # fmt: skip
+        for index, (actions, metrics) in enumerate(played)
+    ]
 
 
-def test_shares_refusals_and_metres_per_step() -> None:
-    walker = _run(
+def test_shares_refusals_and_metres_per_step(one_goal_run: RunOf) -> None:
+    walker = one_goal_run(
         "walker",
-        [
-            # 5 forward (1 refused: 1 m), 1 left, 1 right, then FOUND: 8 steps
-            ("11211130", {"collisions": 1, "path_length": 1.0}),
-            # 2 forward, both refused, 2 left: 4 steps
-            ("1212", {"collisions": 2, "path_length": 0.0}),
-        ],
+        _episodes(
+            [
+                # 5 forward (1 refused: 1 m), 1 left, 1 right, then FOUND: 8 steps
+                ("11211130", {"collisions": 1, "path_length": 1.0}),
+                # 2 forward, both refused, 2 left: 4 steps
+                ("1212", {"collisions": 2, "path_length": 0.0}),
+            ]
+        ),
     )
-    older = _run("older", [("", {"collisions": 0, "path_length": 1.0})])
+    older = one_goal_run("older", _episodes([("", {"collisions": 0, "path_length": 1.0})]))
     table = movement([walker, older], ["walker", "older"], paper_results())
     assert table is not None
     assert [row[0] for row in table.rows] == ["walker"]
@@ -51,8 +53,8 @@ def test_shares_refusals_and_metres_per_step() -> None:
     assert any("Left out" in note and "older" in note for note in table.notes)
 
 
-def test_no_table_when_no_run_kept_its_actions() -> None:
-    older = _run("older", [("", {"collisions": 0, "path_length": 1.0})])
+def test_no_table_when_no_run_kept_its_actions(one_goal_run: RunOf) -> None:
+    older = one_goal_run("older", _episodes([("", {"collisions": 0, "path_length": 1.0})]))
     assert movement([older], ["older"], paper_results()) is None
 
 

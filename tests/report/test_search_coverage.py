@@ -3,7 +3,7 @@ and at the step limit, a run evaluated before the task measured it left out."""
 
 from __future__ import annotations
 
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -12,27 +12,26 @@ from multion_agents.report.paper import paper_results
 from multion_agents.report.runs import EpisodeResult, Run
 from multion_agents.report.search import search_coverage
 
-
-def _run(name: str, metrics: list[dict[str, Any]]) -> Run:
-    episodes = tuple(
-        EpisodeResult(f"e{index}", "house", m, index) for index, m in enumerate(metrics)
-    )
-    return Run(path=Path(name), agent=name, num_goals=1, split="val", dataset="0123456789ab",
-               found_budget=0, goal_set="colours", settings={}, camera_width=36,
-               renderer="tiny", seed=0, multion_version="test", episodes=episodes)  # fmt: skip
+RunOf = Callable[..., Run]
 
 
-def test_cells_per_episode_and_at_the_step_limit() -> None:
-    searcher = _run(
+def _episodes(metrics: list[dict[str, Any]]) -> list[EpisodeResult]:
+    return [EpisodeResult(f"e{index}", "house", m, index) for index, m in enumerate(metrics)]
+
+
+def test_cells_per_episode_and_at_the_step_limit(one_goal_run: RunOf) -> None:
+    searcher = one_goal_run(
         "searcher",
-        [
-            {"cells_visited": 4, "end_reason": "success"},
-            {"cells_visited": 10, "end_reason": "max_steps"},
-            {"cells_visited": 13, "end_reason": "max_steps"},
-            {"cells_visited": 1, "end_reason": "wrong_found"},
-        ],
+        _episodes(
+            [
+                {"cells_visited": 4, "end_reason": "success"},
+                {"cells_visited": 10, "end_reason": "max_steps"},
+                {"cells_visited": 13, "end_reason": "max_steps"},
+                {"cells_visited": 1, "end_reason": "wrong_found"},
+            ]
+        ),
     )
-    older = _run("older", [{"success": 1.0, "end_reason": "success"}])
+    older = one_goal_run("older", _episodes([{"success": 1.0, "end_reason": "success"}]))
     table = search_coverage([searcher, older], ["searcher", "older"], paper_results())
     assert table is not None
     assert [row[0] for row in table.rows] == ["searcher"]
@@ -45,6 +44,6 @@ def test_cells_per_episode_and_at_the_step_limit() -> None:
     assert any("Left out" in note and "older" in note for note in table.notes)
 
 
-def test_no_table_when_no_run_measured_it() -> None:
-    older = _run("older", [{"success": 1.0, "end_reason": "success"}])
+def test_no_table_when_no_run_measured_it(one_goal_run: RunOf) -> None:
+    older = one_goal_run("older", _episodes([{"success": 1.0, "end_reason": "success"}]))
     assert search_coverage([older], ["older"], paper_results()) is None

@@ -106,9 +106,8 @@ def by_distance(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults)
             + " m of shortest path (start through every goal in order), over the "
             f"{len(distances[goals])} episodes its runs played."
         )
-    left_out = [labels[i] for i, paths in known.items() if paths is None]
-    if left_out:
-        table.notes.append(
-            "Left out (not on a packaged dataset, so no distances): " + ", ".join(left_out) + "."
-        )
+    table.note_left_out(
+        [labels[i] for i, paths in known.items() if paths is None],
+        "not on a packaged dataset, so no distances",
+    )
     return table

@@ -67,9 +67,8 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         "collisions over forward steps. Uniform random movement turns on two steps in three; "
         "left and right far apart mean turning in circles. Beyond the paper."
     )
-    left_out = [labels[i] for i in range(len(runs)) if i not in kept]
-    if left_out:
-        table.notes.append(
-            "Left out (episodes.jsonl without the actions taken): " + ", ".join(left_out) + "."
-        )
+    table.note_left_out(
+        [labels[i] for i in range(len(runs)) if i not in kept],
+        "episodes.jsonl without the actions taken",
+    )
     return table

@@ -67,11 +67,8 @@ def search_coverage(
         "start at a cell's centre) that the agent stood in, the start's included; beyond the "
         "paper (Ye et al., ICCV 2021's coverage grid)."
     )
-    left_out = [labels[i] for i in range(len(runs)) if i not in measured]
-    if left_out:
-        table.notes.append(
-            "Left out (evaluated before the task measured cells_visited): "
-            + ", ".join(left_out)
-            + "."
-        )
+    table.note_left_out(
+        [labels[i] for i in range(len(runs)) if i not in measured],
+        "evaluated before the task measured cells_visited",
+    )
     return table

@@ -40,6 +40,11 @@ class Table:
     records: list[dict[str, Any]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
+    def note_left_out(self, labels: Sequence[str], why: str) -> None:
+        """A note naming the runs the table leaves out and why; none when it leaves none out."""
+        if labels:
+            self.notes.append(f"Left out ({why}): {', '.join(labels)}.")
+
 
 # ---------------------------------------------------------------------- labels and order
 def run_labels(runs: Sequence[Run]) -> list[str]:
