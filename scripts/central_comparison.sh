@@ -15,6 +15,7 @@
 #   IMAGE_SIZE=128 RENDERER=gl bash scripts/central_comparison.sh   # issue 44's 128² variant
 #   ONLY="no-map oracle-map proj-neural-map" ...       # only these runs of the stages
 #   RECIPE=learn-to-see STAGES="core learned" ...      # issue 51's recipe, beyond the paper
+#   RECIPE=learn-to-see FRAMES=720000 ...              # at the paper runs' budget: runs/central-learn-to-see-720k
 # IMAGE_SIZE (default 36) and RENDERER (camera.renderer of training and evaluation; default the
 # config's, tiny) make a variant with its own OUT (runs/central-128-gl above) and its own
 # published runs (docs/learned/central-128-gl): the 36² runs are never restored into it. Its
@@ -58,6 +59,13 @@ variant=""
 [ "$image_size" = 36 ] || variant="-$image_size"
 [ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
 [ "$recipe_name" = paper ] || variant="$variant-$recipe_name"
+# a recipe beyond the paper's at other than its 3M frames (FRAMES=720000: the paper recipe's
+# budget, for paired runs at equal frames) is a variant of its own too: -720k, -1M, -1500000
+if [ "$recipe_name" != paper ] && [ "$frames" != 3000000 ]; then
+  if [ $((frames % 1000000)) = 0 ]; then variant="$variant-$((frames / 1000000))M"
+  elif [ $((frames % 1000)) = 0 ]; then variant="$variant-$((frames / 1000))k"
+  else variant="$variant-$frames"; fi
+fi
 published=docs/learned/central$variant
 out=${OUT:-runs/central$variant}
 episodes=${EPISODES:-100}

@@ -315,6 +315,11 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
         assert ("--balanced-recognition" in call) == (agent == "obj-recog-map"), call
     report = next(c for c in calls if c.startswith("report "))
     assert "docs/learned/central " in report
+    # at the paper runs' 720k frames: a variant of its own, beside the 3M one
+    _, calls = _central_calls(tmp_path, {**variables, "FRAMES": "720000", "ONLY": "no-map"})
+    (train,) = [c for c in calls if c.startswith("train ")]
+    assert "--frames 720000 " in train and "--out runs/central-learn-to-see-720k/no-map" in train
+    assert "--found-head 1 --goal-heads" in train
     paper = subprocess.run(["bash", "scripts/central_comparison.sh"], cwd=tmp_path,
                            env={**os.environ, "RECIPE": "mine"}, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
