@@ -31,17 +31,23 @@ def test_shares_refusals_and_metres_per_step(one_goal_run: RunOf) -> None:
         _episodes(
             [
                 # 5 forward (1 refused: 1 m), 1 left, 1 right, then FOUND: 8 steps
-                ("11211130", {"collisions": 1, "path_length": 1.0}),
+                ("11211130", {"collisions": 1, "path_length": 1.0, "cells_visited": 1}),
                 # 2 forward, both refused, 2 left: 4 steps
-                ("1212", {"collisions": 2, "path_length": 0.0}),
+                ("1212", {"collisions": 2, "path_length": 0.0, "cells_visited": 1}),
             ]
         ),
     )
     older = one_goal_run("older", _episodes([("", {"collisions": 0, "path_length": 1.0})]))
-    table = movement([walker, older], ["walker", "older"], paper_results())
+    unmeasured = one_goal_run(
+        "unmeasured", _episodes([("11", {"collisions": 0, "path_length": 0.5})])
+    )
+    table = movement(
+        [walker, older, unmeasured], ["walker", "older", "unmeasured"], paper_results()
+    )
     assert table is not None
-    assert [row[0] for row in table.rows] == ["walker"]
-    (record,) = table.records
+    assert [row[0] for row in table.rows] == ["walker", "unmeasured"]
+    assert table.rows[1][-1] == "–" and table.records[1]["metres_per_cell"] is None
+    record = table.records[0]
     assert record["steps"] == 12
     assert record["forward_share"] == pytest.approx(100 * 7 / 12, abs=1e-3)
     assert record["left_share"] == pytest.approx(100 * 3 / 12)
@@ -49,7 +55,8 @@ def test_shares_refusals_and_metres_per_step(one_goal_run: RunOf) -> None:
     assert record["found_share"] == pytest.approx(100 * 1 / 12, abs=1e-3)
     assert record["forward_refused_share"] == pytest.approx(100 * 3 / 7, abs=1e-3)
     assert record["metres_per_step"] == pytest.approx(1.0 / 12, abs=1e-4)
-    assert table.rows[0][2:] == ["58.3", "25.0", "8.3", "8.3", "42.9", "0.083"]
+    assert record["metres_per_cell"] == pytest.approx(0.5)  # 1 m over 2 cells
+    assert table.rows[0][2:] == ["58.3", "25.0", "8.3", "8.3", "42.9", "0.083", "0.5"]
     assert any("Left out" in note and "older" in note for note in table.notes)
 
 

@@ -29,7 +29,17 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
     table = Table(
         "movement",
         "How it moves: shares of its steps (%) and metres per step",
-        ["agent", "task", "forward", "left", "right", "FOUND", "forward refused", "m per step"],
+        [
+            "agent",
+            "task",
+            "forward",
+            "left",
+            "right",
+            "FOUND",
+            "forward refused",
+            "m per step",
+            "m per cell entered",
+        ],
     )
     for i in display_order(runs, labels, paper):
         if i not in kept:
@@ -45,10 +55,16 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         shares = {name: 100 * count / steps for name, count in counts.items()}
         refused = 100 * collisions / counts["forward"] if counts["forward"] else 0.0
         per_step = metres / steps
+        cells = [e.metrics.get("cells_visited") for e in run.episodes]
+        per_cell = (
+            metres / sum(float(c) for c in cells)
+            if all(isinstance(c, (int, float)) and c > 0 for c in cells)
+            else None
+        )
         table.rows.append(
             [labels[i], task_name(run.num_goals)]
             + [f"{shares[name]:.1f}" for name in ("forward", "left", "right", "found")]
-            + [f"{refused:.1f}", f"{per_step:.3f}"]
+            + [f"{refused:.1f}", f"{per_step:.3f}", "–" if per_cell is None else f"{per_cell:.1f}"]
         )
         table.records.append(
             {
@@ -59,13 +75,16 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
                 **{f"{name}_share": round(shares[name], 3) for name in ACTIONS.values()},
                 "forward_refused_share": round(refused, 3),
                 "metres_per_step": round(per_step, 4),
+                "metres_per_cell": None if per_cell is None else round(per_cell, 3),
             }
         )
     table.notes.append(
         "Over all of a run's steps. A forward step that would leave the navigable area is "
         "refused (the agent stays, the task counts a collision): 'forward refused' is "
         "collisions over forward steps. Uniform random movement turns on two steps in three; "
-        "left and right far apart mean turning in circles. Beyond the paper."
+        "left and right far apart mean turning in circles. 'm per cell entered': metres walked "
+        "over the 2.5 m cells entered (cells_visited; '–' for runs evaluated before it), high "
+        "for a search that loops over ground already covered. Beyond the paper."
     )
     table.note_left_out(
         [labels[i] for i in range(len(runs)) if i not in kept],
