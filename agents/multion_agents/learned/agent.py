@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import torch
 
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
+from multion_agents.learned.checkpoint import load_policy
 from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
 
 
@@ -111,8 +112,6 @@ def learned_agent_class(
 ) -> type[LearnedAgent]:
     """The Agent class of a training checkpoint (its model, weights and camera size), with its
     FOUND head's gate at ``found_gate`` (None: the policy's own)."""
-    from multion_agents.learned.checkpoint import load_policy
-
     policy, overrides, model = load_policy(checkpoint)
     if found_gate is not None:
         if policy.found_head is None:
