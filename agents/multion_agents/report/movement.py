@@ -56,11 +56,8 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         refused = 100 * collisions / counts["forward"] if counts["forward"] else 0.0
         per_step = metres / steps
         cells = [e.metrics.get("cells_visited") for e in run.episodes]
-        per_cell = (
-            metres / sum(float(c) for c in cells)
-            if all(isinstance(c, (int, float)) and c > 0 for c in cells)
-            else None
-        )
+        counted = [float(c) for c in cells if isinstance(c, (int, float)) and c > 0]
+        per_cell = metres / sum(counted) if len(counted) == len(cells) else None
         table.rows.append(
             [labels[i], task_name(run.num_goals)]
             + [f"{shares[name]:.1f}" for name in ("forward", "left", "right", "found")]
