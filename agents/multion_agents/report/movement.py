@@ -8,15 +8,23 @@ out, and a note says so.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 
 from multion.config.datasets import task_name
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.tables import Table, display_order
+from multion_client.constants import Action
 
-ACTIONS = {"0": "found", "1": "forward", "2": "left", "3": "right"}
-"""The digits of ``episodes.jsonl``'s ``actions`` (``evaluate.actions_text``)."""
+ACTION_NAMES = {
+    Action.FOUND: "found",
+    Action.MOVE_FORWARD: "forward",
+    Action.TURN_LEFT: "left",
+    Action.TURN_RIGHT: "right",
+}
+"""Each action's name in the table's records (``forward_share``, ...); ``episodes.jsonl``
+writes an action as its value's digit (``evaluate.actions_text``)."""
 
 
 def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
@@ -45,10 +53,8 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
         if i not in kept:
             continue
         run = runs[i]
-        counts = dict.fromkeys(ACTIONS.values(), 0)
-        for episode in run.episodes:
-            for digit, name in ACTIONS.items():
-                counts[name] += episode.actions.count(digit)
+        digits = Counter("".join(e.actions for e in run.episodes))
+        counts = {name: digits[str(int(action))] for action, name in ACTION_NAMES.items()}
         steps = sum(counts.values())
         collisions = sum(float(e.metrics.get("collisions", 0)) for e in run.episodes)
         metres = sum(float(e.metrics.get("path_length", 0)) for e in run.episodes)
@@ -69,7 +75,7 @@ def movement(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) ->
                 "agent": labels[i],
                 "task": task_name(run.num_goals),
                 "steps": steps,
-                **{f"{name}_share": round(shares[name], 3) for name in ACTIONS.values()},
+                **{f"{name}_share": round(shares[name], 3) for name in ACTION_NAMES.values()},
                 "forward_refused_share": round(refused, 3),
                 "metres_per_step": round(per_step, 4),
                 "metres_per_cell": None if per_cell is None else round(per_cell, 3),

@@ -21,11 +21,13 @@ from multion.config.errors import UsageError
 from multion.config.task import TaskConfig
 from multion_agents.report.stats import HEADLINE
 from multion_agents.seeding import OLD_SEED_SCHEME, SEED_SCHEMES, scheme_seed
-from multion_client.constants import DEFAULT_GOAL_SET
+from multion_client.constants import ACTIONS_TEXT, DEFAULT_GOAL_SET, Action
 
 METRICS_FILE = "metrics.json"
 EPISODES_FILE = "episodes.jsonl"
 TRAINING_LOG = "progress.csv"
+ACTION_DIGITS = "".join(str(int(action)) for action in Action)
+"""The digits an ``episodes.jsonl`` writes its actions with (``evaluate.actions_text``)."""
 DEFAULT_FOUND_BUDGET = TaskConfig().found_budget
 
 
@@ -288,10 +290,10 @@ def _read_episodes(path: Path, num_goals: int) -> tuple[EpisodeResult, ...]:
         if not isinstance(index, int):
             raise RunError(f"{path}, line {number}: index {index!r} is not an integer")
         actions = item.get("actions", "")
-        if not isinstance(actions, str) or actions.strip("0123") != "":
+        if not isinstance(actions, str) or actions.strip(ACTION_DIGITS) != "":
             raise RunError(
-                f"{path}, line {number}: actions must be a string of the digits 0-3 "
-                "(FOUND, forward, left, right)"
+                f"{path}, line {number}: actions must be a string of the digits "
+                f"{ACTION_DIGITS[0]}-{ACTION_DIGITS[-1]} ({ACTIONS_TEXT})"
             )
         episodes.append(
             EpisodeResult(
