@@ -75,7 +75,7 @@ def test_schedule_follows_the_reference_by_default_and_can_be_switched_off() -> 
 
 def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:
     """ppo_update hands ppo_loss the raw advantages by default (the reference), normalised ones
-    with ``normalize_advantages``."""
+    with ``normalize_advantages``, and logs the raw ones' spread either way."""
     import multion_agents.learned.ppo as ppo
 
     seen: list[torch.Tensor] = []
@@ -92,13 +92,19 @@ def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPat
     rollout = random_rollout(space, 0)
     rollout.initial_state = policy.initial_state(2)
     rollout.advantages = rollout.advantages * 10 + 5
-    ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1))
+    raw = ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1))
     # the one mini-batch holds every environment, in a random order
     torch.testing.assert_close(seen[-1].flatten().sort()[0], rollout.advantages.flatten().sort()[0])
-    ppo_update(policy, optimizer, rollout, Args(minibatches=1, epochs=1, normalize_advantages=True))
+    normalised = ppo_update(
+        policy, optimizer, rollout, Args(minibatches=1, epochs=1, normalize_advantages=True)
+    )
     assert abs(float(seen[-1].mean())) < 1e-5 and float(seen[-1].std()) == pytest.approx(
         1, rel=1e-4
     )
+    # both log the spread of the advantages as GAE gave them, before any normalising
+    expected = float(rollout.advantages.std())
+    assert expected > 1
+    assert raw["advantage_std"] == normalised["advantage_std"] == pytest.approx(expected)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")

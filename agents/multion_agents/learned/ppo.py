@@ -83,6 +83,8 @@ def ppo_update(
     num_envs = rollout.rewards.shape[1]
     groups = max(1, min(args.minibatches, num_envs))
     advantages = rollout.advantages
+    # logged before normalising: against the entropy bonus it says how strong PPO's signal is
+    advantage_std = float(advantages.std())
     if args.normalize_advantages:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
     targets = None
@@ -137,7 +139,8 @@ def ppo_update(
                     counts[key] = counts.get(key, 0) + 1
     # a term some mini-batches lack (no FOUND positive, no labelled step) is averaged over those
     # that have it; nan where none has
-    return {k: total / counts[k] if k in counts else math.nan for k, total in totals.items()}
+    means = {k: total / counts[k] if k in counts else math.nan for k, total in totals.items()}
+    return {**means, "advantage_std": advantage_std}
 
 
 def ppo_loss(
