@@ -176,6 +176,9 @@ def test_goal_heads_train_and_are_absent_when_the_checkpoint_acts(
     assert GOAL_VECTOR in payload["env_config"]["sensors"]
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
     assert all(math.isfinite(float(row["goal_seen_loss"])) for row in rows)
+    # the first update measures each term's gradient on the GRU, the next ones do not
+    assert float(rows[0]["gru_gradient_goal_heads"]) > 0
+    assert float(rows[0]["gru_gradient_policy"]) > 0 and rows[1]["gru_gradient_policy"] == ""
     policy, _, model = load_policy(path)
     assert model == "no-map" and policy.goal_heads is None
     assert GOAL_VECTOR not in policy.sensors and GOAL_VECTOR not in policy.train_sensors

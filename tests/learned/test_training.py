@@ -25,7 +25,8 @@ from multion_agents.learned.checkpoint import (
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import (
     Args,
-    ppo_loss,
+    gru_gradient_norms,
+    ppo_terms,
     ppo_update,
     schedule,
     set_found_prior,
@@ -74,7 +75,7 @@ def test_schedule_follows_the_reference_by_default_and_can_be_switched_off() -> 
 
 
 def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:
-    """ppo_update hands ppo_loss the raw advantages by default (the reference), normalised ones
+    """ppo_update hands the loss the raw advantages by default (the reference), normalised ones
     with ``normalize_advantages``, and logs the raw ones' spread either way."""
     import multion_agents.learned.ppo as ppo
 
@@ -82,9 +83,9 @@ def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPat
 
     def spy(policy, batch, clip, args, found):
         seen.append(batch.advantages)
-        return ppo_loss(policy, batch, clip, args, found)
+        return ppo_terms(policy, batch, clip, args, found)
 
-    monkeypatch.setattr(ppo, "ppo_loss", spy)
+    monkeypatch.setattr(ppo, "ppo_terms", spy)
     space = space_for("no-map")
     torch.manual_seed(0)
     policy = MODELS["no-map"].build(space)
@@ -105,6 +106,45 @@ def test_advantages_are_normalised_only_when_asked(monkeypatch: pytest.MonkeyPat
     expected = float(rollout.advantages.std())
     assert expected > 1
     assert raw["advantage_std"] == normalised["advantage_std"] == pytest.approx(expected)
+
+
+def test_measuring_the_gradients_leaves_the_update_as_it_was() -> None:
+    space = space_for("no-map")
+    torch.manual_seed(0)
+    policy = MODELS["no-map"].build(space)
+    twin = copy.deepcopy(policy)
+    rollout = random_rollout(space, 0)
+    rollout.initial_state = policy.initial_state(2)
+    updated = {}
+    for measure, model in ((False, policy), (True, twin)):
+        optimizer = torch.optim.Adam(model.parameters(), lr=1e-3)
+        torch.manual_seed(1)
+        updated[measure] = ppo_update(model, optimizer, rollout, Args(), measure_gradients=measure)
+    for (name, weight), other in zip(
+        policy.state_dict().items(), twin.state_dict().values(), strict=True
+    ):
+        torch.testing.assert_close(weight, other, rtol=0, atol=0, msg=name)
+    assert "gru_gradient_policy" not in updated[False]
+    assert updated[True]["gru_gradient_policy"] > 0 and updated[True]["gru_gradient_value"] > 0
+
+
+def test_each_terms_gradient_norm_is_its_own() -> None:
+    """Without advantages or entropy bonus the policy term teaches nothing; the value term's
+    norm scales with its weight."""
+    space = space_for("no-map")
+    torch.manual_seed(0)
+    policy = MODELS["no-map"].build(space)
+    rollout = random_rollout(space, 0)
+    rollout.initial_state = policy.initial_state(2)
+    rollout.advantages = torch.zeros_like(rollout.advantages)
+    norms = []
+    for value_coef in (0.5, 1.0):
+        args = Args(entropy_coef=0.0, value_coef=value_coef, minibatches=1, epochs=1)
+        terms, _ = ppo_terms(policy, rollout, 0.2, args)
+        norms.append(gru_gradient_norms(policy, terms))
+    assert norms[0]["gru_gradient_policy"] == 0.0
+    assert norms[1]["gru_gradient_value"] == pytest.approx(2 * norms[0]["gru_gradient_value"])
+    assert set(norms[0]) == {"gru_gradient_policy", "gru_gradient_value"}
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")

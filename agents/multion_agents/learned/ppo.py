@@ -75,10 +75,12 @@ def ppo_update(
     args: Args,
     clip: float | None = None,
     success_distance: float = SUCCESS_DISTANCE,
+    measure_gradients: bool = False,
 ) -> dict[str, float]:
     """PPO's clipped-objective update on one rollout (``clip``: this update's clip range, by
     default ``args.clip``; ``success_distance``: the task's, for ``--found-supervision``);
-    gradients are averaged over DD-PPO ranks."""
+    gradients are averaged over DD-PPO ranks. ``measure_gradients``: also log, on the first
+    mini-batch, each loss term's gradient norm on the GRU (:func:`gru_gradient_norms`)."""
     clip = args.clip if clip is None else clip
     num_envs = rollout.rewards.shape[1]
     groups = max(1, min(args.minibatches, num_envs))
@@ -123,7 +125,10 @@ def ppo_update(
             )
             found = None if targets is None else FoundTargets(pick(targets.labels), targets.weights)
             with precision.autocast():
-                loss, losses = ppo_loss(policy, minibatch, clip, args, found)
+                terms, losses = ppo_terms(policy, minibatch, clip, args, found)
+            loss = sum_terms(terms)
+            # on the first mini-batch only: it costs a backward pass per term
+            measured = gru_gradient_norms(policy, terms) if measure_gradients and not totals else {}
             optimizer.zero_grad(set_to_none=False)
             precision.backward(loss)
             average_gradients(policy)
@@ -132,6 +137,7 @@ def ppo_update(
             precision.step(optimizer)
             stats = {k: v.item() if v is not None else None for k, v in losses.items()}
             stats["grad_norm"] = float(grad_norm)
+            stats.update(measured)
             for key, value_ in stats.items():
                 totals.setdefault(key, 0.0)
                 if value_ is not None:
@@ -150,10 +156,51 @@ def ppo_loss(
     args: Args,
     found: FoundTargets | None = None,
 ) -> tuple[Tensor, dict[str, Tensor | None]]:
-    """PPO's loss on one recurrent mini-batch (every tensor on the policy's device): the
-    clipped surrogate, the clipped value loss (clipped by the same, possibly decayed, ``clip``),
-    the entropy bonus, the model's auxiliary loss, the goal heads', the FOUND supervision's and
-    the imitation loss; and those terms for logging. ``found``: the FOUND supervision's targets
+    """PPO's loss on one recurrent mini-batch: the sum of :func:`ppo_terms`, and the values
+    logged."""
+    terms, losses = ppo_terms(policy, batch, clip, args, found)
+    return sum_terms(terms), losses
+
+
+def sum_terms(terms: dict[str, Tensor]) -> Tensor:
+    """The loss: the weighted terms' sum, in :data:`LOSS_TERMS`' order (``policy`` is always
+    there)."""
+    loss = terms["policy"]
+    for name in LOSS_TERMS[1:]:
+        if name in terms:
+            loss = loss + terms[name]
+    return loss
+
+
+LOSS_TERMS = ("policy", "value", "aux", "goal_heads", "found", "imitation")
+"""The weighted terms of PPO's loss (:func:`ppo_terms`), in the order they are summed."""
+
+
+def gru_gradient_norms(policy: RecurrentPolicy, terms: dict[str, Tensor]) -> dict[str, float]:
+    """Each weighted loss term's gradient norm on the GRU's weights (``gru_gradient_<term>``),
+    before clipping. The GRU is what every term trains; where the supervised terms' gradients
+    dwarf the policy's, the clipped step is theirs."""
+    weights = [p for p in policy.gru.parameters() if p.requires_grad]
+    norms = {}
+    for name, term in terms.items():
+        grads = torch.autograd.grad(term, weights, retain_graph=True, allow_unused=True)
+        present = [g.float().pow(2).sum() for g in grads if g is not None]
+        norms[f"gru_gradient_{name}"] = float(torch.stack(present).sum().sqrt()) if present else 0.0
+    return norms
+
+
+def ppo_terms(
+    policy: RecurrentPolicy,
+    batch: Rollout,
+    clip: float,
+    args: Args,
+    found: FoundTargets | None = None,
+) -> tuple[dict[str, Tensor], dict[str, Tensor | None]]:
+    """PPO's loss on one recurrent mini-batch (every tensor on the policy's device), as its
+    weighted terms (:data:`LOSS_TERMS`, those in use): ``policy``, the clipped surrogate less
+    the entropy bonus; ``value``, the clipped value loss (clipped by the same, possibly decayed,
+    ``clip``); the model's auxiliary loss, the goal heads', the FOUND supervision's and the
+    imitation loss; and the values logged. ``found``: the FOUND supervision's targets
     for this batch, weighted by the whole rollout's classes (``ppo_update`` makes them)."""
     replay = policy.evaluate_actions(
         batch.frames, batch.prev_actions, batch.starts, batch.initial_state, batch.actions
@@ -171,12 +218,15 @@ def ppo_loss(
     clipped = old_values + (value - old_values).clamp(-clip, clip)
     value_loss = 0.5 * torch.max((value - returns) ** 2, (clipped - returns) ** 2).mean()
     entropy_mean = entropy.mean()
-    loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy_mean
+    terms = {
+        "policy": policy_loss - args.entropy_coef * entropy_mean,
+        "value": args.value_coef * value_loss,
+    }
     if aux is not None:
-        loss = loss + args.aux_coef * aux
+        terms["aux"] = args.aux_coef * aux
     heads = replay.goal_losses
     if heads is not None:
-        loss = loss + args.goal_head_coef * heads.total
+        terms["goal_heads"] = args.goal_head_coef * heads.total
     found_term = found_at_goal = found_elsewhere = None
     if found is not None:
         at_goal = found.labels.reshape(-1) > 0.5
@@ -188,10 +238,10 @@ def ppo_loss(
             found_term = found_head_loss(
                 replay.found_logit, found.labels, args.found_head_positive_weight
             )
-            loss = loss + args.found_head * found_term
+            terms["found"] = args.found_head * found_term
         elif found.weights is not None and args.found_supervision > 0:
             found_term = found_loss(replay.logits, found.labels, found.weights)
-            loss = loss + args.found_supervision * found_term
+            terms["found"] = args.found_supervision * found_term
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
         labelled = batch.expert_actions != NO_LABEL
@@ -199,8 +249,8 @@ def ppo_loss(
             imitation = nn.functional.cross_entropy(
                 replay.logits[labelled], batch.expert_actions[labelled]
             )
-            loss = loss + args.imitation_coef * imitation
-    return loss, {
+            terms["imitation"] = args.imitation_coef * imitation
+    return terms, {
         "policy_loss": policy_loss.detach(),
         "value_loss": value_loss.detach(),
         "entropy": entropy_mean.detach(),
