@@ -117,7 +117,8 @@ pilot "$agent-found-head-long" --found-head 1 --curriculum "$found_frames:4" \
 # with the paper's recipe), and its gradient norm before clipping was 2-4, against 0.3-0.5 with
 # the paper's recipe: the heads' losses outweigh PPO's on the shared encoder and GRU. The reference
 # does not normalise advantages (saimwani/multiON ppo_multinav.yaml l. 44); normalised, PPO's
-# term has unit scale beside the heads' and the entropy bonus.
+# term has unit scale beside the heads' and the entropy bonus. Result: movements more decisive
+# (entropy 0.78-0.88), 22 % val Success against 29 %; the recipe stays as it is.
 pilot "$agent-found-head-normalized" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --normalize-advantages
