@@ -223,6 +223,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-coverage",
             "no-map-found-head-coverage-2.5",
             "no-map-found-head-long",
+            "no-map-found-head-normalized",
         ]  # fmt: skip
     )
     for line in trains:
@@ -238,6 +239,8 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--found-supervision 1" in by_run["no-map-found-sup"]
     assert all(flag in by_run["no-map-all-sup"] for flag in (*extras, "--found-supervision 1"))
     assert "--found-supervision" not in by_run["no-map-all"]
+    assert "--normalize-advantages" in by_run["no-map-found-head-normalized"]
+    assert not any("--normalize-advantages" in by_run[r] for r in by_run if "normalized" not in r)
     curricula = by_run["no-map-found-sup-curricula"]
     assert "--found-supervision 1 --curriculum 400:4 --curriculum 700:10" in curricula
     assert "--found-curriculum 400:0.5" in curricula
@@ -262,7 +265,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--coverage-reward 2.5" in by_run["no-map-found-head-coverage-2.5"]
     long = by_run["no-map-found-head-long"]
     assert "--max-steps 500" in long and long.endswith("--max-steps 2500")  # the last one wins
-    assert len(evals) == 18 and all("--split val --episodes 100" in line for line in evals)
+    assert len(evals) == len(by_run) and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
