@@ -113,12 +113,13 @@ pilot "$agent-found-head-coverage-2.5" --found-head 1 --curriculum "$found_frame
 # the learn-to-see options with training episodes as long as evaluation's.
 pilot "$agent-found-head-long" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --max-steps 2500
-# Its movement policy stayed near uniform (entropy 1.00 of at most 1.10 over three movements, 0.80-0.94
-# with the paper's recipe), and its gradient norm before clipping was 2-4, against 0.3-0.5 with
-# the paper's recipe: the heads' losses outweigh PPO's on the shared encoder and GRU. The reference
-# does not normalise advantages (saimwani/multiON ppo_multinav.yaml l. 44); normalised, PPO's
-# term has unit scale beside the heads' and the entropy bonus. Result: movements more decisive
-# (entropy 0.78-0.88), 22 % val Success against 29 %; the recipe stays as it is.
+# Its movement policy stayed near uniform (entropy 1.00 of at most 1.10 over three movements,
+# 0.80-0.94 with the paper's recipe), and its gradient norm before clipping was 2-4, against
+# 0.3-0.5 with the paper's recipe: the heads' losses outweigh PPO's on the shared GRU (measured
+# since: gru_gradient_* in progress.csv, docs/learned.md). The reference does not normalise
+# advantages (saimwani/multiON ppo_multinav.yaml l. 44); normalised, PPO's term has unit scale
+# beside the heads' and the entropy bonus. Result: movements more decisive (entropy 0.78-0.88),
+# 22 % val Success against 29 %; the recipe stays as it is.
 pilot "$agent-found-head-normalized" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --normalize-advantages

@@ -162,6 +162,10 @@ def ppo_loss(
     return sum_terms(terms), losses
 
 
+LOSS_TERMS = ("policy", "value", "aux", "goal_heads", "found", "imitation")
+"""The weighted terms of PPO's loss (:func:`ppo_terms`), in the order they are summed."""
+
+
 def sum_terms(terms: dict[str, Tensor]) -> Tensor:
     """The loss: the weighted terms' sum, in :data:`LOSS_TERMS`' order (``policy`` is always
     there)."""
@@ -170,10 +174,6 @@ def sum_terms(terms: dict[str, Tensor]) -> Tensor:
         if name in terms:
             loss = loss + terms[name]
     return loss
-
-
-LOSS_TERMS = ("policy", "value", "aux", "goal_heads", "found", "imitation")
-"""The weighted terms of PPO's loss (:func:`ppo_terms`), in the order they are summed."""
 
 
 def gru_gradient_norms(policy: RecurrentPolicy, terms: dict[str, Tensor]) -> dict[str, float]:
