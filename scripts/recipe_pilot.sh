@@ -123,6 +123,15 @@ pilot "$agent-found-head-long" --found-head 1 --curriculum "$found_frames:4" \
 pilot "$agent-found-head-normalized" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --normalize-advantages
+# Even then the policy's gradient on the shared GRU stayed 1/3 to 1/16 of the value loss's and
+# mostly far below the goal heads' (gru_gradient_* at 500k frames): the GRU learns what the
+# critic and the heads need. Adam scales each weight's step by its own gradient's size, so the
+# value and goal heads' own weights learn as fast with smaller weights; only the shared trunk
+# (encoder, GRU) hears the policy louder: the learn-to-see options with the value loss and
+# each goal head weighted a fifth (0.5 -> 0.1, 0.25 -> 0.05).
+pilot "$agent-found-head-policy-share" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
+  --value-coef 0.1 --goal-head-coef 0.05
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1

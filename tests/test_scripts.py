@@ -224,6 +224,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-coverage-2.5",
             "no-map-found-head-long",
             "no-map-found-head-normalized",
+            "no-map-found-head-policy-share",
         ]  # fmt: skip
     )
     for line in trains:
@@ -265,6 +266,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert "--coverage-reward 2.5" in by_run["no-map-found-head-coverage-2.5"]
     long = by_run["no-map-found-head-long"]
     assert "--max-steps 500" in long and long.endswith("--max-steps 2500")  # the last one wins
+    share = by_run["no-map-found-head-policy-share"]
+    assert "--goal-heads --pretrain-vision 2000 --value-coef 0.1 --goal-head-coef 0.05" in share
+    assert not any("--value-coef" in by_run[r] for r in by_run if "policy-share" not in r)
     assert len(evals) == len(by_run) and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
