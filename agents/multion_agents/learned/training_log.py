@@ -29,14 +29,16 @@ class TrainingLog:
                 self.writer = SummaryWriter(str(out / "tensorboard"))
 
     def write(self, name: str, row: dict[str, Any]) -> None:
-        """Append ``row`` to ``{name}.csv`` (the first row fixes the columns)."""
+        """Append ``row`` to ``{name}.csv``. A key the header lacks (a column added since the
+        file was begun, say by a resumed run) widens it: the file is rewritten whole with the
+        new columns last, blank in earlier rows (:func:`multion.common.files.replacing`)."""
         path = self.out / f"{name}.csv"
         fresh = not path.exists() or path.stat().st_size == 0
-        if not fresh:
-            with path.open() as handle:
-                columns = next(csv.reader(handle))
-        else:
-            columns = list(row)
+        columns = list(row) if fresh else _header(path)
+        added = [key for key in row if key not in columns]
+        if added:
+            _widen(path, columns + added)
+            columns += added
         with path.open("a", newline="") as handle:
             writer = csv.DictWriter(handle, columns, extrasaction="ignore")
             if fresh:
@@ -136,6 +138,20 @@ def plot_learning_curve(out: Path, title: str, baseline: dict[str, float] | None
     figure.savefig(path)
     plt.close(figure)
     return path
+
+
+def _header(path: Path) -> list[str]:
+    with path.open(newline="") as handle:
+        return next(csv.reader(handle), [])
+
+
+def _widen(path: Path, columns: list[str]) -> None:
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    with replacing(path) as temporary, temporary.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, columns)
+        writer.writeheader()
+        writer.writerows(rows)
 
 
 def _round(value: Any) -> Any:
