@@ -128,7 +128,9 @@ pilot "$agent-found-head-normalized" --found-head 1 --curriculum "$found_frames:
 # critic and the heads need. Adam scales each weight's step by its own gradient's size, so the
 # value and goal heads' own weights learn as fast with smaller weights; only the shared trunk
 # (encoder, GRU) hears the policy louder: the learn-to-see options with the value loss and
-# each goal head weighted a fifth (0.5 -> 0.1, 0.25 -> 0.05).
+# each goal head weighted a fifth (0.5 -> 0.1, 0.25 -> 0.05). Result: the policy's share of the
+# GRU's gradient rose to 14-19 %, train Success per 100k frames stayed the recipe's, 20 % val
+# Success against 29 % (docs/learned.md); the recipe stays as it is.
 pilot "$agent-found-head-policy-share" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --value-coef 0.1 --goal-head-coef 0.05
