@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from pathlib import Path
 
@@ -11,9 +12,17 @@ import pytest
 import torch
 from rollouts import SIZE, random_rollout, room_env, space_for
 
+from multion.config.codec import env_config_from_dict, env_config_to_dict
 from multion.task.env import MultiONEnv
+from multion_agents.baselines.explorer import ExplorerAgent
+from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint
 from multion_agents.learned.env_groups import EnvGroups
-from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
+from multion_agents.learned.expert import (
+    EXPERT_ACTION,
+    EXPERT_SENSORS,
+    ExplorerLabels,
+    OraclePlannerLabels,
+)
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout import collect, start_episodes
@@ -139,13 +148,16 @@ def test_the_imitation_loss_is_the_cross_entropy_of_the_labelled_steps() -> None
     assert terms["imitation_loss"] is None and float(unlabelled) == pytest.approx(float(plain))
 
 
+@pytest.mark.parametrize(
+    ("agent", "expert"), [("oracle-map", "oracle-planner"), ("no-map", "explorer")]
+)
 def test_training_with_imitation_logs_its_loss_and_agreement(
-    tmp_path: Path, room_dataset: Path
+    tmp_path: Path, room_dataset: Path, agent: str, expert: str
 ) -> None:
     args = Args(
-        agent="oracle-map", task="1-on", frames=128, envs=2, rollout_steps=32, image_size=36,
+        agent=agent, task="1-on", frames=128, envs=2, rollout_steps=32, image_size=36,
         dataset=str(room_dataset), max_steps=40, out=str(tmp_path / "run"), progress=False,
-        tensorboard=False, imitation_coef=1.0,
+        tensorboard=False, imitation_coef=1.0, expert=expert,
     )  # fmt: skip
     train(args)
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))
@@ -153,6 +165,13 @@ def test_training_with_imitation_logs_its_loss_and_agreement(
     for row in rows:
         assert math.isfinite(float(row["imitation_loss"])) and float(row["imitation_loss"]) > 0
         assert 0.0 <= float(row["expert_agreement"]) <= 1.0
+    assert load_checkpoint(tmp_path / "run" / "checkpoint.pt")["args"]["expert"] == expert
+    other = "oracle-planner" if expert == "explorer" else "explorer"
+    resumed = dataclasses.replace(args, frames=192, resume=True, expert=other)
+    with pytest.raises(
+        CheckpointError, match=f"--expert '{expert}' \\(this run asks for '{other}'\\)"
+    ):
+        train(resumed)
 
 
 @pytest.mark.parametrize(
@@ -164,6 +183,8 @@ def test_training_with_imitation_logs_its_loss_and_agreement(
             ["--imitation-coef", "1", "--server", "http://127.0.0.1:9"],
             "needs local environments, not --server",
         ),
+        (["--expert", "explorer"], "--expert explorer labels .* needs --imitation-coef above 0"),
+        (["--imitation-coef", "1", "--expert", "human"], "--expert"),
     ],
 )
 def test_train_cli_rejects_bad_imitation(tmp_path: Path, capsys, flags, message) -> None:
@@ -185,3 +206,73 @@ def test_labels_are_never_lattice_search_moves(room_dataset: Path) -> None:
     for _ in range(24):
         env.step(int(Action.TURN_RIGHT))
     assert env.planner.searches == 0
+
+
+def _explorer_env(dataset: Path, size: int = 64) -> MultiONEnv:
+    """The room with what the explorer reads (at 36², it misses the goal in 2 of these 4)."""
+    config = {
+        "task": {"num_goals": 1},
+        "camera": {"width": size, "height": size},
+        "sensors": list(ExplorerAgent.sensors),
+        "dataset": str(dataset),
+        "split": "train",
+    }
+    return MultiONEnv(env_config_from_dict(config))
+
+
+def test_a_learner_that_follows_the_explorers_labels_plays_the_explorers_episode(
+    room_dataset: Path,
+) -> None:
+    """DAgger with the learner doing what the label says is the explorer playing alone: same
+    actions, step for step, and it finds the goal."""
+    for index in range(2):
+        env = _explorer_env(room_dataset)
+        alone = ExplorerAgent()
+        alone.configure(env_config_to_dict(env.config))
+        alone.reset()
+        observation, _ = env.reset(options={"episode_index": index})
+        own: list[int] = []
+        for _ in range(400):
+            own.append(alone.act(observation))
+            observation, _, terminated, truncated, _ = env.step(own[-1])
+            if terminated or truncated:
+                break
+        assert env.metrics()["success"] == 1.0
+
+        labelled = ExplorerLabels(_explorer_env(room_dataset))
+        _, info = labelled.reset(options={"episode_index": index})
+        followed: list[int] = []
+        for _ in range(400):
+            followed.append(info[EXPERT_ACTION])
+            _, _, terminated, truncated, info = labelled.step(followed[-1])
+            if terminated or truncated:
+                break
+        assert followed == own
+        assert labelled.unwrapped.metrics()["success"] == 1.0
+
+
+def test_the_explorer_learns_from_the_learners_steps_not_its_own_labels(
+    room_dataset: Path,
+) -> None:
+    """The learner turns where the explorer said "forward": told so, the explorer does not take
+    the unchanged position for a refused step and wall off the free floor ahead; and it still
+    leads to the goal from wherever the learner turned."""
+    env = ExplorerLabels(_explorer_env(room_dataset))
+    _, info = env.reset(options={"episode_index": 0})
+    forward_labels = 0
+    for _ in range(12):  # a full circle of 30° turns, whatever the labels say
+        forward_labels += info[EXPERT_ACTION] == Action.MOVE_FORWARD
+        _, _, terminated, _, info = env.step(int(Action.TURN_LEFT))
+        assert not terminated
+    assert forward_labels > 0
+    assert not env.explorer._blocked.any()  # noqa: SLF001 (what "refused" would have marked)
+    for _ in range(400):
+        _, _, terminated, truncated, info = env.step(info[EXPERT_ACTION])
+        if terminated or truncated:
+            break
+    assert env.unwrapped.metrics()["success"] == 1.0
+
+
+def test_the_explorer_needs_its_sensors(room_dataset: Path) -> None:
+    with pytest.raises(ValueError, match=r"the explorer needs sensors \['depth'\]"):
+        ExplorerLabels(_room_env(room_dataset, sensors=("rgb", *EXPERT_SENSORS)))

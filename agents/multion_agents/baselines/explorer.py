@@ -201,6 +201,12 @@ class ExplorerAgent(Agent):
         times.planning += end - tracked
         return action
 
+    def took(self, action: int) -> None:
+        """The action taken after the last :meth:`act`, when it was not the explorer's own (it
+        labels a learner's states: ``learned/expert.py``): what the next step learns from, a
+        refused forward step above all, is what was done."""
+        self._last_action = int(action)
+
     def _track_motion(self, position: np.ndarray, heading: float) -> None:
         """Learn from the last action: refused steps, cells stood in, turning without end."""
         moved = self._last_position is None or not _close(position, self._last_position)

@@ -144,6 +144,7 @@ RECIPE_OPTIONS = (
     "pretrain_vision",
     "pretrain_map",
     "balanced_recognition",
+    "expert",
 )
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""

@@ -1,12 +1,18 @@
-"""Expert labels for imitation: the oracle planner's action at every state a learner visits.
+"""Expert labels for imitation: an expert's action at every state a learner visits.
 
 ``multion train --imitation-coef C`` adds ``C`` × the cross-entropy between the policy and
 these labels to PPO's loss. The learner stays in control: the labels are the expert's actions
 on the learner's own states, as in DAgger (Ross et al., 2011) with β = 0, so the learner is
-also taught how to recover from its own mistakes. The expert is ``oracle-planner``
-(:mod:`multion_agents.baselines.oracle_planner`), which plans on a 0.1 m oracle map of the whole
-house and so uses information the learner's sensors do not give; it runs beside each simulator,
-in the training worker processes, and only during training.
+also taught how to recover from its own mistakes. The expert (``--expert``) runs beside each
+simulator, in the training worker processes, and only during training:
+
+* ``oracle-planner`` (:mod:`multion_agents.baselines.oracle_planner`, the default) plans on a
+  0.1 m oracle map of the whole house: it walks to a goal the learner has not seen, which a
+  learner without that map cannot imitate;
+* ``explorer`` (:mod:`multion_agents.baselines.explorer`) reads what the learner reads (RGB-D at
+  the learner's image size, the goal, GPS and compass): it searches the frontier of the ground
+  it has seen until the goal shows, then walks there and calls FOUND, all of which the learner
+  can learn from its own observations.
 """
 
 from __future__ import annotations
@@ -22,15 +28,17 @@ from multion.config.codec import env_config_to_dict
 from multion.config.task import MapConfig
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
+from multion_agents.baselines.explorer import ExplorerAgent
 from multion_agents.baselines.oracle_planner import OraclePlannerAgent, OraclePlannerSettings
 
 EXPERT_ACTION = "expert_action"
 """The info key of an imitation label: the expert's action for the observation returned with it
 (:class:`OraclePlannerLabels`)."""
 EXPERT_SENSORS = ("goal", "gps", "compass")
+"""Sensors the oracle planner reads each step (the training env adds them; the policy ignores
+them)."""
 EXPERT_SETTINGS = OraclePlannerSettings(stuck_visits=sys.maxsize)
 """The planner as the expert: without lattice searches (see ``OraclePlannerLabels``)."""
-"""Sensors the expert reads each step (the training env adds them; the policy ignores them)."""
 
 
 class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]):
@@ -87,3 +95,49 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
     def _label(self, observation: dict[str, np.ndarray]) -> int:
         seen = {key: observation[key] for key in EXPERT_SENSORS}
         return int(self.planner.act({**seen, "oracle_map": self._start_map}))
+
+
+class ExplorerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]):
+    """Adds ``info["expert_action"]`` to every reset and to every step that does not end the
+    episode: what ``explorer`` would do next, its map built from the observations of the
+    learner's own path and told each action the learner took (``ExplorerAgent.took``)."""
+
+    def __init__(self, env: MultiONEnv) -> None:
+        missing = [s for s in ExplorerAgent.sensors if s not in env.config.sensors]
+        if missing:
+            raise ValueError(f"the explorer needs sensors {missing} in the env config")
+        super().__init__(env)
+        self.explorer = ExplorerAgent()
+        self.explorer.configure(env_config_to_dict(env.config))
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        observation, info = self.env.reset(seed=seed, options=options)
+        self.explorer.reset()
+        info[EXPERT_ACTION] = self._label(observation)
+        return observation, info
+
+    def step(
+        self, action: int
+    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
+        self.explorer.took(int(action))
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        if not (terminated or truncated):
+            info[EXPERT_ACTION] = self._label(observation)
+        return observation, reward, terminated, truncated, info
+
+    def _label(self, observation: dict[str, np.ndarray]) -> int:
+        return int(self.explorer.act({key: observation[key] for key in ExplorerAgent.sensors}))
+
+
+def expert_sensors(expert: str) -> tuple[str, ...]:
+    """The sensors ``expert`` (one of ``train_options.EXPERTS``) reads each step."""
+    return EXPERT_SENSORS if expert == "oracle-planner" else ExplorerAgent.sensors
+
+
+def with_expert_labels(
+    env: MultiONEnv, expert: str
+) -> gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]:
+    """``env`` with ``expert``'s labels in its infos."""
+    return OraclePlannerLabels(env) if expert == "oracle-planner" else ExplorerLabels(env)

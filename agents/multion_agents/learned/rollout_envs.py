@@ -24,7 +24,7 @@ from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.coverage import COVERAGE_SENSORS, CoverageBonus
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
-from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_SENSORS, OraclePlannerLabels
+from multion_agents.learned.expert import EXPERT_ACTION, expert_sensors, with_expert_labels
 from multion_agents.learned.train_options import (
     FOUND_BUDGET_UNLIMITED,
     Curriculum,
@@ -102,28 +102,32 @@ def stage_config(
 class TrainingWrappers:
     """What local training environments add to the task, for training only."""
 
-    expert: bool = False
-    """Infos carry the oracle planner's action (:mod:`.expert`, ``--imitation-coef``)."""
+    expert: str = ""
+    """Infos carry this expert's action (:mod:`.expert`, ``--imitation-coef``, ``--expert``;
+    empty: none)."""
     coverage_reward: float = 0.0
     """Rewards carry an exploration bonus (:mod:`.coverage`, ``--coverage-reward``; 0: none)."""
 
     def options(self) -> tuple[tuple[str, bool], ...]:
         """Each wrapper's training option and whether it is on."""
-        return (("--imitation-coef", self.expert), ("--coverage-reward", self.coverage_reward > 0))
+        return (
+            ("--imitation-coef", bool(self.expert)),
+            ("--coverage-reward", self.coverage_reward > 0),
+        )
 
 
 def _make_local_env(config: dict[str, Any], wrappers: TrainingWrappers) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
     sensors = list(config["sensors"])
     if wrappers.expert:
-        sensors += EXPERT_SENSORS
+        sensors += expert_sensors(wrappers.expert)
     if wrappers.coverage_reward > 0:
         sensors += COVERAGE_SENSORS
     simulator = MultiONEnv(
         env_config_from_dict({**config, "sensors": list(dict.fromkeys(sensors))})
     )
     env: gym.Env[dict[str, np.ndarray], int] = (
-        OraclePlannerLabels(simulator) if wrappers.expert else simulator
+        with_expert_labels(simulator, wrappers.expert) if wrappers.expert else simulator
     )
     if wrappers.coverage_reward > 0:
         env = CoverageBonus(env, wrappers.coverage_reward)

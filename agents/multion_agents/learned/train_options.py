@@ -10,6 +10,11 @@ from dataclasses import dataclass
 
 from multion.config.ranges import ConfigError, bounded, check_fields, one_of
 
+EXPERTS = ("oracle-planner", "explorer")
+"""Who labels the learner's states for ``--imitation-coef`` (``learned/expert.py``): the oracle
+planner (it plans on an oracle map of the house) or the explorer (frontier exploration from
+RGB-D and pose, what the learner's own sensors give)."""
+
 Curriculum = tuple[tuple[int, float], ...]
 """``((until_frames, max_geodesic), ...)``: until ``until_frames`` frames of the run, online
 training episodes keep each goal within ``max_geodesic`` metres (``online_max_geodesic``) of the

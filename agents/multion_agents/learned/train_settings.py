@@ -14,6 +14,7 @@ from multion_agents.config_overrides import parse_env_overrides
 from multion_agents.learned.policy import HIDDEN_SIZE, MAX_HIDDEN_SIZE
 from multion_agents.learned.precision import PRECISIONS
 from multion_agents.learned.train_options import (
+    EXPERTS,
     Curriculum,
     FoundCurriculum,
     MapPretraining,
@@ -335,6 +336,15 @@ class Args:
     )
     """The learner stays in control (DAgger's labels, ``learned/expert.py``); needs local
     environments."""
+    expert: str = setting(
+        "oracle-planner",
+        choices=EXPERTS,
+        cli=Option(
+            "who labels the learner's states for --imitation-coef: oracle-planner (plans on an "
+            "oracle map) or explorer (frontier exploration from the learner's own sensors) "
+            "(default %(default)s)"
+        ),
+    )
     max_grad_norm: float = setting(
         0.2, low=0, low_open=True, cli=Option("gradient clipping norm (default %(default)s)")
     )
@@ -348,6 +358,11 @@ class Args:
         if self.found_head_positive_weight != 1 and self.found_head == 0:
             raise ConfigError(
                 "--found-head-positive-weight weighs the FOUND head's loss: it needs --found-head"
+            )
+        if self.expert != "oracle-planner" and self.imitation_coef == 0:
+            raise ConfigError(
+                f"--expert {self.expert} labels the learner's states for the imitation loss: it "
+                "needs --imitation-coef above 0"
             )
         if self.found_head > 0 and self.found_supervision > 0:
             raise ConfigError(

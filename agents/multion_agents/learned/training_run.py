@@ -321,7 +321,7 @@ class TrainingRun:
             env_config_to_dict(stage),
             args.envs,
             self._servers,
-            TrainingWrappers(args.imitation_coef > 0, args.coverage_reward),
+            TrainingWrappers(args.expert if args.imitation_coef > 0 else "", args.coverage_reward),
             args.envs_per_process,
         )
 
