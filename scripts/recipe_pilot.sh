@@ -134,6 +134,13 @@ pilot "$agent-found-head-normalized" --found-head 1 --curriculum "$found_frames:
 pilot "$agent-found-head-policy-share" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --value-coef 0.1 --goal-head-coef 0.05
+# Imitation with a teacher the learner can follow: DAgger labels from the `explorer` baseline
+# (frontier search on a map it builds from the learner's own RGB-D and pose, then the goal once
+# its colour shows, then FOUND; --expert explorer), where the oracle planner's labels walked to
+# goals the learner had not seen (docs/learned.md: 2 % train Success). The actor calls FOUND as
+# the explorer does, so no FOUND head; the goal heads, vision pretraining and near goals first.
+pilot "$agent-explorer-imitation" --imitation-coef 1 --expert explorer --goal-heads \
+  --pretrain-vision 2000 --curriculum "$found_frames:4" --curriculum "$((frames * 7 / 10)):10"
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1
