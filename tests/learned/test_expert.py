@@ -20,6 +20,7 @@ from multion_agents.learned.env_groups import EnvGroups
 from multion_agents.learned.expert import (
     EXPERT_ACTION,
     EXPERT_SENSORS,
+    ExpertLabels,
     ExplorerLabels,
     OraclePlannerLabels,
 )
@@ -35,14 +36,23 @@ def _room_env(dataset: Path, sensors: tuple[str, ...] = ("rgb", *EXPERT_SENSORS)
     return room_env(dataset, sensors)
 
 
+def _follow_labels(env: ExpertLabels, info: dict, steps: int) -> tuple[list[int], dict]:
+    """Take the labelled action until the episode ends (at most ``steps``): the actions taken
+    and the last info."""
+    taken: list[int] = []
+    for _ in range(steps):
+        taken.append(info[EXPERT_ACTION])
+        _, _, terminated, truncated, info = env.step(taken[-1])
+        if terminated or truncated:
+            break
+    return taken, info
+
+
 def test_following_the_labels_finds_every_goal(room_dataset: Path) -> None:
     env = OraclePlannerLabels(_room_env(room_dataset))
     for index in range(4):
         _, info = env.reset(options={"episode_index": index})
-        for _ in range(200):
-            _, _, terminated, truncated, info = env.step(info[EXPERT_ACTION])
-            if terminated or truncated:
-                break
+        _, info = _follow_labels(env, info, 200)
         assert env.unwrapped.metrics()["success"] == 1.0
         assert EXPERT_ACTION not in info  # no label for the observation that ends the episode
 
@@ -57,10 +67,7 @@ def test_labels_follow_the_learners_own_steps(room_dataset: Path) -> None:
         _, _, terminated, _, info = env.step(int(Action.TURN_LEFT))
         assert not terminated
     assert env.planner.replans == 0
-    for _ in range(200):
-        _, _, terminated, truncated, info = env.step(info[EXPERT_ACTION])
-        if terminated or truncated:
-            break
+    _follow_labels(env, info, 200)
     assert env.unwrapped.metrics()["success"] == 1.0
 
 
@@ -241,12 +248,7 @@ def test_a_learner_that_follows_the_explorers_labels_plays_the_explorers_episode
 
         labelled = ExplorerLabels(_explorer_env(room_dataset))
         _, info = labelled.reset(options={"episode_index": index})
-        followed: list[int] = []
-        for _ in range(400):
-            followed.append(info[EXPERT_ACTION])
-            _, _, terminated, truncated, info = labelled.step(followed[-1])
-            if terminated or truncated:
-                break
+        followed, _ = _follow_labels(labelled, info, 400)
         assert followed == own
         assert labelled.unwrapped.metrics()["success"] == 1.0
 
@@ -266,10 +268,7 @@ def test_the_explorer_learns_from_the_learners_steps_not_its_own_labels(
         assert not terminated
     assert forward_labels > 0
     assert not env.explorer._blocked.any()  # noqa: SLF001 (what "refused" would have marked)
-    for _ in range(400):
-        _, _, terminated, truncated, info = env.step(info[EXPERT_ACTION])
-        if terminated or truncated:
-            break
+    _follow_labels(env, info, 400)
     assert env.unwrapped.metrics()["success"] == 1.0
 
 

@@ -18,6 +18,7 @@ simulator, in the training worker processes, and only during training:
 from __future__ import annotations
 
 import sys
+from abc import ABC, abstractmethod
 from dataclasses import asdict
 from typing import Any, SupportsFloat
 
@@ -33,7 +34,7 @@ from multion_agents.baselines.oracle_planner import OraclePlannerAgent, OraclePl
 
 EXPERT_ACTION = "expert_action"
 """The info key of an imitation label: the expert's action for the observation returned with it
-(:class:`OraclePlannerLabels`)."""
+(:class:`ExpertLabels`)."""
 EXPERT_SENSORS = ("goal", "gps", "compass")
 """Sensors the oracle planner reads each step (the training env adds them; the policy ignores
 them)."""
@@ -41,9 +42,42 @@ EXPERT_SETTINGS = OraclePlannerSettings(stuck_visits=sys.maxsize)
 """The planner as the expert: without lattice searches (see ``OraclePlannerLabels``)."""
 
 
-class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]):
+class ExpertLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int], ABC):
     """Adds ``info["expert_action"]`` to every reset and to every step that does not end the
-    episode: what ``oracle-planner`` would do next."""
+    episode: what the expert would do next, told before each step what the learner did."""
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        observation, info = self.env.reset(seed=seed, options=options)
+        self._start()
+        info[EXPERT_ACTION] = self._label(observation)
+        return observation, info
+
+    def step(
+        self, action: int
+    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
+        self._took(int(action))
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        if not (terminated or truncated):
+            info[EXPERT_ACTION] = self._label(observation)
+        return observation, reward, terminated, truncated, info
+
+    @abstractmethod
+    def _start(self) -> None:
+        """A new episode has begun (the env is reset)."""
+
+    @abstractmethod
+    def _took(self, action: int) -> None:
+        """The learner takes ``action`` (whatever the last label said)."""
+
+    @abstractmethod
+    def _label(self, observation: dict[str, np.ndarray]) -> int:
+        """The expert's action for ``observation``."""
+
+
+class OraclePlannerLabels(ExpertLabels):
+    """Labels from ``oracle-planner``."""
 
     def __init__(self, env: MultiONEnv) -> None:
         missing = [s for s in EXPERT_SENSORS if s not in env.config.sensors]
@@ -64,23 +98,12 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
         self._oracle: OracleMap | None = None
         self._start_map = np.zeros((0, 0, 2), dtype=np.uint8)
 
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        observation, info = self.env.reset(seed=seed, options=options)
+    def _start(self) -> None:
         self.planner.reset()
         self._start_map = self._planner_map()
-        info[EXPERT_ACTION] = self._label(observation)
-        return observation, info
 
-    def step(
-        self, action: int
-    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
-        self.planner.took(int(action))
-        observation, reward, terminated, truncated, info = self.env.step(action)
-        if not (terminated or truncated):
-            info[EXPERT_ACTION] = self._label(observation)
-        return observation, reward, terminated, truncated, info
+    def _took(self, action: int) -> None:
+        self.planner.took(action)
 
     def _planner_map(self) -> np.ndarray:
         """The oracle map the planner reads at the start: its own cells, around the start."""
@@ -97,10 +120,9 @@ class OraclePlannerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.n
         return int(self.planner.act({**seen, "oracle_map": self._start_map}))
 
 
-class ExplorerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]):
-    """Adds ``info["expert_action"]`` to every reset and to every step that does not end the
-    episode: what ``explorer`` would do next, its map built from the observations of the
-    learner's own path and told each action the learner took (``ExplorerAgent.took``)."""
+class ExplorerLabels(ExpertLabels):
+    """Labels from ``explorer``: its map is built from the observations of the learner's own
+    path, and it is told each action the learner took (``ExplorerAgent.took``)."""
 
     def __init__(self, env: MultiONEnv) -> None:
         missing = [s for s in ExplorerAgent.sensors if s not in env.config.sensors]
@@ -110,22 +132,11 @@ class ExplorerLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarra
         self.explorer = ExplorerAgent()
         self.explorer.configure(env_config_to_dict(env.config))
 
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        observation, info = self.env.reset(seed=seed, options=options)
+    def _start(self) -> None:
         self.explorer.reset()
-        info[EXPERT_ACTION] = self._label(observation)
-        return observation, info
 
-    def step(
-        self, action: int
-    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
-        self.explorer.took(int(action))
-        observation, reward, terminated, truncated, info = self.env.step(action)
-        if not (terminated or truncated):
-            info[EXPERT_ACTION] = self._label(observation)
-        return observation, reward, terminated, truncated, info
+    def _took(self, action: int) -> None:
+        self.explorer.took(action)
 
     def _label(self, observation: dict[str, np.ndarray]) -> int:
         return int(self.explorer.act({key: observation[key] for key in ExplorerAgent.sensors}))
@@ -136,8 +147,6 @@ def expert_sensors(expert: str) -> tuple[str, ...]:
     return EXPERT_SENSORS if expert == "oracle-planner" else ExplorerAgent.sensors
 
 
-def with_expert_labels(
-    env: MultiONEnv, expert: str
-) -> gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int]:
+def with_expert_labels(env: MultiONEnv, expert: str) -> ExpertLabels:
     """``env`` with ``expert``'s labels in its infos."""
     return OraclePlannerLabels(env) if expert == "oracle-planner" else ExplorerLabels(env)
