@@ -225,7 +225,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-long",
             "no-map-found-head-normalized",
             "no-map-found-head-policy-share",
-            "no-map-explorer-imitation",
+            "no-map-found-head-explorer-imitation",
         ]  # fmt: skip
     )
     for line in trains:
@@ -270,9 +270,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     share = by_run["no-map-found-head-policy-share"]
     assert "--goal-heads --pretrain-vision 2000 --value-coef 0.1 --goal-head-coef 0.05" in share
     assert not any("--value-coef" in by_run[r] for r in by_run if "policy-share" not in r)
-    imitation = by_run["no-map-explorer-imitation"]
-    assert "--imitation-coef 1 --expert explorer --goal-heads --pretrain-vision 2000" in imitation
-    assert "--found-head" not in imitation
+    imitation = by_run["no-map-found-head-explorer-imitation"]
+    assert "--found-head 1 --curriculum 400:4 --curriculum 700:10 --goal-heads" in imitation
+    assert imitation.endswith("--pretrain-vision 2000 --imitation-coef 1 --expert explorer")
     assert len(evals) == len(by_run) and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,

@@ -25,6 +25,7 @@ from multion_agents.learned.expert import (
     OraclePlannerLabels,
 )
 from multion_agents.learned.models import MODELS
+from multion_agents.learned.policy import FOUND
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout import collect, start_episodes
 from multion_agents.learned.rollout_envs import NO_LABEL, expert_labels
@@ -155,16 +156,47 @@ def test_the_imitation_loss_is_the_cross_entropy_of_the_labelled_steps() -> None
     assert terms["imitation_loss"] is None and float(unlabelled) == pytest.approx(float(plain))
 
 
+def test_with_a_found_head_imitation_teaches_the_movements_where_the_actor_moved() -> None:
+    """The head decides FOUND and the replay gates the actor's logits: a FOUND label, or a step
+    where the gate fired (FOUND taken), would be a cross-entropy against an impossible action.
+    The loss is the movement labels' cross-entropy on the steps the actor chose, and finite."""
+    from multion_agents.learned.models import build_policy
+
+    torch.manual_seed(0)
+    policy = build_policy("oracle-map", _oracle_map_config(), found_head=True)
+    rollout = random_rollout(space_for("oracle-map"), seed=3)
+    rollout.initial_state = policy.initial_state(2)
+    labels = torch.randint(0, 4, rollout.actions.shape, generator=torch.Generator().manual_seed(1))
+    labels[0, 0] = NO_LABEL
+    labels[1, 0] = FOUND
+    rollout.actions[2, 1] = FOUND  # the gate fired there
+    labels[2, 1] = int(Action.TURN_LEFT)
+    rollout.expert_actions = labels
+    _, terms = ppo_loss(policy, rollout, 0.2, Args(imitation_coef=1.0, found_head=1.0))
+    fired = rollout.actions == FOUND
+    out = policy(rollout.frames, rollout.prev_actions, rollout.starts, rollout.initial_state, fired)
+    keep = (labels != NO_LABEL) & (labels != FOUND) & ~fired
+    assert 0 < int(keep.sum()) < labels.numel() - 2
+    expected = torch.nn.functional.cross_entropy(out.logits[keep], labels[keep])
+    assert terms["imitation_loss"] is not None and math.isfinite(float(terms["imitation_loss"]))
+    assert float(terms["imitation_loss"]) == pytest.approx(float(expected), rel=1e-5)
+
+
 @pytest.mark.parametrize(
-    ("agent", "expert"), [("oracle-map", "oracle-planner"), ("no-map", "explorer")]
+    ("agent", "expert", "found_head"),
+    [
+        ("oracle-map", "oracle-planner", 0.0),
+        ("no-map", "explorer", 0.0),
+        ("no-map", "explorer", 1.0),
+    ],
 )
 def test_training_with_imitation_logs_its_loss_and_agreement(
-    tmp_path: Path, room_dataset: Path, agent: str, expert: str
+    tmp_path: Path, room_dataset: Path, agent: str, expert: str, found_head: float
 ) -> None:
     args = Args(
         agent=agent, task="1-on", frames=128, envs=2, rollout_steps=32, image_size=36,
         dataset=str(room_dataset), max_steps=40, out=str(tmp_path / "run"), progress=False,
-        tensorboard=False, imitation_coef=1.0, expert=expert,
+        tensorboard=False, imitation_coef=1.0, expert=expert, found_head=found_head,
     )  # fmt: skip
     train(args)
     rows = list(csv.DictReader((tmp_path / "run" / "progress.csv").open()))

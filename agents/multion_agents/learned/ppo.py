@@ -245,6 +245,10 @@ def ppo_terms(
     imitation = None
     if args.imitation_coef > 0 and batch.expert_actions.numel():
         labelled = batch.expert_actions != NO_LABEL
+        if replay.found_logit is not None:
+            # a FOUND head decides FOUND (the replay's logits are gated): the actor is taught
+            # the expert's movements where the gate left it to move; FOUND labels teach nothing
+            labelled &= (batch.expert_actions != FOUND) & (batch.actions != FOUND)
         if labelled.any():
             imitation = nn.functional.cross_entropy(
                 replay.logits[labelled], batch.expert_actions[labelled]
