@@ -19,6 +19,7 @@ from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint
 from multion_agents.learned.env_groups import EnvGroups
 from multion_agents.learned.expert import (
     EXPERT_ACTION,
+    EXPERT_LABELS,
     EXPERT_SENSORS,
     ExpertLabels,
     ExplorerLabels,
@@ -29,6 +30,7 @@ from multion_agents.learned.policy import FOUND
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout import collect, start_episodes
 from multion_agents.learned.rollout_envs import NO_LABEL, expert_labels
+from multion_agents.learned.train_options import EXPERTS
 from multion_agents.learned.training_run import train
 from multion_client.constants import Action
 
@@ -302,6 +304,10 @@ def test_the_explorer_learns_from_the_learners_steps_not_its_own_labels(
     assert not env.explorer._blocked.any()  # noqa: SLF001 (what "refused" would have marked)
     _follow_labels(env, info, 400)
     assert env.unwrapped.metrics()["success"] == 1.0
+
+
+def test_every_expert_the_cli_offers_has_labels() -> None:
+    assert tuple(EXPERT_LABELS) == EXPERTS  # train_options stays light; the registry here
 
 
 def test_the_explorer_needs_its_sensors(room_dataset: Path) -> None:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import sys
 from abc import ABC, abstractmethod
 from dataclasses import asdict
-from typing import Any, SupportsFloat
+from typing import Any, ClassVar, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -36,8 +36,7 @@ EXPERT_ACTION = "expert_action"
 """The info key of an imitation label: the expert's action for the observation returned with it
 (:class:`ExpertLabels`)."""
 EXPERT_SENSORS = ("goal", "gps", "compass")
-"""Sensors the oracle planner reads each step (the training env adds them; the policy ignores
-them)."""
+"""Sensors the oracle planner reads each step."""
 EXPERT_SETTINGS = OraclePlannerSettings(stuck_visits=sys.maxsize)
 """The planner as the expert: without lattice searches (see ``OraclePlannerLabels``)."""
 
@@ -45,6 +44,17 @@ EXPERT_SETTINGS = OraclePlannerSettings(stuck_visits=sys.maxsize)
 class ExpertLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray], int], ABC):
     """Adds ``info["expert_action"]`` to every reset and to every step that does not end the
     episode: what the expert would do next, told before each step what the learner did."""
+
+    sensors: ClassVar[tuple[str, ...]]
+    """What the expert reads each step (the training env adds them; the policy ignores them)."""
+    called: ClassVar[str]
+    """How messages name the expert."""
+
+    def __init__(self, env: MultiONEnv) -> None:
+        missing = [s for s in self.sensors if s not in env.config.sensors]
+        if missing:
+            raise ValueError(f"the {self.called} needs sensors {missing} in the env config")
+        super().__init__(env)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -79,10 +89,10 @@ class ExpertLabels(gym.Wrapper[dict[str, np.ndarray], int, dict[str, np.ndarray]
 class OraclePlannerLabels(ExpertLabels):
     """Labels from ``oracle-planner``."""
 
+    sensors = EXPERT_SENSORS
+    called = "expert"
+
     def __init__(self, env: MultiONEnv) -> None:
-        missing = [s for s in EXPERT_SENSORS if s not in env.config.sensors]
-        if missing:
-            raise ValueError(f"the expert needs sensors {missing} in the env config")
         super().__init__(env)
         self._multion = env
         # no lattice searches: they answer the planner's own loops, but a learner turning on the
@@ -124,10 +134,10 @@ class ExplorerLabels(ExpertLabels):
     """Labels from ``explorer``: its map is built from the observations of the learner's own
     path, and it is told each action the learner took (``ExplorerAgent.took``)."""
 
+    sensors = ExplorerAgent.sensors
+    called = "explorer"
+
     def __init__(self, env: MultiONEnv) -> None:
-        missing = [s for s in ExplorerAgent.sensors if s not in env.config.sensors]
-        if missing:
-            raise ValueError(f"the explorer needs sensors {missing} in the env config")
         super().__init__(env)
         self.explorer = ExplorerAgent()
         self.explorer.configure(env_config_to_dict(env.config))
@@ -142,11 +152,8 @@ class ExplorerLabels(ExpertLabels):
         return int(self.explorer.act({key: observation[key] for key in ExplorerAgent.sensors}))
 
 
-def expert_sensors(expert: str) -> tuple[str, ...]:
-    """The sensors ``expert`` (one of ``train_options.EXPERTS``) reads each step."""
-    return EXPERT_SENSORS if expert == "oracle-planner" else ExplorerAgent.sensors
-
-
-def with_expert_labels(env: MultiONEnv, expert: str) -> ExpertLabels:
-    """``env`` with ``expert``'s labels in its infos."""
-    return OraclePlannerLabels(env) if expert == "oracle-planner" else ExplorerLabels(env)
+EXPERT_LABELS: dict[str, type[ExpertLabels]] = {
+    "oracle-planner": OraclePlannerLabels,
+    "explorer": ExplorerLabels,
+}
+"""Each expert of ``train_options.EXPERTS`` (``--expert``) by name."""

@@ -24,7 +24,7 @@ from multion.task.env import MultiONEnv
 from multion_agents.agent import merge_overrides
 from multion_agents.learned.coverage import COVERAGE_SENSORS, CoverageBonus
 from multion_agents.learned.env_workers import SharedProcessVectorEnv
-from multion_agents.learned.expert import EXPERT_ACTION, expert_sensors, with_expert_labels
+from multion_agents.learned.expert import EXPERT_ACTION, EXPERT_LABELS
 from multion_agents.learned.train_options import (
     FOUND_BUDGET_UNLIMITED,
     Curriculum,
@@ -119,15 +119,16 @@ class TrainingWrappers:
 def _make_local_env(config: dict[str, Any], wrappers: TrainingWrappers) -> gym.Env:
     # module-level so that spawn-started workers can unpickle it
     sensors = list(config["sensors"])
-    if wrappers.expert:
-        sensors += expert_sensors(wrappers.expert)
+    labels = EXPERT_LABELS[wrappers.expert] if wrappers.expert else None
+    if labels is not None:
+        sensors += labels.sensors
     if wrappers.coverage_reward > 0:
         sensors += COVERAGE_SENSORS
     simulator = MultiONEnv(
         env_config_from_dict({**config, "sensors": list(dict.fromkeys(sensors))})
     )
     env: gym.Env[dict[str, np.ndarray], int] = (
-        with_expert_labels(simulator, wrappers.expert) if wrappers.expert else simulator
+        labels(simulator) if labels is not None else simulator
     )
     if wrappers.coverage_reward > 0:
         env = CoverageBonus(env, wrappers.coverage_reward)
