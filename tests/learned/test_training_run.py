@@ -58,7 +58,12 @@ def test_a_run_updates_one_step_at_a_time_and_calls_its_hooks_in_order(
         ("train", 40, str(room_dataset))
     }
     out = tmp_path / "run"
-    assert [int(r["update"]) for r in _rows(out / "progress.csv")] == [1, 2, 3]
+    rows = _rows(out / "progress.csv")
+    assert [int(r["update"]) for r in rows] == [1, 2, 3]
+    # how the training episodes ended: a found goal was within reach
+    assert {"train_within_reach", "train_wrong_found"} <= set(rows[0])
+    ended = [r for r in rows if float(r["episodes"]) > 0]
+    assert all(float(r["train_within_reach"]) >= float(r["train_success"]) for r in ended)
     assert [(int(r["frames"]), float(r["success"])) for r in _rows(out / "eval.csv")] == [
         (128, 0.5),
         (192, 0.5),

@@ -33,6 +33,9 @@ from multion_agents.learned.train_options import (
 from multion_client.vector import RemoteVectorEnv
 
 SUMMARY_METRICS = ("success", "progress", "spl", "ppl", "steps")
+ENDING_METRICS = ("closest_to_goal", "wrong_founds")
+"""Also kept of each finished training episode: how it got on with the goal it did not find
+(``training_run``: the share that came within reach, the share with a wrong FOUND)."""
 NO_LABEL = -1
 """The label of a step without one (the last step of an episode), left out of the loss."""
 
@@ -192,6 +195,13 @@ def finished_episodes(infos: dict[str, Any]) -> list[tuple[int, dict[str, float]
     out = []
     for index in np.flatnonzero(mask):
         out.append(
-            (int(index), {k: float(metrics[k][index]) for k in SUMMARY_METRICS if k in metrics})
+            (
+                int(index),
+                {
+                    k: float(metrics[k][index])
+                    for k in (*SUMMARY_METRICS, *ENDING_METRICS)
+                    if k in metrics
+                },
+            )
         )
     return out

@@ -43,10 +43,10 @@ from multion_agents.learned.distributed import (
     cores_per_rank,
     init_distributed,
     select_device,
-    sum_over_ranks,
     weights_digest,
 )
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
+from multion_agents.learned.episode_stats import window_means
 from multion_agents.learned.found_supervision import found_label_sensors
 from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.learned_maps import ObjRecogMap
@@ -57,7 +57,6 @@ from multion_agents.learned.pretrain import check_map_pretraining, pretrain_map
 from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
 from multion_agents.learned.rollout_envs import (
     NO_LABEL,
-    SUMMARY_METRICS,
     TrainingWrappers,
     check_curriculum,
     stage_config,
@@ -257,7 +256,7 @@ class TrainingRun:
             "clip": clip,
             "max_geodesic": self.stage.online_max_geodesic,
             "found_budget": self.stage.task.found_budget,
-            **_window_means(self.window, placement.device),
+            **window_means(self.window, placement.device, self.env_config.task.success_distance),
             "expert_agreement": _agreement(rollout),
             **stats,
         }
@@ -485,15 +484,3 @@ def _agreement(rollout: Rollout) -> float:
     if not rollout.expert_actions.numel() or not labelled.any():
         return math.nan
     return float((rollout.actions[labelled] == rollout.expert_actions[labelled]).float().mean())
-
-
-def _window_means(window: deque[dict[str, float]], device: torch.device) -> dict[str, float]:
-    names = [*SUMMARY_METRICS, "return"]
-    sums = [sum(e.get(k, 0.0) for e in window) for k in names] + [float(len(window))]
-    sums = sum_over_ranks(sums, device)
-    count = sums[-1]
-    means = {
-        f"train_{k}": (s / count if count else math.nan)
-        for k, s in zip(names, sums[:-1], strict=True)
-    }
-    return {"episodes": count, **means}

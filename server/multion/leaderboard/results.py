@@ -77,6 +77,7 @@ def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
         "collisions": 0,
         "path_length": 0.0,
         "distance_to_goal": None,
+        "closest_to_goal": None,
         "goals_found": 0,
         "wrong_founds": 0,
         "progress": 0.0,

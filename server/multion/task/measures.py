@@ -138,6 +138,30 @@ class DistanceToGoal(Measure):
         return self._value
 
 
+class ClosestToGoal(Measure):
+    """The shortest geodesic distance to the current goal since it became current (0 once
+    every goal is found). Below ``task.success_distance`` in an episode that did not find that
+    goal: the agent stood within reach and did not call FOUND there (beyond the paper; issue
+    51's measurement of where the agents that must see the goal lose it)."""
+
+    name = "closest_to_goal"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._goal = state.goals_found
+        self._value = state.distance_to_goal
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        if state.goals_found != self._goal:  # a new current goal: start again from here
+            self._goal = state.goals_found
+            self._value = state.distance_to_goal
+        else:
+            self._value = min(self._value, state.distance_to_goal)
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+
 class GoalsFound(Measure):
     name = "goals_found"
 
@@ -398,6 +422,7 @@ DEFAULT_MEASURES: tuple[type[Measure], ...] = (
     Collisions,
     PathLength,
     DistanceToGoal,
+    ClosestToGoal,
     GoalsFound,
     WrongFounds,
     DistractorFounds,
