@@ -145,6 +145,15 @@ pilot "$agent-found-head-policy-share" --found-head 1 --curriculum "$found_frame
 pilot "$agent-found-head-explorer-imitation" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --imitation-coef 1 --expert explorer
+# More houses. Every pilot above drew a new train house only every 200 episodes (as the paper
+# recipe's runs): 500k frames of 8 envs at ~330 steps an episode are ~190 episodes per env, so
+# each trained in 8 of the 61 train houses at a time (new draws at each curriculum stage and
+# resume: the reset seed is the seed's and the update's), so about 24 houses in all, the same
+# ones for the runs that went uninterrupted. The v3 recipe's oracle-map changed house every 5
+# episodes (docs/learned.md). The learn-to-see options with a new house every 5 episodes.
+pilot "$agent-found-head-houses" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
+  --episodes-per-scene 5
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1
