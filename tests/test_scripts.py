@@ -226,6 +226,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-normalized",
             "no-map-found-head-policy-share",
             "no-map-found-head-explorer-imitation",
+            "no-map-found-head-houses",
         ]  # fmt: skip
     )
     for line in trains:
@@ -273,6 +274,9 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     imitation = by_run["no-map-found-head-explorer-imitation"]
     assert "--found-head 1 --curriculum 400:4 --curriculum 700:10 --goal-heads" in imitation
     assert imitation.endswith("--pretrain-vision 2000 --imitation-coef 1 --expert explorer")
+    houses = by_run["no-map-found-head-houses"]
+    assert "--episodes-per-scene 200" in houses and houses.endswith("--episodes-per-scene 5")
+    assert not any("--episodes-per-scene 5" in by_run[r] for r in by_run if "houses" not in r)
     assert len(evals) == len(by_run) and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
