@@ -5,30 +5,17 @@ current, worked out by hand in the empty room ``room-6x4`` (as in ``test_rules.p
 from __future__ import annotations
 
 import pytest
+from test_rules import FWD, GREEN, LEFT, RED, F, make_env, run
 
-from multion.config.episode import Episode, Goal
-from multion.config.task import EnvConfig, TaskConfig
+from multion.config.task import TaskConfig
 from multion.task.env import MultiONEnv
 from multion_client.constants import Action
 
-F, FWD, LEFT = Action.FOUND, Action.MOVE_FORWARD, Action.TURN_LEFT
-RED, GREEN = 0, 1
 ABOUT_TURN = [LEFT] * 6  # 6 × 30°
 
 
-def make_env(goals: list[tuple[int, tuple[float, float]]]) -> MultiONEnv:
-    episode = Episode(
-        "hand", "room-6x4", (1.0, 2.0, 0.0), 0.0, tuple(Goal(c, (x, y, 0.0)) for c, (x, y) in goals)
-    )
-    config = EnvConfig(task=TaskConfig(num_goals=len(goals)), sensors=("gps", "compass"))
-    return MultiONEnv(config, episodes=[episode])
-
-
 def metrics_after(env: MultiONEnv, actions: list[Action]) -> dict:
-    info: dict = {}
-    for action in actions:
-        info = env.step(action)[4]
-    return info["metrics"]
+    return run(env, actions)[1][4]["metrics"]
 
 
 def test_it_keeps_the_closest_approach_when_the_agent_walks_away() -> None:
