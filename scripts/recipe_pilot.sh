@@ -154,6 +154,13 @@ pilot "$agent-found-head-explorer-imitation" --found-head 1 --curriculum "$found
 pilot "$agent-found-head-houses" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --episodes-per-scene 5
+# The agent's pose. Failures are mostly episodes that never come within reach: the policy
+# walks in loops (docs/learned.md, "How they move"), and nothing it reads says where it has
+# been. The task serves GPS and compass (the reference's multinav_mp3d.yaml l. 35), which its
+# policies do not read; habitat-lab's ObjectNav baseline does (resnet_policy.py l. 487, 520).
+# The learn-to-see options with the GRU reading the pose (--pose-input).
+pilot "$agent-found-head-pose" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --pose-input
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1

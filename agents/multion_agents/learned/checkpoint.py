@@ -112,9 +112,13 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         hidden_size = hidden_size_of(payload["model"])
     except ValueError as error:
         raise CheckpointError(f"{path}: {error}") from None
-    # without training heads; with the FOUND head where it was trained with one (it acts)
+    # without training heads; with the FOUND head and the pose input where it was trained with
+    # them (they act)
     found_head = "found_head.weight" in payload["model"]
-    policy = build_policy(payload["agent"], config, hidden_size, found_head=found_head)
+    pose_input = "gps_embedding.weight" in payload["model"]
+    policy = build_policy(
+        payload["agent"], config, hidden_size, found_head=found_head, pose_input=pose_input
+    )
     try:
         policy.load_state_dict(acting_weights(payload["model"]))
     except RuntimeError as error:
@@ -145,6 +149,7 @@ RECIPE_OPTIONS = (
     "pretrain_map",
     "balanced_recognition",
     "expert",
+    "pose_input",
 )
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""

@@ -60,11 +60,13 @@ class ModelSpec:
         hidden_size: int = HIDDEN_SIZE,
         goal_heads: bool = False,
         found_head: bool = False,
+        pose_input: bool = False,
     ) -> RecurrentPolicy:
         """The policy for an env with ``observation_space`` whose config gives ``geometry``
         (None: the default env config's, for tests), with a GRU of ``hidden_size`` units and,
         with ``goal_heads``, the auxiliary goal heads (:mod:`.goal_heads`); with
-        ``found_head``, FOUND decided by a supervised head (``--found-head``)."""
+        ``found_head``, FOUND decided by a supervised head (``--found-head``); with
+        ``pose_input``, the GRU reading GPS and compass (``--pose-input``)."""
         memory = self.build_memory(observation_space, geometry or default_geometry(), hidden_size)
         return RecurrentPolicy(
             observation_space,
@@ -74,6 +76,7 @@ class ModelSpec:
             hidden_size=hidden_size,
             goal_heads=goal_heads,
             found_head=found_head,
+            pose_input=pose_input,
         )
 
 
@@ -181,13 +184,16 @@ def build_policy(
     hidden_size: int = HIDDEN_SIZE,
     goal_heads: bool = False,
     found_head: bool = False,
+    pose_input: bool = False,
 ) -> RecurrentPolicy:
     """The (untrained) policy of model ``agent`` for environments configured by ``env_config``
     (or its wire form, nested dicts), with a GRU of ``hidden_size`` units (768, the
-    reference's, by default), with ``goal_heads``, the auxiliary goal heads, and with
-    ``found_head``, FOUND decided by a supervised head."""
+    reference's, by default), with ``goal_heads``, the auxiliary goal heads, with
+    ``found_head``, FOUND decided by a supervised head, and with ``pose_input``, the GRU
+    reading GPS and compass."""
     if not isinstance(env_config, EnvConfig):
         env_config = env_config_from_dict(env_config)
     space = build_observation_space(env_config)
     geometry = MapGeometry.from_env_config(env_config)
-    return model_spec(agent).build(space, geometry, hidden_size, goal_heads, found_head)
+    spec = model_spec(agent)
+    return spec.build(space, geometry, hidden_size, goal_heads, found_head, pose_input)

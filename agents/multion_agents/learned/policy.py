@@ -45,6 +45,12 @@ checkpoint's GRU size is read from its weights (:func:`hidden_size_of`)."""
 MAX_HIDDEN_SIZE = 4096
 GOAL_EMBED_DIM = 32
 ACTION_EMBED_DIM = 32
+POSE_SENSORS = ("gps", "compass")
+POSE_EMBED_DIM = 32
+"""Each of GPS and compass (as cos, sin) is embedded by a linear layer to 32 units, as in
+habitat-lab's ObjectNav/PointNav baseline (facebookresearch/habitat-lab,
+``habitat-baselines/habitat_baselines/rl/ddppo/policy/resnet_policy.py`` l. 487, 520, 718-732).
+The reference's MultiON policies do not read them (``--pose-input``, beyond the paper)."""
 NO_ACTION = NUM_ACTIONS
 """Index of the "no previous action" embedding, used at an episode's first step."""
 FOUND = int(Action.FOUND)
@@ -147,7 +153,11 @@ class RecurrentPolicy(nn.Module):
     only (``--found-head``, :mod:`.found_supervision`), not by the actor: the policy calls FOUND
     when the head's probability exceeds ``found_gate`` (:data:`FOUND_GATE`, not a weight: an
     evaluation may lower it; :func:`gated_logits`), and otherwise samples a movement from the
-    actor. It is part of the agent, kept at evaluation."""
+    actor. It is part of the agent, kept at evaluation.
+
+    ``pose_input``: the GRU also reads the agent's pose from the episode's start (``gps``,
+    ``compass``), each embedded to :data:`POSE_EMBED_DIM` units (``--pose-input``). It is part
+    of the agent, kept at evaluation. Memories' queries stay ``[v_i, v_g, v_a]``."""
 
     def __init__(
         self,
@@ -158,6 +168,7 @@ class RecurrentPolicy(nn.Module):
         hidden_size: int = HIDDEN_SIZE,
         goal_heads: bool = False,
         found_head: bool = False,
+        pose_input: bool = False,
     ) -> None:
         super().__init__()
         if not 1 <= hidden_size <= MAX_HIDDEN_SIZE:
@@ -179,7 +190,14 @@ class RecurrentPolicy(nn.Module):
         self.action_embedding = nn.Embedding(NUM_ACTIONS + 1, ACTION_EMBED_DIM)
         self.query_dim = image_dim + GOAL_EMBED_DIM + ACTION_EMBED_DIM
         memory_dim = memory.out_dim if memory is not None else 0
-        self.gru = nn.GRU(self.query_dim + memory_dim, hidden_size)
+        self.gps_embedding: nn.Linear | None = None
+        self.compass_embedding: nn.Linear | None = None
+        pose_dim = 0
+        if pose_input:
+            self.gps_embedding = nn.Linear(2, POSE_EMBED_DIM)
+            self.compass_embedding = nn.Linear(2, POSE_EMBED_DIM)
+            pose_dim = 2 * POSE_EMBED_DIM
+        self.gru = nn.GRU(self.query_dim + pose_dim + memory_dim, hidden_size)
         self.actor = _layer(nn.Linear(hidden_size, NUM_ACTIONS), std=0.01)
         self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
         self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
@@ -194,8 +212,14 @@ class RecurrentPolicy(nn.Module):
     def sensors(self) -> tuple[str, ...]:
         """Observation keys read when acting."""
         own = ("rgb",) * self.use_rgb + ("depth",) * self.use_depth + ("goal",)
+        pose = POSE_SENSORS if self.pose_input else ()
         extra = self.memory.sensors if self.memory is not None else ()
-        return tuple(dict.fromkeys(own + extra))
+        return tuple(dict.fromkeys(own + pose + extra))
+
+    @property
+    def pose_input(self) -> bool:
+        """Whether the GRU reads the pose (``--pose-input``)."""
+        return self.gps_embedding is not None
 
     @property
     def train_sensors(self) -> tuple[str, ...]:
@@ -246,6 +270,18 @@ class RecurrentPolicy(nn.Module):
             parts.append(v_i)
         parts += [self.goal_embedding(flat["goal"].long()), self.action_embedding(previous)]
         query = torch.cat(parts, dim=1).reshape(steps, batch, -1)
+        # the GRU's own inputs: the query, then the pose where it reads it (memories do not)
+        core_in = query
+        if self.gps_embedding is not None and self.compass_embedding is not None:
+            heading = flat["compass"].float().reshape(-1, 1)
+            pose = torch.cat(
+                [
+                    self.gps_embedding(flat["gps"].float()),
+                    self.compass_embedding(torch.cat([heading.cos(), heading.sin()], dim=1)),
+                ],
+                dim=1,
+            )
+            core_in = torch.cat([query, pose.reshape(steps, batch, -1)], dim=2)
         precomputed = self.memory.precompute(flat, image_features) if self.memory else {}
         per_step = {
             k: v.reshape(steps, batch, *v.shape[1:]) for k, v in {**flat, **precomputed}.items()
@@ -254,7 +290,7 @@ class RecurrentPolicy(nn.Module):
         memory_state = {k[len("memory.") :]: v for k, v in state.items() if k.startswith("memory.")}
         hidden = state["hidden"]
         if self.memory is None:
-            core, hidden = self._recurrent(query, episode_start, hidden)
+            core, hidden = self._recurrent(core_in, episode_start, hidden)
         elif self.memory.reads_hidden:
             cores = []
             for t in range(steps):
@@ -267,7 +303,7 @@ class RecurrentPolicy(nn.Module):
                     memory_state,
                 )
                 step_core, hidden = self._recurrent(
-                    torch.cat([query[t], v_m], dim=1)[None], episode_start[t : t + 1], hidden
+                    torch.cat([core_in[t], v_m], dim=1)[None], episode_start[t : t + 1], hidden
                 )
                 cores.append(step_core[0])
             core = torch.stack(cores)
@@ -287,7 +323,7 @@ class RecurrentPolicy(nn.Module):
             if isinstance(self.memory, MapMemory):  # every step's view read in one batch
                 views = v_ms.flatten(0, 1)
                 v_ms = self.memory.read(views, {**flat, **precomputed}).view(steps, batch, -1)
-            core, hidden = self._recurrent(torch.cat([query, v_ms], dim=2), episode_start, hidden)
+            core, hidden = self._recurrent(torch.cat([core_in, v_ms], dim=2), episode_start, hidden)
         new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
         auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
         goal_losses = None

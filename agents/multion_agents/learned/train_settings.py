@@ -184,6 +184,15 @@ class Args:
             group=BEYOND_PAPER,
         ),
     )
+    pose_input: bool = setting(
+        False,
+        cli=Option(
+            "the GRU also reads GPS and compass (the pose from the episode's start), each "
+            "embedded to 32 units as in habitat-lab's ObjectNav baseline; kept at evaluation",
+            toggle=True,
+            group=BEYOND_PAPER,
+        ),
+    )
     goal_head_coef: float = setting(
         0.25,
         low=0,

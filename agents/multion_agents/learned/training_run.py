@@ -51,7 +51,7 @@ from multion_agents.learned.found_supervision import found_label_sensors
 from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.models import build_policy, model_spec
-from multion_agents.learned.policy import RecurrentPolicy, hidden_size_of
+from multion_agents.learned.policy import POSE_SENSORS, RecurrentPolicy, hidden_size_of
 from multion_agents.learned.ppo import ppo_update, schedule, set_found_prior
 from multion_agents.learned.pretrain import check_map_pretraining, pretrain_map
 from multion_agents.learned.rollout import Rollout, collect, compute_gae, start_episodes
@@ -403,9 +403,10 @@ def run_env_config(args: Args) -> EnvConfig:
     spec = model_spec(args.agent)
     sensors = spec.train_sensors + ((GOAL_VECTOR,) if args.goal_heads else ())
     sensors += found_label_sensors(args)
+    sensors += POSE_SENSORS if args.pose_input else ()
     config = training_env_config(
         parse_task(args.task),
-        sensors,
+        tuple(dict.fromkeys(sensors)),
         args.image_size,
         "train",
         spec.config_overrides,
@@ -464,7 +465,12 @@ def _prepare(
     check_vision_pretraining(args.pretrain_vision, args.agent, model_spec(args.agent).sensors)
     torch.manual_seed(args.seed)
     policy = build_policy(
-        args.agent, env_config, args.hidden_size, args.goal_heads, args.found_head > 0
+        args.agent,
+        env_config,
+        args.hidden_size,
+        args.goal_heads,
+        args.found_head > 0,
+        args.pose_input,
     ).to(device)
     if args.balanced_recognition:
         if not isinstance(policy.memory, ObjRecogMap):
