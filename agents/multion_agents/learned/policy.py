@@ -271,17 +271,8 @@ class RecurrentPolicy(nn.Module):
         parts += [self.goal_embedding(flat["goal"].long()), self.action_embedding(previous)]
         query = torch.cat(parts, dim=1).reshape(steps, batch, -1)
         # the GRU's own inputs: the query, then the pose where it reads it (memories do not)
-        core_in = query
-        if self.gps_embedding is not None and self.compass_embedding is not None:
-            heading = flat["compass"].float().reshape(-1, 1)
-            pose = torch.cat(
-                [
-                    self.gps_embedding(flat["gps"].float()),
-                    self.compass_embedding(torch.cat([heading.cos(), heading.sin()], dim=1)),
-                ],
-                dim=1,
-            )
-            core_in = torch.cat([query, pose.reshape(steps, batch, -1)], dim=2)
+        pose = self._pose(flat)
+        core_in = query if pose is None else torch.cat([query, pose.view(steps, batch, -1)], 2)
         precomputed = self.memory.precompute(flat, image_features) if self.memory else {}
         per_step = {
             k: v.reshape(steps, batch, *v.shape[1:]) for k, v in {**flat, **precomputed}.items()
@@ -346,6 +337,15 @@ class RecurrentPolicy(nn.Module):
             goal_losses=goal_losses,
             found_logit=found_logit,
         )
+
+    def _pose(self, flat: Batch) -> Tensor | None:
+        """(T·B, 64): the embedded GPS and compass (as cos, sin), or None without the input."""
+        if self.gps_embedding is None or self.compass_embedding is None:
+            return None
+        heading = flat["compass"].float().reshape(-1, 1)
+        compass = torch.cat([heading.cos(), heading.sin()], dim=1)
+        gps = self.gps_embedding(flat["gps"].float())
+        return torch.cat([gps, self.compass_embedding(compass)], dim=1)
 
     def _recurrent(
         self, inputs: Tensor, episode_start: Tensor, hidden: Tensor
