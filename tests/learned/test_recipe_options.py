@@ -192,6 +192,21 @@ def test_without_goal_heads_nothing_changes(tmp_path: Path, room_dataset: Path) 
     assert GOAL_VECTOR in with_heads.sensors
 
 
+@pytest.mark.parametrize(
+    ("agent", "option", "sensor"),
+    [
+        ("obj-recog-map", {"found_head": 1.0}, "goal_mask"),
+        ("proj-neural-map", {"pose_input": True}, "gps"),
+    ],
+)
+def test_an_option_asking_for_a_sensor_the_model_reads_gets_it_once(
+    tmp_path: Path, room_dataset: Path, agent: str, option: dict[str, Any], sensor: str
+) -> None:
+    # learn-to-see's obj-recog-map stage: its recogniser and the FOUND head both read goal_mask
+    config = run_env_config(tiny_args(tmp_path, room_dataset, agent=agent, **option))
+    assert config.sensors.count(sensor) == 1
+
+
 def test_a_resume_refuses_other_recipe_options(tmp_path: Path, room_dataset: Path) -> None:
     args = tiny_args(tmp_path, room_dataset, frames=128, goal_heads=True)
     train(args)

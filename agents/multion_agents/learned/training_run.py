@@ -404,6 +404,8 @@ def run_env_config(args: Args) -> EnvConfig:
     sensors = spec.train_sensors + ((GOAL_VECTOR,) if args.goal_heads else ())
     sensors += found_label_sensors(args)
     sensors += POSE_SENSORS if args.pose_input else ()
+    # once each: options may ask for a sensor the model reads already (obj-recog-map's goal_mask
+    # with --found-head, proj-neural-map's gps with --pose-input), which EnvConfig refuses twice
     config = training_env_config(
         parse_task(args.task),
         tuple(dict.fromkeys(sensors)),
