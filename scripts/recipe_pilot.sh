@@ -161,6 +161,12 @@ pilot "$agent-found-head-houses" --found-head 1 --curriculum "$found_frames:4" \
 # The learn-to-see options with the GRU reading the pose (--pose-input).
 pilot "$agent-found-head-pose" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --pose-input
+# A critic on its own GRU. The value loss's gradient on the shared GRU was 3 to 16 times the
+# policy's, and weighting it a fifth (`policy-share`) changed nothing; separate networks avoid
+# that interference (Cobbe et al. 2021, Phasic Policy Gradient, abstract). The learn-to-see
+# options with the critic reading its own GRU over the same inputs, detached (--separate-critic).
+pilot "$agent-found-head-separate-critic" --found-head 1 --curriculum "$found_frames:4" \
+  --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --separate-critic
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
 pilot "$agent-all-sup" --found-curriculum "$found_frames:2.5" --goal-heads --pretrain-vision 2000 \
   --found-supervision 1

@@ -92,8 +92,9 @@ def with_legacy_fields(env_config: dict[str, Any]) -> dict[str, Any]:
     return config
 
 
-TRAINING_ONLY_MODULES = ("goal_heads.",)
-"""Weights that only training reads (``--goal-heads``): left out of a policy loaded to act."""
+TRAINING_ONLY_MODULES = ("goal_heads.", "critic_gru.")
+"""Weights that only training reads (``--goal-heads``, ``--separate-critic``): left out of a
+policy loaded to act."""
 
 
 def acting_weights(weights: dict[str, Any]) -> dict[str, Any]:
@@ -150,6 +151,7 @@ RECIPE_OPTIONS = (
     "balanced_recognition",
     "expert",
     "pose_input",
+    "separate_critic",
 )
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""

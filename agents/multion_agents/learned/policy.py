@@ -157,7 +157,13 @@ class RecurrentPolicy(nn.Module):
 
     ``pose_input``: the GRU also reads the agent's pose from the episode's start (``gps``,
     ``compass``), each embedded to :data:`POSE_EMBED_DIM` units (``--pose-input``). It is part
-    of the agent, kept at evaluation. Memories' queries stay ``[v_i, v_g, v_a]``."""
+    of the agent, kept at evaluation. Memories' queries stay ``[v_i, v_g, v_a]``.
+
+    ``separate_critic``: the critic reads its own GRU (``critic_gru``, state ``critic_hidden``)
+    over the actor GRU's inputs, detached, so the value loss trains neither the encoder, the
+    memory nor the actor's GRU (``--separate-critic``); a training aid that a policy loaded for
+    evaluation is built without (its ``critic`` then reads the actor's GRU, and nothing reads
+    it)."""
 
     def __init__(
         self,
@@ -169,6 +175,7 @@ class RecurrentPolicy(nn.Module):
         goal_heads: bool = False,
         found_head: bool = False,
         pose_input: bool = False,
+        separate_critic: bool = False,
     ) -> None:
         super().__init__()
         if not 1 <= hidden_size <= MAX_HIDDEN_SIZE:
@@ -198,6 +205,9 @@ class RecurrentPolicy(nn.Module):
             self.compass_embedding = nn.Linear(2, POSE_EMBED_DIM)
             pose_dim = 2 * POSE_EMBED_DIM
         self.gru = nn.GRU(self.query_dim + pose_dim + memory_dim, hidden_size)
+        self.critic_gru = (
+            nn.GRU(self.query_dim + pose_dim + memory_dim, hidden_size) if separate_critic else None
+        )
         self.actor = _layer(nn.Linear(hidden_size, NUM_ACTIONS), std=0.01)
         self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
         self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
@@ -215,6 +225,11 @@ class RecurrentPolicy(nn.Module):
         pose = POSE_SENSORS if self.pose_input else ()
         extra = self.memory.sensors if self.memory is not None else ()
         return tuple(dict.fromkeys(own + pose + extra))
+
+    @property
+    def separate_critic(self) -> bool:
+        """Whether the critic reads its own GRU (``--separate-critic``)."""
+        return self.critic_gru is not None
 
     @property
     def pose_input(self) -> bool:
@@ -237,6 +252,8 @@ class RecurrentPolicy(nn.Module):
         """The empty state of ``batch`` environments, on the policy's device."""
         device = self.device
         state = {"hidden": torch.zeros(batch, self.hidden_size, device=device)}
+        if self.critic_gru is not None:
+            state["critic_hidden"] = torch.zeros(batch, self.hidden_size, device=device)
         if self.memory is not None:
             memory = self.memory.initial_state(batch, device)
             state.update({f"memory.{k}": v for k, v in memory.items()})
@@ -281,9 +298,10 @@ class RecurrentPolicy(nn.Module):
         memory_state = {k[len("memory.") :]: v for k, v in state.items() if k.startswith("memory.")}
         hidden = state["hidden"]
         if self.memory is None:
-            core, hidden = self._recurrent(core_in, episode_start, hidden)
+            gru_in = core_in
+            core, hidden = self._recurrent(gru_in, episode_start, hidden)
         elif self.memory.reads_hidden:
-            cores = []
+            cores, inputs = [], []
             for t in range(steps):
                 keep = 1.0 - episode_start[t].float()
                 memory_state = _clear(memory_state, keep)
@@ -293,11 +311,12 @@ class RecurrentPolicy(nn.Module):
                     torch.cat([query[t], hidden], dim=1),
                     memory_state,
                 )
+                inputs.append(torch.cat([core_in[t], v_m], dim=1))
                 step_core, hidden = self._recurrent(
-                    torch.cat([core_in[t], v_m], dim=1)[None], episode_start[t : t + 1], hidden
+                    inputs[-1][None], episode_start[t : t + 1], hidden
                 )
                 cores.append(step_core[0])
-            core = torch.stack(cores)
+            core, gru_in = torch.stack(cores), torch.stack(inputs)
         else:
             # The memory does not read the GRU state, so its loop runs first, over all steps.
             memory_out = []
@@ -314,8 +333,14 @@ class RecurrentPolicy(nn.Module):
             if isinstance(self.memory, MapMemory):  # every step's view read in one batch
                 views = v_ms.flatten(0, 1)
                 v_ms = self.memory.read(views, {**flat, **precomputed}).view(steps, batch, -1)
-            core, hidden = self._recurrent(torch.cat([core_in, v_ms], dim=2), episode_start, hidden)
+            gru_in = torch.cat([core_in, v_ms], dim=2)
+            core, hidden = self._recurrent(gru_in, episode_start, hidden)
         new_state = {"hidden": hidden, **{f"memory.{k}": v for k, v in memory_state.items()}}
+        critic_core = core
+        if self.critic_gru is not None:
+            critic_core, new_state["critic_hidden"] = self._recurrent(
+                gru_in.detach(), episode_start, state["critic_hidden"], self.critic_gru
+            )
         auxiliary = self.memory.auxiliary_loss(flat, precomputed) if self.memory else None
         goal_losses = None
         if self.goal_heads is not None and GOAL_VECTOR in flat:
@@ -331,7 +356,7 @@ class RecurrentPolicy(nn.Module):
             logits = gated_logits(logits, fired)
         return PolicyOutput(
             logits=logits,
-            value=self.critic(core).squeeze(-1),
+            value=self.critic(critic_core).squeeze(-1),
             state=new_state,
             auxiliary_loss=auxiliary,
             goal_losses=goal_losses,
@@ -348,16 +373,16 @@ class RecurrentPolicy(nn.Module):
         return torch.cat([gps, self.compass_embedding(compass)], dim=1)
 
     def _recurrent(
-        self, inputs: Tensor, episode_start: Tensor, hidden: Tensor
+        self, inputs: Tensor, episode_start: Tensor, hidden: Tensor, gru: nn.GRU | None = None
     ) -> tuple[Tensor, Tensor]:
-        """The GRU (``nn.GRU``'s equations and weights) over (T, B, D) inputs, its state cleared
-        where episodes start.
+        """A GRU (``nn.GRU``'s equations and weights; the actor's, ``self.gru``, by default)
+        over (T, B, D) inputs, its state cleared where episodes start.
 
         The input projection runs once for all T steps, and :class:`MaskedGRU` forms the
         recurrent weight gradient once (autograd through ``nn.GRU`` or ``nn.GRUCell`` on a CPU
         accumulates a full weight gradient per step, which made PPO updates several times
         slower)."""
-        gru = self.gru
+        gru = self.gru if gru is None else gru
         # nn.Module types attribute lookups as Tensor | Module; nn.GRU's weights are Parameters
         weight_ih, bias_ih = cast(Tensor, gru.weight_ih_l0), cast(Tensor, gru.bias_ih_l0)
         weight_hh, bias_hh = cast(Tensor, gru.weight_hh_l0), cast(Tensor, gru.bias_hh_l0)

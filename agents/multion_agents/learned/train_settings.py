@@ -193,6 +193,16 @@ class Args:
             group=BEYOND_PAPER,
         ),
     )
+    separate_critic: bool = setting(
+        False,
+        cli=Option(
+            "the critic reads its own GRU over the same inputs, detached, so the value loss "
+            "no longer trains the encoder or the actor's GRU (separate networks avoid "
+            "interference: Cobbe et al. 2021, Phasic Policy Gradient); dropped at evaluation",
+            toggle=True,
+            group=BEYOND_PAPER,
+        ),
+    )
     goal_head_coef: float = setting(
         0.25,
         low=0,

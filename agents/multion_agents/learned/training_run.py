@@ -473,6 +473,7 @@ def _prepare(
         args.goal_heads,
         args.found_head > 0,
         args.pose_input,
+        args.separate_critic,
     ).to(device)
     if args.balanced_recognition:
         if not isinstance(policy.memory, ObjRecogMap):
