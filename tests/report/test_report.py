@@ -379,3 +379,20 @@ def test_checkpoints_of_differently_named_training_runs_are_not_paired_by_camera
         ("x-128", "128² (gl)"),
         ("x-128 − x-36", "128² (gl) − 36² (tiny) (paired)"),
     ]
+
+
+def test_runs_of_one_name_in_two_directories_are_told_apart_by_their_parents(
+    report_runs: Path, tmp_path: Path
+) -> None:
+    # a recipe's comparison beside the paper's: both directories hold a run called `rof`
+    runs = [
+        copy_run(report_runs / "random-oracle-found-2on", tmp_path / parent / "rof")
+        for parent in ("central", "central-learn-to-see")
+    ]
+    out = tmp_path / "out"
+    assert report([*map(str, runs), "--out", str(out)]) == 0
+    labels = [r["agent"] for r in read_csv(out / "table3.csv")]
+    assert sorted(labels) == [
+        "random-oracle-found [central-learn-to-see/rof]",
+        "random-oracle-found [central/rof]",
+    ]

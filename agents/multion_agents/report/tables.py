@@ -49,7 +49,8 @@ class Table:
 # ---------------------------------------------------------------------- labels and order
 def run_labels(runs: Sequence[Run]) -> list[str]:
     """A row label per run: the agent, plus each condition in which the run differs from most
-    runs (e.g. ``random (found budget 3)``), plus the directory name if still not unique."""
+    runs (e.g. ``random (found budget 3)``), plus the directory name if still not unique, with
+    as many of its parents as it takes (``central/oracle-map``, ``central-x/oracle-map``)."""
     usual = _usual_conditions(runs)
     labels = []
     for run in runs:
@@ -61,9 +62,19 @@ def run_labels(runs: Sequence[Run]) -> list[str]:
         labels.append(run.agent_label + (f" ({'; '.join(differing)})" if differing else ""))
     clashes = Counter((label, run.num_goals) for label, run in zip(labels, runs, strict=True))
     return [
-        f"{label} [{run.name}]" if clashes[(label, run.num_goals)] > 1 else label
+        f"{label} [{_directory(run, runs)}]" if clashes[(label, run.num_goals)] > 1 else label
         for label, run in zip(labels, runs, strict=True)
     ]
+
+
+def _directory(run: Run, runs: Sequence[Run]) -> str:
+    """The run's directory name, with its parents until no other run's ends the same way."""
+    parts = run.path.parts
+    for depth in range(1, len(parts) + 1):
+        tail = parts[-depth:]
+        if not any(other.path.parts[-depth:] == tail for other in runs if other is not run):
+            break
+    return "/".join(tail)
 
 
 def _usual_conditions(runs: Sequence[Run]) -> dict[int, dict[str, str]]:
