@@ -165,6 +165,7 @@ pilot "$agent-found-head-pose" --found-head 1 --curriculum "$found_frames:4" \
 # policy's, and weighting it a fifth (`policy-share`) changed nothing; separate networks avoid
 # that interference (Cobbe et al. 2021, Phasic Policy Gradient, abstract). The learn-to-see
 # options with the critic reading its own GRU over the same inputs, detached (--separate-critic).
+# Result: 29 % val Success, the recipe's own (paired +0 [-10, +10], docs/learned.md); not kept.
 pilot "$agent-found-head-separate-critic" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --separate-critic
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).

@@ -228,6 +228,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-explorer-imitation",
             "no-map-found-head-houses",
             "no-map-found-head-pose",
+            "no-map-found-head-separate-critic",
         ]  # fmt: skip
     )
     for line in trains:
@@ -282,6 +283,10 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
         "--goal-heads --pretrain-vision 2000 --pose-input"
     )
     assert not any("--pose-input" in by_run[r] for r in by_run if "pose" not in r)
+    assert by_run["no-map-found-head-separate-critic"].endswith(
+        "--goal-heads --pretrain-vision 2000 --separate-critic"
+    )
+    assert not any("--separate-critic" in by_run[r] for r in by_run if "critic" not in r)
     assert len(evals) == len(by_run) and all("--split val --episodes 100" in line for line in evals)
     calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
