@@ -204,10 +204,9 @@ class RecurrentPolicy(nn.Module):
             self.gps_embedding = nn.Linear(2, POSE_EMBED_DIM)
             self.compass_embedding = nn.Linear(2, POSE_EMBED_DIM)
             pose_dim = 2 * POSE_EMBED_DIM
-        self.gru = nn.GRU(self.query_dim + pose_dim + memory_dim, hidden_size)
-        self.critic_gru = (
-            nn.GRU(self.query_dim + pose_dim + memory_dim, hidden_size) if separate_critic else None
-        )
+        gru_input_dim = self.query_dim + pose_dim + memory_dim
+        self.gru = nn.GRU(gru_input_dim, hidden_size)
+        self.critic_gru = nn.GRU(gru_input_dim, hidden_size) if separate_critic else None
         self.actor = _layer(nn.Linear(hidden_size, NUM_ACTIONS), std=0.01)
         self.critic = _layer(nn.Linear(hidden_size, 1), std=1.0)
         self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
