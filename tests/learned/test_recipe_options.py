@@ -55,6 +55,16 @@ def tiny_args(tmp_path: Path, dataset: Path, **changes: Any) -> Args:
     return shared_tiny_args(tmp_path, dataset, **values)
 
 
+def assert_resumes_only_with(trained: Args, toggle: str) -> None:
+    """A run ``trained`` with the boolean option ``toggle`` on: a resume with it off is refused,
+    naming the option and both values, and a resume with the same options trains on."""
+    longer = dataclasses.replace(trained, frames=2 * trained.frames, resume=True)
+    flag = "--" + toggle.replace("_", "-")
+    with pytest.raises(CheckpointError, match=rf"{flag} True \(this run asks for False\)"):
+        train(dataclasses.replace(longer, **{toggle: False}))
+    assert train(longer)["frames"] == longer.frames
+
+
 # ---------------------------------------------------------------- goal heads: targets
 def _vector(seen: float, bearing_deg: float, metres: float) -> torch.Tensor:
     return torch.tensor([[seen, math.radians(bearing_deg), metres]])

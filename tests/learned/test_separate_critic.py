@@ -5,17 +5,16 @@ with the option it was trained with."""
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import pytest
 import torch
 from rollouts import SIZE, sample_frames
-from test_recipe_options import tiny_args
+from test_recipe_options import assert_resumes_only_with, tiny_args
 
 from multion.config.task import CameraConfig, EnvConfig
 from multion.task.spaces import build_observation_space
-from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint, load_policy
+from multion_agents.learned.checkpoint import load_checkpoint, load_policy
 from multion_agents.learned.models import MODELS
 from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy
 from multion_agents.learned.training_run import train
@@ -116,9 +115,4 @@ def test_a_separate_critic_run_acts_without_it_and_resumes_only_with_it(
     policy, _, model = load_policy(path)
     assert model == "no-map" and not policy.separate_critic
     assert torch.equal(policy.gru.weight_hh_l0, payload["model"]["gru.weight_hh_l0"])
-    longer = dataclasses.replace(args, frames=256, resume=True)
-    with pytest.raises(
-        CheckpointError, match=r"--separate-critic True \(this run asks for False\)"
-    ):
-        train(dataclasses.replace(longer, separate_critic=False))
-    assert train(longer)["frames"] == 256
+    assert_resumes_only_with(args, "separate_critic")
