@@ -12,6 +12,11 @@
 #                                                      # the learn-to-see options on a learned map
 # For AGENT=obj-recog-map every run adds --balanced-recognition, as the learn-to-see recipe does.
 #   PUBLISH=1 bash scripts/recipe_pilot.sh             # keep the runs in docs/learned/pilot
+#   IMAGE_SIZE=128 RENDERER=gl ONLY=no-map-found-head-all-128-gl bash scripts/recipe_pilot.sh
+#                                                      # a run at another image size or renderer
+# IMAGE_SIZE (default 36) and RENDERER (camera.renderer of training and evaluation; default the
+# config's, tiny) name a variant: its runs' names end in -SIZE and -RENDERER, as the central
+# comparison's variants do, so they never resume a 36² run.
 # To keep working in the tree while it runs, run it from a copy (see central_comparison.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,20 +27,30 @@ episodes=${EPISODES:-100}
 only=${ONLY:-}
 multion=${MULTION:-.venv/bin/multion}
 published=docs/learned/pilot
+image_size=${IMAGE_SIZE:-36}
+renderer=${RENDERER:-}
+variant=""
+[ "$image_size" = 36 ] || variant="-$image_size"
+[ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
+camera=()
+[ -z "$renderer" ] || camera=(--set "camera.renderer=$renderer")
 # The FOUND curriculum covers the first 40 % of the run. `all` has the reference's penalty
 # (2.5: saimwani/multiON environments.py l. 82-83); with it the agent stopped calling FOUND at
 # all, so `found` alone tries a fifth of it (FOUND_PENALTY).
 found_frames=$((frames * 2 / 5))
 found_penalty=${FOUND_PENALTY:-0.5}
-recipe=(--task 1-on --frames "$frames" --envs 8 --image-size 36 --max-steps 500
-  --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard --quiet)
-evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0)
+recipe=(--task 1-on --frames "$frames" --envs 8 --image-size "$image_size" --max-steps 500
+  --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard --quiet
+  "${camera[@]}")
+# the checkpoint gives the evaluation its image size
+evaluation=(--task 1-on --split val --episodes "$episodes" --workers 2 --seed 0 "${camera[@]}")
 
 wanted() { [ -z "$only" ] || [[ " $only " == *" $1 "* ]]; }
 
 # pilot NAME [OPTIONS...]: $out/NAME/checkpoint.pt, then $out/NAME/eval-val
 pilot() {
-  local name=$1 dir=$out/$1
+  local name=$1$variant
+  local dir=$out/$name
   shift
   wanted "$name" || return 0
   [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
@@ -81,7 +96,10 @@ pilot "$agent-found-head-vision" --found-head 1 --curriculum "$found_frames:4" \
 # gate's early mistakes do not end training episodes: 25 % val Success (docs/learned.md).
 pilot "$agent-found-head-free" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --pretrain-vision 2000 --found-curriculum "$found_frames:0"
-# The same with the goal heads and vision pretraining (29 %: the learn-to-see recipe).
+# The same with the goal heads and vision pretraining (29 %: the learn-to-see recipe). Its
+# movement policy stayed near a random walk's. At 36² a goal 2-3 m away covers a median 6 pixels
+# (63 at 128², `multion bench --only goal-pixels`), so the goal heads may have too little to
+# see: IMAGE_SIZE=128 RENDERER=gl runs it as no-map-found-head-all-128-gl.
 pilot "$agent-found-head-all" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000
 # Its train Success fell from 36 % to 4 % when the goals moved from 4 m to 10 m: the same with
