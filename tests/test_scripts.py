@@ -320,6 +320,34 @@ def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> N
         calls.unlink()
 
 
+def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -> None:
+    """IMAGE_SIZE=128 RENDERER=gl trains and evaluates under the run's name with -128-gl appended,
+    at that size with that renderer, and a 36² run of the same options is neither resumed nor
+    taken for it."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "recipe_pilot.sh", tmp_path / "scripts")
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    calls = tmp_path / "calls.txt"
+    done_36 = tmp_path / "runs" / "pilot" / "no-map-found-head-all" / "eval-val"
+    done_36.mkdir(parents=True)
+    (done_36 / "metrics.json").write_text("{}")
+    (done_36.parent / "checkpoint.pt").write_text("")
+    env = {**os.environ, "FRAMES": "1000", "CALLS": str(calls), "MULTION": f"bash {fake}",
+           "IMAGE_SIZE": "128", "RENDERER": "gl", "ONLY": "no-map-found-head-all-128-gl"}  # fmt: skip
+    done = subprocess.run(["bash", "scripts/recipe_pilot.sh"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    lines = calls.read_text().splitlines()
+    train, evaluation = (line for line in lines if line.startswith(("train", "eval")))
+    assert "--out runs/pilot/no-map-found-head-all-128-gl " in train + " "
+    assert "--image-size 128 " in train and "--image-size 36" not in train
+    assert "--set camera.renderer=gl" in train and "--resume" not in train
+    assert "--found-head 1 --curriculum 400:4 --curriculum 700:10 --goal-heads" in train
+    assert "--set camera.renderer=gl" in evaluation
+    assert "--checkpoint runs/pilot/no-map-found-head-all-128-gl/checkpoint.pt" in evaluation
+
+
 def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -> None:
     """RECIPE=learn-to-see trains every agent with the options beyond the paper at 3M frames
     (near goals over the first 200k, as in its pilot), obj-recog-map with its balanced recogniser, into
