@@ -381,6 +381,30 @@ def test_checkpoints_of_differently_named_training_runs_are_not_paired_by_camera
     ]
 
 
+def test_a_training_run_named_for_its_camera_pairs_with_the_run_it_varies(
+    report_runs: Path, tmp_path: Path
+) -> None:
+    """scripts/recipe_pilot.sh names a 128² gl variant ``NAME-128-gl``: its checkpoint pairs with
+    ``NAME``'s across cameras; a name ending in another camera's size is another run."""
+    source = report_runs / "random-oracle-found-2on"
+    runs = {
+        name: _with_camera(source, tmp_path / "runs" / name, size, renderer)
+        for name, size, renderer in (("x", 36, None), ("x-128-gl", 128, "gl"), ("x-64", 128, "gl"))
+    }
+    for name, run in runs.items():
+        payload = json.loads((run / "metrics.json").read_text())
+        payload["run"]["checkpoint"] = f"runs/{name}/checkpoint.pt"
+        (run / "metrics.json").write_text(json.dumps(payload))
+    out = tmp_path / "out"
+    assert report([*map(str, runs.values()), "--out", str(out), "--no-figures"]) == 0
+    rows = read_csv(out / "cameras.csv")
+    assert [(r["run"], r["camera"]) for r in rows] == [
+        ("x", "36² (tiny)"),
+        ("x-128-gl", "128² (gl)"),
+        ("x-128-gl − x", "128² (gl) − 36² (tiny) (paired)"),
+    ]
+
+
 def test_runs_of_one_name_in_two_directories_are_told_apart_by_their_parents(
     report_runs: Path, tmp_path: Path
 ) -> None:

@@ -94,6 +94,21 @@ class Run:
         return f"{self.agent} ({self.checkpoint})" if self.checkpoint else self.agent
 
     @property
+    def label_besides_camera(self) -> str:
+        """:attr:`agent_label` without the camera the checkpoint's run directory is named for:
+        the scripts name a variant's run ``NAME-128``, ``NAME-gl`` or ``NAME-128-gl``, and that
+        run varies ``NAME``'s camera only."""
+        if not self.checkpoint:
+            return self.agent
+        name = self.checkpoint
+        for suffix in (f"-{self.camera_width}-{self.renderer}", f"-{self.camera_width}",
+                       f"-{self.renderer}"):  # fmt: skip
+            if name.endswith(suffix):
+                name = name.removesuffix(suffix)
+                break
+        return f"{self.agent} ({name})"
+
+    @property
     def count(self) -> int:
         return len(self.episodes)
 

@@ -174,9 +174,10 @@ def cameras(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> 
     groups: dict[tuple[str, ...], list[int]] = defaultdict(list)
     for i in display_order(runs, labels, paper):
         run = runs[i]
-        # one training run's checkpoint name at each size: another recipe (pretraining) is
-        # another agent here
-        group = (run.agent_label, str(run.num_goals), *run.conditions_besides_camera().values())
+        # one training run's checkpoint name at each size, less the camera it is named for:
+        # another recipe (pretraining) is another agent here
+        group = (run.label_besides_camera, str(run.num_goals),
+                 *run.conditions_besides_camera().values())  # fmt: skip
         groups[group].append(i)
     names = [name for _, name in HEADLINE]
     table = Table(
