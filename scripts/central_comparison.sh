@@ -39,7 +39,9 @@
 # 350k, as in the pilot (its train Success at 4 m levelled off within 100k frames, so the rest
 # of the 3M trains on the task's goals); and the balanced recogniser for obj-recog-map; 3M
 # frames by default; a recipe other than the paper's is a variant of its own
-# (runs/central-learn-to-see, docs/learned/central-learn-to-see).
+# (runs/central-learn-to-see, docs/learned/central-learn-to-see). At 128² with gl its pilot
+# reached 40 % (its FOUND head sees the goal there; docs/learned.md), so it also runs as
+#   RECIPE=learn-to-see FRAMES=720000 IMAGE_SIZE=128 RENDERER=gl ...  # runs/central-128-gl-learn-to-see-720k
 set -euo pipefail
 cd "$(dirname "$0")/.."
 recipe_name=${RECIPE:-paper}
