@@ -306,11 +306,16 @@ def test_the_recorded_command_names_paths_from_the_working_directory(
     assert str(tmp_path) not in text
 
 
-def _with_camera(source: Path, target: Path, size: int, renderer: str | None) -> Path:
+def _with_camera(
+    source: Path, target: Path, size: int, renderer: str | None, trained: str | None = None
+) -> Path:
     """A copy of a run as if it had been played at ``size``² with ``renderer`` (as `multion
-    eval` records it: the resolved camera, and the renderer among the overrides when set)."""
+    eval` records it: the resolved camera, and the renderer among the overrides when set), by
+    the checkpoint of training run ``trained`` when given."""
     run = copy_run(source, target)
     payload = json.loads((run / "metrics.json").read_text())
+    if trained is not None:
+        payload["run"]["checkpoint"] = f"runs/{trained}/checkpoint.pt"
     camera = payload["run"]["resolved_config"]["camera"]
     camera.update(width=size, height=size, renderer=renderer or "tiny")
     if renderer is not None:
@@ -319,6 +324,12 @@ def _with_camera(source: Path, target: Path, size: int, renderer: str | None) ->
         )
     (run / "metrics.json").write_text(json.dumps(payload))
     return run
+
+
+def _camera_rows(runs: list[Path], out: Path) -> list[tuple[str, str]]:
+    """The report's camera table over ``runs``: (run, camera) of each row."""
+    assert report([*map(str, runs), "--out", str(out), "--no-figures"]) == 0
+    return [(r["run"], r["camera"]) for r in read_csv(out / "cameras.csv")]
 
 
 def test_runs_differing_only_in_the_camera_are_paired_by_camera(
@@ -360,21 +371,14 @@ def test_checkpoints_of_differently_named_training_runs_are_not_paired_by_camera
     """A 36² run of another recipe (``oracle-map-pretrained`` beside ``oracle-map``) is another
     agent: only the training runs of one name are compared across cameras."""
     source = report_runs / "random-oracle-found-2on"
-    runs = {
-        name: _with_camera(source, tmp_path / "runs" / name, size, renderer)
-        for name, size, renderer in (
-            ("x-36", 36, None), ("x-128", 128, "gl"), ("x-pretrained-36", 36, None),
+    runs = [
+        _with_camera(source, tmp_path / "runs" / name, size, renderer, trained)
+        for name, size, renderer, trained in (
+            ("x-36", 36, None, "x"), ("x-128", 128, "gl", "x"),
+            ("x-pretrained-36", 36, None, "x-pretrained"),
         )
-    }  # fmt: skip
-    for name, run in runs.items():
-        payload = json.loads((run / "metrics.json").read_text())
-        trained = "x-pretrained" if "pretrained" in name else "x"
-        payload["run"]["checkpoint"] = f"runs/{trained}/checkpoint.pt"
-        (run / "metrics.json").write_text(json.dumps(payload))
-    out = tmp_path / "out"
-    assert report([*map(str, runs.values()), "--out", str(out), "--no-figures"]) == 0
-    rows = read_csv(out / "cameras.csv")
-    assert [(r["run"], r["camera"]) for r in rows] == [
+    ]  # fmt: skip
+    assert _camera_rows(runs, tmp_path / "out") == [
         ("x-36", "36² (tiny)"),
         ("x-128", "128² (gl)"),
         ("x-128 − x-36", "128² (gl) − 36² (tiny) (paired)"),
@@ -387,18 +391,11 @@ def test_a_training_run_named_for_its_camera_pairs_with_the_run_it_varies(
     """scripts/recipe_pilot.sh names a 128² gl variant ``NAME-128-gl``: its checkpoint pairs with
     ``NAME``'s across cameras; a name ending in another camera's size is another run."""
     source = report_runs / "random-oracle-found-2on"
-    runs = {
-        name: _with_camera(source, tmp_path / "runs" / name, size, renderer)
+    runs = [
+        _with_camera(source, tmp_path / "runs" / name, size, renderer, trained=name)
         for name, size, renderer in (("x", 36, None), ("x-128-gl", 128, "gl"), ("x-64", 128, "gl"))
-    }
-    for name, run in runs.items():
-        payload = json.loads((run / "metrics.json").read_text())
-        payload["run"]["checkpoint"] = f"runs/{name}/checkpoint.pt"
-        (run / "metrics.json").write_text(json.dumps(payload))
-    out = tmp_path / "out"
-    assert report([*map(str, runs.values()), "--out", str(out), "--no-figures"]) == 0
-    rows = read_csv(out / "cameras.csv")
-    assert [(r["run"], r["camera"]) for r in rows] == [
+    ]
+    assert _camera_rows(runs, tmp_path / "out") == [
         ("x", "36² (tiny)"),
         ("x-128-gl", "128² (gl)"),
         ("x-128-gl − x", "128² (gl) − 36² (tiny) (paired)"),
