@@ -24,6 +24,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from multion.config.sim import RENDERERS
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("checkpoint", help="a training checkpoint (checkpoint.pt)")
@@ -60,6 +62,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--probe-steps", type=int, default=1000, help="probe training steps (default %(default)s)"
     )
+    parser.add_argument(
+        "--renderer",
+        choices=RENDERERS,
+        help="camera.renderer of the played and probed frames (default the config's; a checkpoint "
+        "trained with gl at 128² plays fastest with gl, as `multion eval --set camera.renderer=gl`)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="frames and sampled actions' seed")
     parser.add_argument("--out", help="also write DIR/diagnosis.json")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -68,6 +76,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from multion.common.files import write_atomically
     from multion.config.errors import UsageError
+    from multion_agents.agent import merge_overrides
     from multion_agents.learned.checkpoint import load_policy
     from multion_agents.learned.diagnose import (
         diagnosis_config,
@@ -99,9 +108,14 @@ def run(args: argparse.Namespace) -> int:
         policy, overrides, model = load_policy(args.checkpoint)
     except UsageError as error:
         return _fail(str(error))
+    if args.renderer is not None:  # the machine's choice, as in `multion eval`
+        overrides = merge_overrides(overrides, {"camera": {"renderer": args.renderer}})
     config = diagnosis_config(overrides, policy.sensors)
     result: dict[str, Any] = {"checkpoint": str(args.checkpoint), "model": model}
-    print(f"multion diagnose {args.checkpoint}: {model}, 1-ON, {config.camera.width}² camera")
+    print(
+        f"multion diagnose {args.checkpoint}: {model}, 1-ON, {config.camera.width}² camera "
+        f"({config.camera.renderer})"
+    )
     if policy.image_encoder is not None and not args.no_probe:
         train, held_out = view_frames(config, settings, progress)
         probe = probe_scores(policy, train, held_out, settings)

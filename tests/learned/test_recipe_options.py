@@ -373,6 +373,11 @@ def test_diagnose_scores_seeing_and_found_calls_of_a_checkpoint(
     calls = result["found_calls"]
     assert sum(calls["endings"].values()) == 2
     assert calls["near_steps"] + calls["far_steps"] > 0
+    assert "camera (tiny)" in printed  # the config's renderer: the checkpoint's is not kept
+    # the machine's renderer (auto: gl where a context opens, else tiny), as in `multion eval`
+    code = main(["diagnose", checkpoint, "--episodes", "1", "--no-probe", "--renderer", "auto",
+                 "--quiet"])  # fmt: skip
+    assert code == 0 and "camera (auto)" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(
@@ -388,6 +393,17 @@ def test_diagnose_names_a_bad_option_or_file(
 
     assert main(["diagnose", str(tmp_path / "missing.pt"), *flags]) == 2
     assert re.search(message, capsys.readouterr().err)
+
+
+def test_diagnose_names_the_renderers_it_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from multion_agents.cli import main
+
+    with pytest.raises(SystemExit) as exited:
+        main(["diagnose", str(tmp_path / "missing.pt"), "--renderer", "vulkan"])
+    assert exited.value.code == 2
+    assert re.search(r"invalid choice: 'vulkan' \(choose from .*'tiny'", capsys.readouterr().err)
 
 
 # ---------------------------------------------------------------- balanced recognition
