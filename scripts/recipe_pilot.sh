@@ -100,7 +100,7 @@ pilot "$agent-found-head-free" --found-head 1 --curriculum "$found_frames:4" \
 # movement policy stayed near a random walk's. At 36² a goal 2-3 m away covers a median 6 pixels
 # (63 at 128², `multion bench --only goal-pixels`), so the goal heads may have too little to
 # see: IMAGE_SIZE=128 RENDERER=gl runs it as no-map-found-head-all-128-gl. Result: 40 % val
-# Success, every episode that came within reach won (29 of 40 at 36²), no more of them reached
+# Success, every episode that came within reach won (25 of 40 at 36²), no more of them reached
 # (docs/learned.md, "At 128²: the FOUND head sees").
 pilot "$agent-found-head-all" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000
