@@ -19,7 +19,8 @@
 # IMAGE_SIZE (default 36) and RENDERER (camera.renderer of training and evaluation; default the
 # config's, tiny) make a variant with its own OUT (runs/central-128-gl above) and its own
 # published runs (docs/learned/central-128-gl): the 36² runs are never restored into it. Its
-# report also reads the published 36² runs (paired intervals, 128² against 36²), and PUBLISH=1
+# report also reads the published 36² runs (paired intervals, 128² against 36²; a recipe at 128²
+# also the 128² paper-recipe runs and its own 36² runs), and PUBLISH=1
 # keeps its runs and writes that report to docs/learned/central-128-gl/report, leaving
 # docs/learned.md's tables to the 36² runs.
 # Stages, in this order by default: core (oracle-map, no-map, oracle-ego-map,
@@ -60,6 +61,7 @@ renderer=${RENDERER:-}
 variant=""
 [ "$image_size" = 36 ] || variant="-$image_size"
 [ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
+camera_variant=$variant
 [ "$recipe_name" = paper ] || variant="$variant-$recipe_name"
 # a recipe beyond the paper's at other than its 3M frames (FRAMES=720000: the paper recipe's
 # budget, for paired runs at equal frames) is a variant of its own too: -720k, -1M, -1500000
@@ -69,6 +71,7 @@ if [ "$recipe_name" != paper ] && [ "$frames" != 3000000 ]; then
   else variant="$variant-$frames"; fi
 fi
 published=docs/learned/central$variant
+recipe_variant=${variant#"$camera_variant"}
 out=${OUT:-runs/central$variant}
 episodes=${EPISODES:-100}
 stages=${STAGES:-core shapes pretrain learned}
@@ -136,8 +139,18 @@ for stage in $stages; do
   esac
 done
 mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' | sort)
-reference=()  # a variant is reported beside the published 36² runs
-if [ -n "$variant" ] && [ -d docs/learned/central ]; then reference=(docs/learned/central); fi
+# a variant is reported beside the published runs it varies: the 36² paper-recipe runs, and
+# for a recipe at another camera those of its camera with the paper's recipe and those of its
+# recipe at 36² (paired by name across cameras, by episode within one)
+reference=()
+if [ -n "$variant" ]; then
+  for kept in docs/learned/central docs/learned/central$camera_variant \
+      docs/learned/central$recipe_variant; do
+    if [ "$kept" != "$published" ] && [ -d "$kept" ] && [[ " ${reference[*]} " != *" $kept "* ]]; then
+      reference+=("$kept")
+    fi
+  done
+fi
 $multion report "${runs[@]}" "${reference[@]}" --out "$out/report"
 # PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv)
 # in $published/NAME and regenerate the tables at the head of docs/learned.md (a variant: its

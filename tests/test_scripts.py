@@ -373,6 +373,21 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
     (train,) = [c for c in calls if c.startswith("train ")]
     assert "--frames 720000 " in train and "--out runs/central-learn-to-see-720k/no-map" in train
     assert "--found-head 1 --goal-heads" in train
+    # at 128² with gl: reported beside the 36² paper runs, the 128² paper runs and the recipe's
+    # 36² runs, where they are published, and not beside itself
+    for kept in ("central-128-gl", "central-learn-to-see-720k", "central-128-gl-learn-to-see-720k"):
+        (tmp_path / "docs" / "learned" / kept).mkdir()
+    camera = {"IMAGE_SIZE": "128", "RENDERER": "gl"}
+    _, calls = _central_calls(
+        tmp_path, {**variables, **camera, "FRAMES": "720000", "ONLY": "no-map"}
+    )
+    (train,) = [c for c in calls if c.startswith("train ")]
+    assert "--out runs/central-128-gl-learn-to-see-720k/no-map " in train
+    report = next(c for c in calls if c.startswith("report "))
+    assert report.split(" --out ")[0].split()[-3:] == [
+        "docs/learned/central", "docs/learned/central-128-gl",
+        "docs/learned/central-learn-to-see-720k",
+    ]  # fmt: skip
     paper = subprocess.run(["bash", "scripts/central_comparison.sh"], cwd=tmp_path,
                            env={**os.environ, "RECIPE": "mine"}, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
