@@ -55,13 +55,9 @@ case $recipe_name in
       --curriculum 200000:4 --curriculum 350000:10) ;;
   *) echo "unknown RECIPE $recipe_name (paper, learn-to-see)" >&2; exit 2 ;;
 esac
-image_size=${IMAGE_SIZE:-36}
-renderer=${RENDERER:-}
+source scripts/camera_variant.sh  # image_size, renderer, camera_variant, camera
 # the published 36² runs are the comparison's reference; any other size or renderer is a variant
-variant=""
-[ "$image_size" = 36 ] || variant="-$image_size"
-[ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
-camera_variant=$variant
+variant=$camera_variant
 [ "$recipe_name" = paper ] || variant="$variant-$recipe_name"
 # a recipe beyond the paper's at other than its 3M frames (FRAMES=720000: the paper recipe's
 # budget, for paired runs at equal frames) is a variant of its own too: -720k, -1M, -1500000
@@ -77,8 +73,6 @@ episodes=${EPISODES:-100}
 stages=${STAGES:-core shapes pretrain learned}
 only=${ONLY:-}  # run names; empty: every run of the stages
 multion=${MULTION:-.venv/bin/multion}
-camera=()
-[ -z "$renderer" ] || camera=(--set "camera.renderer=$renderer")
 recipe=(--task 1-on --frames "$frames" --envs 8 --image-size "$image_size" --max-steps 500
   --episodes-per-scene 200 --set task.slack_reward=0 --found-prior 0.02 --no-tensorboard
   "${camera[@]}")

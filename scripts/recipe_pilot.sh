@@ -27,13 +27,7 @@ episodes=${EPISODES:-100}
 only=${ONLY:-}
 multion=${MULTION:-.venv/bin/multion}
 published=docs/learned/pilot
-image_size=${IMAGE_SIZE:-36}
-renderer=${RENDERER:-}
-variant=""
-[ "$image_size" = 36 ] || variant="-$image_size"
-[ -z "$renderer" ] || [ "$renderer" = tiny ] || variant="$variant-$renderer"
-camera=()
-[ -z "$renderer" ] || camera=(--set "camera.renderer=$renderer")
+source scripts/camera_variant.sh  # image_size, renderer, camera_variant, camera
 # The FOUND curriculum covers the first 40 % of the run. `all` has the reference's penalty
 # (2.5: saimwani/multiON environments.py l. 82-83); with it the agent stopped calling FOUND at
 # all, so `found` alone tries a fifth of it (FOUND_PENALTY).
@@ -49,7 +43,7 @@ wanted() { [ -z "$only" ] || [[ " $only " == *" $1 "* ]]; }
 
 # pilot NAME [OPTIONS...]: $out/NAME/checkpoint.pt, then $out/NAME/eval-val
 pilot() {
-  local name=$1$variant
+  local name=$1$camera_variant
   local dir=$out/$name
   shift
   wanted "$name" || return 0

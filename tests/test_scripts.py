@@ -46,8 +46,7 @@ def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
     a copy of the repository's layout: it trains and evaluates the core agents, a second run
     skips what is done, PUBLISH=1 keeps the runs and regenerates the doc's tables, and a run
     into an empty OUT (a fresh clone) restores the published runs instead of training again."""
-    (tmp_path / "scripts").mkdir()
-    shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
+    _copy_script(tmp_path, "central_comparison.sh")
     doc = tmp_path / "docs" / "learned.md"
     doc.parent.mkdir()
     doc.write_text(f"# Learned\n\n{BEGIN}\n{END}\n")
@@ -94,6 +93,13 @@ def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
 
 # A stand-in for the `multion` command: it records each call and writes the files the script
 # looks for, so the script's choices are checked in seconds, without training anything.
+def _copy_script(tmp_path: Path, name: str) -> None:
+    """scripts/NAME into tmp_path/scripts, with the file it sources."""
+    (tmp_path / "scripts").mkdir(exist_ok=True)
+    for script in (name, "camera_variant.sh"):
+        shutil.copy(ROOT / "scripts" / script, tmp_path / "scripts")
+
+
 FAKE_MULTION = """#!/usr/bin/env bash
 echo "$*" >> "$CALLS"
 out=""
@@ -151,8 +157,7 @@ def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None
     """IMAGE_SIZE=128 RENDERER=gl (issue 44 item 3) trains and evaluates at that size with that
     renderer into runs/central-128-gl, never restores the published 36² runs into it, and reports
     beside them; without the variables the 36² recipe is unchanged."""
-    (tmp_path / "scripts").mkdir()
-    shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
+    _copy_script(tmp_path, "central_comparison.sh")
     published = tmp_path / "docs" / "learned" / "central" / "oracle-map"
     published.mkdir(parents=True)
     for name in ("metrics.json", "episodes.jsonl"):
@@ -191,8 +196,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     """scripts/recipe_pilot.sh (issue 51) with the stand-in command: nine no-map runs at the
     central comparison's recipe, the FOUND curriculum over the first 40 % of the frames, each
     then evaluated; run again, it skips what is done."""
-    (tmp_path / "scripts").mkdir()
-    shutil.copy(ROOT / "scripts" / "recipe_pilot.sh", tmp_path / "scripts")
+    _copy_script(tmp_path, "recipe_pilot.sh")
     fake = tmp_path / "fake_multion.sh"
     fake.write_text(FAKE_MULTION)
     calls = tmp_path / "calls.txt"
@@ -299,8 +303,7 @@ def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> N
     """AGENT=proj-neural-map (or obj-recog-map) with ONLY trains and evaluates that agent with the
     run's options under its own name; obj-recog-map's runs add its balanced recogniser, as the
     learn-to-see recipe of the central comparison does, and no other agent's do."""
-    (tmp_path / "scripts").mkdir()
-    shutil.copy(ROOT / "scripts" / "recipe_pilot.sh", tmp_path / "scripts")
+    _copy_script(tmp_path, "recipe_pilot.sh")
     fake = tmp_path / "fake_multion.sh"
     fake.write_text(FAKE_MULTION)
     calls = tmp_path / "calls.txt"
@@ -324,8 +327,7 @@ def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -
     """IMAGE_SIZE=128 RENDERER=gl trains and evaluates under the run's name with -128-gl appended,
     at that size with that renderer, and a 36² run of the same options is neither resumed nor
     taken for it."""
-    (tmp_path / "scripts").mkdir()
-    shutil.copy(ROOT / "scripts" / "recipe_pilot.sh", tmp_path / "scripts")
+    _copy_script(tmp_path, "recipe_pilot.sh")
     fake = tmp_path / "fake_multion.sh"
     fake.write_text(FAKE_MULTION)
     calls = tmp_path / "calls.txt"
@@ -353,8 +355,7 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
     (near goals over the first 200k, as in its pilot), obj-recog-map with its balanced recogniser, into
     runs/central-learn-to-see, reported beside the paper's published runs; an unknown recipe is
     refused."""
-    (tmp_path / "scripts").mkdir()
-    shutil.copy(ROOT / "scripts" / "central_comparison.sh", tmp_path / "scripts")
+    _copy_script(tmp_path, "central_comparison.sh")
     (tmp_path / "docs" / "learned" / "central").mkdir(parents=True)
     variables = {"RECIPE": "learn-to-see", "STAGES": "core learned", "FRAMES": ""}
     _, calls = _central_calls(tmp_path, variables)
