@@ -21,6 +21,7 @@ from multion.common.files import replacing, write_atomically
 from multion.config.errors import UsageError
 from multion_agents.report.distances import by_distance
 from multion_agents.report.movement import movement
+from multion_agents.report.pairs import requested_pairs
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
 from multion_agents.report.search import search_coverage
@@ -82,8 +83,11 @@ def table_csv(table: Table) -> str:
     return buffer.getvalue()
 
 
-def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
-    """Every table the runs allow, in the report's order."""
+def all_tables(
+    runs: Sequence[Run], paper: PaperResults, pairs: Sequence[tuple[int, int]] = ()
+) -> list[Table]:
+    """Every table the runs allow, in the report's order; ``pairs`` (indices into ``runs``) are
+    compared whatever their conditions (:mod:`~multion_agents.report.pairs`)."""
     labels = run_labels(runs)
     built = [
         table3(runs, labels, paper),
@@ -95,6 +99,7 @@ def all_tables(runs: Sequence[Run], paper: PaperResults) -> list[Table]:
         search_coverage(runs, labels, paper),
         movement(runs, labels, paper),
         paired(runs, labels, paper),
+        requested_pairs(runs, labels, pairs),
         run_list(runs, labels, paper),
     ]
     return [table for table in built if table is not None]
@@ -106,10 +111,11 @@ def write_report(
     layout: Layout,
     command: str,
     figures: bool = True,
+    pairs: Sequence[tuple[int, int]] = (),
 ) -> list[Path]:
     """Compute every table (and figure), then write them; returns the files written."""
     # everything that can fail on bad input fails before the first file is written
-    tables = all_tables(runs, paper)
+    tables = all_tables(runs, paper, pairs)
     if layout.heading != "##":
         replace_generated(layout.markdown, "")
     layout.assets.mkdir(parents=True, exist_ok=True)

@@ -376,36 +376,7 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
     for members in groups.values():
         for position, i in enumerate(members):
             for j in members[position + 1 :]:
-                a, b = runs[i], runs[j]
-                paired = paired_headline(a, b)
-                if paired is None:
-                    table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
-                    continue
-                common, differences = paired
-                note = seeding_note(a, b)
-                if note is not None:
-                    table.notes.append(note)
-                table.rows.append(
-                    [
-                        labels[i],
-                        labels[j],
-                        task_label(a),
-                        str(common),
-                        *(signed(differences[key]) for key, _ in HEADLINE),
-                    ]
-                )
-                record: dict[str, Any] = {
-                    "a": labels[i],
-                    "b": labels[j],
-                    "task": task_name(a.num_goals),
-                    "run_a": a.name,
-                    "run_b": b.name,
-                    "common_episodes": common,
-                    "seeded_alike": note is None,
-                }
-                for key, _ in HEADLINE:
-                    record.update(estimate_record(differences[key], f"diff_{key}"))
-                table.records.append(record)
+                add_pair(table, runs, labels, i, j)
     if not table.rows:
         return None
     table.notes[:0] = [
@@ -418,6 +389,52 @@ def paired(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> T
         "(`seeded_alike` in the CSV)."
     ]
     return table
+
+
+def add_pair(
+    table: Table,
+    runs: Sequence[Run],
+    labels: Sequence[str],
+    i: int,
+    j: int,
+    between: dict[str, str] | None = None,
+) -> None:
+    """A row of ``runs[i]`` − ``runs[j]`` on the episodes both played, or a note that they share
+    none; a note too where their agents were seeded differently. ``between``: more cells after
+    A and B, by CSV field."""
+    between = between or {}
+    a, b = runs[i], runs[j]
+    compared = paired_headline(a, b)
+    if compared is None:
+        table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
+        return
+    common, differences = compared
+    note = seeding_note(a, b)
+    if note is not None:
+        table.notes.append(note)
+    table.rows.append(
+        [
+            labels[i],
+            labels[j],
+            *between.values(),
+            task_label(a),
+            str(common),
+            *(signed(differences[key]) for key, _ in HEADLINE),
+        ]
+    )
+    record: dict[str, Any] = {
+        "a": labels[i],
+        "b": labels[j],
+        **between,
+        "task": task_name(a.num_goals),
+        "run_a": a.name,
+        "run_b": b.name,
+        "common_episodes": common,
+        "seeded_alike": note is None,
+    }
+    for key, _ in HEADLINE:
+        record.update(estimate_record(differences[key], f"diff_{key}"))
+    table.records.append(record)
 
 
 # ---------------------------------------------------------------------- the runs themselves
