@@ -393,3 +393,37 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
                            env={**os.environ, "RECIPE": "mine"}, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
     assert paper.returncode == 2 and "unknown RECIPE mine (paper, learn-to-see)" in paper.stderr
+
+
+def test_the_found_gate_sweep_plays_each_gate_on_train_houses_once(tmp_path: Path) -> None:
+    """scripts/found_gate_sweep.sh makes a train-split dataset, plays the checkpoint at each gate
+    on it (never on val) with the renderer given, reports the gates side by side, and skips a
+    gate already played when run again."""
+    _copy_script(tmp_path, "found_gate_sweep.sh")
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    calls = tmp_path / "calls.txt"
+    env = {**os.environ, "CALLS": str(calls), "MULTION": f"bash {fake}", "AGENT": "no-map",
+           "CHECKPOINT": "runs/x/checkpoint.pt", "RENDERER": "gl", "GATES": "0.5 0.8",
+           "EPISODES": "7"}  # fmt: skip
+    script = ["bash", "scripts/found_gate_sweep.sh"]
+    done = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    generate, *evaluations, report = calls.read_text().splitlines()
+    assert generate.startswith("dataset generate --task 1-on --split train --episodes 7 --seed 51")
+    assert [line.split("--found-gate ")[1].split()[0] for line in evaluations] == ["0.5", "0.8"]
+    for line in evaluations:
+        assert "--split train --dataset runs/gate/train-1on-7.json.gz" in line
+        assert "--checkpoint runs/x/checkpoint.pt" in line and "--set camera.renderer=gl" in line
+        assert "--split val" not in line
+    assert report.startswith(
+        "report runs/gate/x/gate-0.5 runs/gate/x/gate-0.8 --out runs/gate/x/report"
+    )
+    calls.unlink()
+    again = subprocess.run(script, cwd=tmp_path, env={**env, "GATES": "0.5 0.8 0.9"},
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "done: gate 0.5" in again.stdout
+    (evaluation,) = (line for line in calls.read_text().splitlines() if line.startswith("eval"))
+    assert "--found-gate 0.9" in evaluation
