@@ -141,6 +141,19 @@ def paired_headline(a: Run, b: Run) -> tuple[int, dict[str, Estimate]] | None:
     return len(common), differences
 
 
+def noted_pair(table: Table, a: Run, b: Run) -> tuple[int, dict[str, Estimate], str | None] | None:
+    """:func:`paired_headline` of ``a`` − ``b`` and its :func:`seeding_note`, that note added to
+    ``table``'s; None, with a note saying so, when they share no episodes."""
+    compared = paired_headline(a, b)
+    if compared is None:
+        table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
+        return None
+    note = seeding_note(a, b)
+    if note is not None:
+        table.notes.append(note)
+    return (*compared, note)
+
+
 def seeding_note(a: Run, b: Run) -> str | None:
     """A note when the agents of ``a`` and ``b`` drew from different seeds on an episode both
     played (:func:`~multion_agents.report.runs.seeding_difference`), None otherwise."""
@@ -404,14 +417,10 @@ def add_pair(
     A and B, by CSV field."""
     between = between or {}
     a, b = runs[i], runs[j]
-    compared = paired_headline(a, b)
+    compared = noted_pair(table, a, b)
     if compared is None:
-        table.notes.append(f"{a.name} and {b.name} share no episodes: not compared.")
         return
-    common, differences = compared
-    note = seeding_note(a, b)
-    if note is not None:
-        table.notes.append(note)
+    common, differences, note = compared
     table.rows.append(
         [
             labels[i],

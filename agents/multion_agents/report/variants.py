@@ -18,9 +18,8 @@ from multion_agents.report.tables import (
     display_order,
     estimate_record,
     headline_cells,
-    paired_headline,
+    noted_pair,
     percent,
-    seeding_note,
     signed,
     task_label,
 )
@@ -227,14 +226,10 @@ def _difference_row(
 ) -> None:
     """The row ``name`` of ``later − earlier`` on their common episodes (95% paired bootstrap
     intervals), its record naming the pair under ``column``, with the cells ``after`` last."""
-    paired = paired_headline(later, earlier)
-    if paired is None:
-        table.notes.append(f"{later.name} and {earlier.name} share no episodes: not compared.")
+    compared = noted_pair(table, later, earlier)
+    if compared is None:
         return
-    common, differences = paired
-    note = seeding_note(later, earlier)
-    if note is not None:
-        table.notes.append(note)
+    common, differences, _ = compared
     cells = [signed(differences[key]) for key, _ in HEADLINE]
     table.rows.append(["", task_label(later), name, str(common), *cells, *after])
     record: dict[str, Any] = {"agent": later.agent, "task": task_name(later.num_goals)}
