@@ -56,6 +56,7 @@ case $recipe_name in
   *) echo "unknown RECIPE $recipe_name (paper, learn-to-see)" >&2; exit 2 ;;
 esac
 source scripts/camera_variant.sh  # image_size, renderer, camera_variant, camera
+source scripts/publish_run.sh     # publish_run
 # the published 36² runs are the comparison's reference; any other size or renderer is a variant
 variant=$camera_variant
 [ "$recipe_name" = paper ] || variant="$variant-$recipe_name"
@@ -146,15 +147,12 @@ if [ -n "$variant" ]; then
   done
 fi
 $multion report "${runs[@]}" "${reference[@]}" --out "$out/report"
-# PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv)
-# in $published/NAME and regenerate the tables at the head of docs/learned.md (a variant: its
+# PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv
+# and pretrain_vision.csv: scripts/publish_run.sh) in $published/NAME and regenerate the tables at the head of docs/learned.md (a variant: its
 # report beside the 36² runs in $published/report)
 if [ "${PUBLISH:-0}" = 1 ]; then
   for run in "${runs[@]}"; do
-    name=$(basename "$(dirname "$run")") kept=$published/$name
-    mkdir -p "$kept"
-    cp "$run/metrics.json" "$run/episodes.jsonl" "$kept/"
-    if [ -f "$run/../progress.csv" ]; then cp "$run/../progress.csv" "$kept/"; fi
+    publish_run "$run" "$published/$(basename "$(dirname "$run")")"
   done
   if [ -z "$variant" ]; then
     $multion report "$published" --out docs --doc learned

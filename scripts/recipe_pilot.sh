@@ -28,6 +28,7 @@ only=${ONLY:-}
 multion=${MULTION:-.venv/bin/multion}
 published=docs/learned/pilot
 source scripts/camera_variant.sh  # image_size, renderer, camera_variant, camera
+source scripts/publish_run.sh     # publish_run
 # The FOUND curriculum covers the first 40 % of the run. `all` has the reference's penalty
 # (2.5: saimwani/multiON environments.py l. 82-83); with it the agent stopped calling FOUND at
 # all, so `found` alone tries a fifth of it (FOUND_PENALTY).
@@ -190,12 +191,7 @@ mapfile -t runs < <(find "$out" -path '*/eval-val/metrics.json' -printf '%h\n' |
 [ "${#runs[@]}" -gt 0 ] && $multion report "${runs[@]}" --out "$out/report"
 if [ "${PUBLISH:-0}" = 1 ]; then
   for run in "${runs[@]}"; do
-    name=$(basename "$(dirname "$run")") kept=$published/$name
-    mkdir -p "$kept"
-    cp "$run/metrics.json" "$run/episodes.jsonl" "$kept/"
-    for log in progress.csv pretrain_vision.csv; do
-      if [ -f "$run/../$log" ]; then cp "$run/../$log" "$kept/"; fi
-    done
+    publish_run "$run" "$published/$(basename "$(dirname "$run")")"
   done
   mapfile -t kept_runs < <(find "$published" -name metrics.json -printf '%h\n' | sort)
   $multion report "${kept_runs[@]}" --out "$published/report"

@@ -3,6 +3,7 @@ an absolute path broke the README's first command on every fresh clone)."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -54,4 +55,47 @@ def test_the_check_finds_absolute_and_escaping_links_and_keeps_inner_ones(tmp_pa
     assert sorted(leaving_links(tmp_path)) == [
         "runs -> /somewhere/on/one/machine/runs",
         "up -> ../outside",
+    ]
+
+
+def absolute_checkpoints(root: Path) -> list[str]:
+    """Published evaluation runs (``metrics.json`` under ``docs/``) whose checkpoint is recorded
+    by an absolute path: a path of the machine that made them."""
+    return [
+        f"{path.relative_to(root)}: {checkpoint}"
+        for path in sorted((root / "docs").rglob("metrics.json"))
+        if (checkpoint := json.loads(path.read_text()).get("run", {}).get("checkpoint"))
+        and Path(checkpoint).is_absolute()
+    ]
+
+
+def test_no_published_run_names_a_path_of_its_machine() -> None:
+    assert absolute_checkpoints(ROOT) == []
+
+
+def test_publishing_keeps_a_checkpoint_path_from_runs_on(tmp_path: Path) -> None:
+    """scripts/publish_run.sh, which both comparison scripts publish with, on a run evaluated
+    from a worktree with an absolute OUT."""
+    run = tmp_path / "abs" / "runs" / "pilot" / "x" / "eval-val"
+    run.mkdir(parents=True)
+    metrics = {"run": {"checkpoint": f"{tmp_path}/abs/runs/pilot/x/checkpoint.pt", "seed": 0}}
+    (run / "metrics.json").write_text(json.dumps(metrics))
+    (run / "episodes.jsonl").write_text("{}\n")
+    (run.parent / "progress.csv").write_text("update\n")
+    kept = tmp_path / "docs" / "x"
+    subprocess.run(
+        ["bash", "-c", f'source {ROOT}/scripts/publish_run.sh && publish_run "$0" "$1"', run, kept],
+        check=True,
+    )
+    assert sorted(p.name for p in kept.iterdir()) == [
+        "episodes.jsonl",
+        "metrics.json",
+        "progress.csv",
+    ]
+    recorded = json.loads((kept / "metrics.json").read_text())["run"]
+    assert recorded == {"checkpoint": "runs/pilot/x/checkpoint.pt", "seed": 0}
+    assert absolute_checkpoints(tmp_path) == []
+    (kept / "metrics.json").write_text(json.dumps(metrics))
+    assert absolute_checkpoints(tmp_path) == [
+        f"docs/x/metrics.json: {metrics['run']['checkpoint']}"
     ]

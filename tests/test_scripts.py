@@ -94,9 +94,9 @@ def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
 # A stand-in for the `multion` command: it records each call and writes the files the script
 # looks for, so the script's choices are checked in seconds, without training anything.
 def _copy_script(tmp_path: Path, name: str) -> None:
-    """scripts/NAME into tmp_path/scripts, with the file it sources."""
+    """scripts/NAME into tmp_path/scripts, with the files the scripts source."""
     (tmp_path / "scripts").mkdir(exist_ok=True)
-    for script in (name, "camera_variant.sh"):
+    for script in (name, "camera_variant.sh", "publish_run.sh"):
         shutil.copy(ROOT / "scripts" / script, tmp_path / "scripts")
 
 
