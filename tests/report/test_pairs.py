@@ -94,3 +94,31 @@ def test_the_pair_option_takes_two_runs(
         report([str(report_runs), "--out", str(tmp_path / "out"), "--pair", "random-2on"])
     assert exited.value.code == 2
     assert "--pair: expected 2 arguments" in capsys.readouterr().err
+
+
+def test_a_requested_pair_names_the_agents_settings_that_differ(
+    report_runs: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One checkpoint played at two FOUND gates (``run.agent_settings``): the gates are what
+    differs; a run whose agent_settings is not an object is refused, naming the field."""
+    source = report_runs / "random-oracle-found-2on"
+    high = copy_run(source, tmp_path / "gate-0.8", agent_settings={"found_gate": 0.8})
+    low = copy_run(source, tmp_path / "gate-0.5", agent_settings={"found_gate": 0.5})
+    out = tmp_path / "out"
+    argv = [
+        str(high),
+        str(low),
+        "--out",
+        str(out),
+        "--no-figures",
+        "--pair",
+        "gate-0.8",
+        "gate-0.5",
+    ]
+    assert report(argv) == 0
+    (row,) = read_csv(out / "requested-pairs.csv")
+    assert row["differs_in"] == "agent: found_gate=0.8 vs found_gate=0.5"
+    copy_run(source, tmp_path / "broken", agent_settings=[0.8])
+    broken = [str(tmp_path / "broken"), "--out", str(tmp_path / "out2"), "--no-figures"]
+    assert report(broken) == 2
+    assert "'run.agent_settings' is not an object" in capsys.readouterr().err

@@ -52,12 +52,14 @@ def find_pairs(runs: Sequence[Run], wanted: Sequence[tuple[str, str]]) -> list[t
 
 
 def differences(a: Run, b: Run) -> str:
-    """What differs between the runs' conditions and cameras, ``A vs B`` each:
+    """What differs between the runs' conditions, cameras and agents' settings, ``A vs B`` each:
     ``camera: 128² (gl) vs 36² (tiny)``; "nothing" when they were played alike."""
     mine, theirs = a.conditions_besides_camera(), b.conditions_besides_camera()
     changed = [f"{key}: {mine[key]} vs {theirs[key]}" for key in mine if mine[key] != theirs[key]]
     if a.camera != b.camera:
         changed.append(f"camera: {a.camera} vs {b.camera}")
+    if a.agent_settings != b.agent_settings:
+        changed.append(f"agent: {a.agent_settings or 'default'} vs {b.agent_settings or 'default'}")
     return "; ".join(changed) or "nothing"
 
 

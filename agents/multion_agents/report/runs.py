@@ -83,6 +83,9 @@ class Run:
     ``"index"`` for runs written before the field)."""
     seed_scheme_recorded: bool = True
     """False for a run whose ``metrics.json`` has no ``seed_scheme`` (written before issue 53)."""
+    agent_settings: str = ""
+    """The agent's own tunables as ``name=value, ...`` (``found_gate=0.8``; ``run.agent_settings``),
+    '' for agents without any."""
 
     @property
     def name(self) -> str:
@@ -243,6 +246,9 @@ def load_run(path: Path) -> Run:
             f"{path}: metrics.json says {run['episodes']} episodes but {EPISODES_FILE} has "
             f"{len(episodes)} (an interrupted or mixed-up run?)"
         )
+    agent_settings = run.get("agent_settings") or {}
+    if not isinstance(agent_settings, dict):
+        raise RunError(f"{metrics_path}: 'run.agent_settings' is not an object")
     resolved = run.get("resolved_config") or {}
     task = {**(run.get("env_config") or {}).get("task", {}), **resolved.get("task", {})}
     camera = {**(run.get("env_config") or {}).get("camera", {}), **resolved.get("camera", {})}
@@ -264,6 +270,7 @@ def load_run(path: Path) -> Run:
         training_log=_training_log(path) if run.get("checkpoint") else None,
         seed_scheme=str(scheme),
         seed_scheme_recorded="seed_scheme" in run,
+        agent_settings=_joined({key: str(value) for key, value in agent_settings.items()}),
     )
 
 
