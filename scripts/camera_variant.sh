@@ -1,4 +1,5 @@
-# Sourced by central_comparison.sh and recipe_pilot.sh: IMAGE_SIZE (default 36) and RENDERER
+# Sourced by central_comparison.sh, recipe_pilot.sh and found_gate_sweep.sh: IMAGE_SIZE (default
+# 36) and RENDERER
 # (camera.renderer of training and evaluation; default the config's, tiny) name a variant of a
 # run, "-SIZE" then "-RENDERER" (36² and tiny add nothing). `multion report` strips that suffix
 # to pair a run with the one it varies (Run.label_besides_camera in report/runs.py).

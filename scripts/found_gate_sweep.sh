@@ -18,9 +18,7 @@ gates=${GATES:-0.5 0.7 0.9}
 episodes=${EPISODES:-60}
 out=${OUT:-runs/gate/$(basename "$(dirname "$checkpoint")")}
 multion=${MULTION:-.venv/bin/multion}
-renderer=${RENDERER:-}
-camera=()
-[ -z "$renderer" ] || camera=(--set "camera.renderer=$renderer")
+source scripts/camera_variant.sh  # camera: the --set arguments of RENDERER
 dataset=runs/gate/train-1on-$episodes.json.gz
 mkdir -p "$out" "$(dirname "$dataset")"
 [ -f "$dataset" ] || $multion dataset generate --task 1-on --split train --episodes "$episodes" \

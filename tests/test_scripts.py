@@ -91,8 +91,6 @@ def test_central_comparison_runs_resumes_and_publishes(tmp_path: Path) -> None:
     assert (tmp_path / "runs" / "fresh" / "report" / "report.md").is_file()
 
 
-# A stand-in for the `multion` command: it records each call and writes the files the script
-# looks for, so the script's choices are checked in seconds, without training anything.
 def _copy_script(tmp_path: Path, name: str) -> None:
     """scripts/NAME into tmp_path/scripts, with the files the scripts source."""
     (tmp_path / "scripts").mkdir(exist_ok=True)
@@ -100,6 +98,8 @@ def _copy_script(tmp_path: Path, name: str) -> None:
         shutil.copy(ROOT / "scripts" / script, tmp_path / "scripts")
 
 
+# A stand-in for the `multion` command: it records each call and writes the files the script
+# looks for, so the script's choices are checked in seconds, without training anything.
 FAKE_MULTION = """#!/usr/bin/env bash
 echo "$*" >> "$CALLS"
 out=""
