@@ -43,6 +43,9 @@
 # (runs/central-learn-to-see, docs/learned/central-learn-to-see). At 128² with gl its pilot
 # reached 40 % (its FOUND head sees the goal there; docs/learned.md), so it also runs as
 #   RECIPE=learn-to-see FRAMES=720000 IMAGE_SIZE=128 RENDERER=gl ...  # runs/central-128-gl-learn-to-see-720k
+# FOUND_GATE=G (a recipe with the FOUND head only): each trained run NAME is also played on the
+# same val episodes with the head's gate at G as the run NAME-gate-G, paired with NAME in the
+# report (`--pair`). Choose G on train houses first (scripts/found_gate_sweep.sh), never on val.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 recipe_name=${RECIPE:-paper}
@@ -55,6 +58,10 @@ case $recipe_name in
       --curriculum 200000:4 --curriculum 350000:10) ;;
   *) echo "unknown RECIPE $recipe_name (paper, learn-to-see)" >&2; exit 2 ;;
 esac
+found_gate=${FOUND_GATE:-}
+if [ -n "$found_gate" ] && [ "$recipe_name" = paper ]; then
+  echo "FOUND_GATE is for a recipe with the FOUND head (RECIPE=learn-to-see)" >&2; exit 2
+fi
 source scripts/camera_variant.sh  # image_size, renderer, camera_variant, camera
 source scripts/publish_run.sh     # publish_run
 # the published 36² runs are the comparison's reference; any other size or renderer is a variant
@@ -99,7 +106,11 @@ train_and_eval() {
   shift 2
   wanted "$name" || return 0
   restore_published "$name"
-  [ -f "$dir/eval-val/metrics.json" ] && { echo "done: $name"; return; }
+  if [ -f "$dir/eval-val/metrics.json" ]; then
+    echo "done: $name"
+    eval_at_gate "$name" "$agent"
+    return
+  fi
   local resume=()
   [ -f "$dir/checkpoint.pt" ] && resume=(--resume)
   echo "== train $name ($agent, $frames frames) $(date -u +%FT%TZ)"
@@ -112,6 +123,21 @@ train_and_eval() {
   rm -rf "$dir/eval-val"
   $multion eval --agent "$agent" --checkpoint "$dir/checkpoint.pt" "${evaluation[@]}" \
     --out "$dir/eval-val"
+  eval_at_gate "$name" "$agent"
+}
+
+# eval_at_gate NAME AGENT: with FOUND_GATE, $out/NAME's checkpoint played at that gate as
+# $out/NAME-gate-G/eval-val
+eval_at_gate() {
+  [ -n "$found_gate" ] || return 0
+  local name=$1-gate-$found_gate checkpoint=$out/$1/checkpoint.pt
+  restore_published "$name"
+  [ -f "$out/$name/eval-val/metrics.json" ] && { echo "done: $name"; return; }
+  [ -f "$checkpoint" ] || { echo "skipped: $name (no $checkpoint to play)"; return; }
+  echo "== eval $name $(date -u +%FT%TZ)"
+  rm -rf "$out/$name/eval-val"
+  $multion eval --agent "$2" --checkpoint "$checkpoint" "${evaluation[@]}" \
+    --found-gate "$found_gate" --out "$out/$name/eval-val"
 }
 
 for stage in $stages; do
@@ -146,7 +172,20 @@ if [ -n "$variant" ]; then
     fi
   done
 fi
-$multion report "${runs[@]}" "${reference[@]}" --out "$out/report"
+# gate_pairs RUN...: in `pairs`, `--pair` arguments for each run played at a FOUND gate
+# (.../NAME-gate-G or .../NAME-gate-G/eval-val) and the same run at its own gate, where both are
+gate_pairs() {
+  pairs=()
+  local run
+  for run in "$@"; do
+    if [[ $run =~ ^(.*)-gate-[0-9.]+(/eval-val)?$ ]] &&
+        [ -f "${BASH_REMATCH[1]}${BASH_REMATCH[2]}/metrics.json" ]; then
+      pairs+=(--pair "$run" "${BASH_REMATCH[1]}${BASH_REMATCH[2]}")
+    fi
+  done
+}
+gate_pairs "${runs[@]}"
+$multion report "${runs[@]}" "${reference[@]}" "${pairs[@]}" --out "$out/report"
 # PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv
 # and pretrain_vision.csv: scripts/publish_run.sh) in $published/NAME and regenerate the tables
 # at the head of docs/learned.md (a variant: its report beside the 36² runs in $published/report)
@@ -158,6 +197,7 @@ if [ "${PUBLISH:-0}" = 1 ]; then
     $multion report "$published" --out docs --doc learned
   else
     mapfile -t kept_runs < <(find "$published" -name metrics.json -printf '%h\n' | sort)
-    $multion report "${kept_runs[@]}" "${reference[@]}" --out "$published/report"
+    gate_pairs "${kept_runs[@]}"
+    $multion report "${kept_runs[@]}" "${reference[@]}" "${pairs[@]}" --out "$published/report"
   fi
 fi

@@ -112,19 +112,41 @@ touch "$out/checkpoint.pt" "$out/metrics.json" "$out/episodes.jsonl" "$out/repor
 """
 
 
+def _stand_in(tmp_path: Path, variables: dict[str, str]) -> dict[str, str]:
+    """The environment in which a script calls the stand-in command, which records each call in
+    tmp_path/calls.txt (read by :func:`_calls`), with ``variables`` set."""
+    fake = tmp_path / "fake_multion.sh"
+    fake.write_text(FAKE_MULTION)
+    return {**os.environ, "CALLS": str(tmp_path / "calls.txt"), "MULTION": f"bash {fake}",
+            **variables}  # fmt: skip
+
+
+def _calls(tmp_path: Path) -> list[str]:
+    """The command lines the stand-in command was called with since the last one read, which
+    are then forgotten."""
+    calls = tmp_path / "calls.txt"
+    if not calls.exists():
+        return []
+    lines = calls.read_text().splitlines()
+    calls.unlink()
+    return lines
+
+
+def _script(tmp_path: Path, name: str, env: dict[str, str]) -> str:
+    """Run scripts/NAME in tmp_path under ``env``; its stdout, once it has ended with 0."""
+    done = subprocess.run(["bash", f"scripts/{name}"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    return done.stdout
+
+
 def _central_calls(tmp_path: Path, variables: dict[str, str]) -> tuple[str, list[str]]:
     """Run scripts/central_comparison.sh's core stage with the stand-in command; its stdout
     and the command lines it ran."""
-    fake = tmp_path / "fake_multion.sh"
-    fake.write_text(FAKE_MULTION)
-    calls = tmp_path / "calls.txt"
-    calls.unlink(missing_ok=True)
-    env = {**os.environ, "STAGES": "core", "FRAMES": "1024", "CALLS": str(calls),
-           "MULTION": f"bash {fake}", **variables}  # fmt: skip
-    done = subprocess.run(["bash", "scripts/central_comparison.sh"], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=60)  # fmt: skip
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    return done.stdout, calls.read_text().splitlines()
+    _calls(tmp_path)
+    env = _stand_in(tmp_path, {"STAGES": "core", "FRAMES": "1024", **variables})
+    stdout = _script(tmp_path, "central_comparison.sh", env)
+    return stdout, _calls(tmp_path)
 
 
 def test_run_baselines_passes_eval_args_to_every_run(tmp_path: Path) -> None:
@@ -132,25 +154,20 @@ def test_run_baselines_passes_eval_args_to_every_run(tmp_path: Path) -> None:
     runs with gl), EPISODES_OVERRIDE sets their size, and finished runs are kept."""
     (tmp_path / "scripts").mkdir()
     shutil.copy(ROOT / "scripts" / "run_baselines.sh", tmp_path / "scripts")
-    fake = tmp_path / "fake_multion.sh"
-    fake.write_text(FAKE_MULTION)
-    calls = tmp_path / "calls.txt"
-    env = {**os.environ, "CALLS": str(calls), "MULTION": f"bash {fake}",
-           "EVAL_ARGS": "--set camera.renderer=gl", "EPISODES_OVERRIDE": "3"}  # fmt: skip
+    env = _stand_in(tmp_path, {"EVAL_ARGS": "--set camera.renderer=gl", "EPISODES_OVERRIDE": "3"})
     script = ["bash", "scripts/run_baselines.sh", "runs", "explorer"]
     done = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                           timeout=60)  # fmt: skip
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    evals = calls.read_text().splitlines()
+    evals = _calls(tmp_path)
     names = sorted(line.split("--out runs/")[1].split()[0] for line in evals)
     assert names == ["explorer-1on", "explorer-2on", "explorer-3on", "explorer-3on-distractors"]
     assert all("--episodes 3 " in e and "--set camera.renderer=gl --agent explorer" in e
                for e in evals)  # fmt: skip
-    calls.unlink()
     again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
                            timeout=60)  # fmt: skip
     assert again.returncode == 0 and "already in runs" in again.stdout
-    assert not calls.exists()
+    assert not _calls(tmp_path)
 
 
 def test_central_comparison_has_a_128_variant_of_its_own(tmp_path: Path) -> None:
@@ -197,15 +214,10 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     central comparison's recipe, the FOUND curriculum over the first 40 % of the frames, each
     then evaluated; run again, it skips what is done."""
     _copy_script(tmp_path, "recipe_pilot.sh")
-    fake = tmp_path / "fake_multion.sh"
-    fake.write_text(FAKE_MULTION)
-    calls = tmp_path / "calls.txt"
-    env = {**os.environ, "FRAMES": "1000", "CALLS": str(calls), "MULTION": f"bash {fake}"}
-    script = ["bash", "scripts/recipe_pilot.sh"]
-    done = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=60)  # fmt: skip
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    trains = [line for line in calls.read_text().splitlines() if line.startswith("train")]
+    env = _stand_in(tmp_path, {"FRAMES": "1000"})
+    _script(tmp_path, "recipe_pilot.sh", env)
+    lines = _calls(tmp_path)
+    trains = [line for line in lines if line.startswith("train")]
     by_run = {line.split("--out ")[1].split()[0].rsplit("/", 1)[1]: line for line in trains}
     assert sorted(by_run) == sorted(
         [
@@ -260,7 +272,7 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     assert all(
         flag in by_run["no-map-found-head-all"] for flag in ("--goal-heads", "--found-head 1")
     )
-    evals = [line for line in calls.read_text().splitlines() if line.startswith("eval")]
+    evals = [line for line in lines if line.startswith("eval")]
     assert "--found-head 1" in by_run["no-map-found-head-vision"]
     assert "--pretrain-vision 2000" in by_run["no-map-found-head-vision"]
     assert "--found-curriculum 400:0" in by_run["no-map-found-head-free"]
@@ -292,11 +304,8 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
     )
     assert not any("--separate-critic" in by_run[r] for r in by_run if "critic" not in r)
     assert len(evals) == len(by_run) and all("--split val --episodes 100" in line for line in evals)
-    calls.unlink()
-    again = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
-                           timeout=60)  # fmt: skip
-    assert again.returncode == 0 and "done: no-map-all" in again.stdout
-    assert not any(line.startswith(("train", "eval")) for line in calls.read_text().splitlines())
+    assert "done: no-map-all" in _script(tmp_path, "recipe_pilot.sh", env)
+    assert not any(line.startswith(("train", "eval")) for line in _calls(tmp_path))
 
 
 def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> None:
@@ -304,23 +313,16 @@ def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> N
     run's options under its own name; obj-recog-map's runs add its balanced recogniser, as the
     learn-to-see recipe of the central comparison does, and no other agent's do."""
     _copy_script(tmp_path, "recipe_pilot.sh")
-    fake = tmp_path / "fake_multion.sh"
-    fake.write_text(FAKE_MULTION)
-    calls = tmp_path / "calls.txt"
     for agent in ("proj-neural-map", "obj-recog-map"):
-        env = {**os.environ, "FRAMES": "1000", "CALLS": str(calls), "MULTION": f"bash {fake}",
-               "AGENT": agent, "ONLY": f"{agent}-found-head-all"}  # fmt: skip
-        done = subprocess.run(["bash", "scripts/recipe_pilot.sh"], cwd=tmp_path, env=env,
-                              capture_output=True, text=True, timeout=60)  # fmt: skip
-        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-        lines = calls.read_text().splitlines()
+        variables = {"FRAMES": "1000", "AGENT": agent, "ONLY": f"{agent}-found-head-all"}
+        _script(tmp_path, "recipe_pilot.sh", _stand_in(tmp_path, variables))
+        lines = _calls(tmp_path)
         train, evaluation = (line for line in lines if line.startswith(("train", "eval")))
         assert train.startswith(f"train --agent {agent} ")
         assert f"--out runs/pilot/{agent}-found-head-all" in train
         assert "--found-head 1 --curriculum 400:4 --curriculum 700:10 --goal-heads" in train
         assert ("--balanced-recognition" in train) == (agent == "obj-recog-map"), train
         assert evaluation.startswith(f"eval --agent {agent} --checkpoint ")
-        calls.unlink()
 
 
 def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -> None:
@@ -328,19 +330,14 @@ def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -
     at that size with that renderer, and a 36² run of the same options is neither resumed nor
     taken for it."""
     _copy_script(tmp_path, "recipe_pilot.sh")
-    fake = tmp_path / "fake_multion.sh"
-    fake.write_text(FAKE_MULTION)
-    calls = tmp_path / "calls.txt"
     done_36 = tmp_path / "runs" / "pilot" / "no-map-found-head-all" / "eval-val"
     done_36.mkdir(parents=True)
     (done_36 / "metrics.json").write_text("{}")
     (done_36.parent / "checkpoint.pt").write_text("")
-    env = {**os.environ, "FRAMES": "1000", "CALLS": str(calls), "MULTION": f"bash {fake}",
-           "IMAGE_SIZE": "128", "RENDERER": "gl", "ONLY": "no-map-found-head-all-128-gl"}  # fmt: skip
-    done = subprocess.run(["bash", "scripts/recipe_pilot.sh"], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=60)  # fmt: skip
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    lines = calls.read_text().splitlines()
+    variables = {"FRAMES": "1000", "IMAGE_SIZE": "128", "RENDERER": "gl",
+                 "ONLY": "no-map-found-head-all-128-gl"}  # fmt: skip
+    _script(tmp_path, "recipe_pilot.sh", _stand_in(tmp_path, variables))
+    lines = _calls(tmp_path)
     train, evaluation = (line for line in lines if line.startswith(("train", "eval")))
     assert "--out runs/pilot/no-map-found-head-all-128-gl " in train + " "
     assert "--image-size 128 " in train and "--image-size 36" not in train
@@ -400,17 +397,10 @@ def test_the_found_gate_sweep_plays_each_gate_on_train_houses_once(tmp_path: Pat
     on it (never on val) with the renderer given, reports the gates side by side, and skips a
     gate already played when run again."""
     _copy_script(tmp_path, "found_gate_sweep.sh")
-    fake = tmp_path / "fake_multion.sh"
-    fake.write_text(FAKE_MULTION)
-    calls = tmp_path / "calls.txt"
-    env = {**os.environ, "CALLS": str(calls), "MULTION": f"bash {fake}", "AGENT": "no-map",
-           "CHECKPOINT": "runs/x/checkpoint.pt", "RENDERER": "gl", "GATES": "0.5 0.8",
-           "EPISODES": "7"}  # fmt: skip
-    script = ["bash", "scripts/found_gate_sweep.sh"]
-    done = subprocess.run(script, cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=60)  # fmt: skip
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    generate, *evaluations, report = calls.read_text().splitlines()
+    env = _stand_in(tmp_path, {"AGENT": "no-map", "CHECKPOINT": "runs/x/checkpoint.pt",
+                               "RENDERER": "gl", "GATES": "0.5 0.8", "EPISODES": "7"})  # fmt: skip
+    _script(tmp_path, "found_gate_sweep.sh", env)
+    generate, *evaluations, report = _calls(tmp_path)
     assert generate.startswith("dataset generate --task 1-on --split train --episodes 7 --seed 51")
     assert [line.split("--found-gate ")[1].split()[0] for line in evaluations] == ["0.5", "0.8"]
     for line in evaluations:
@@ -420,10 +410,48 @@ def test_the_found_gate_sweep_plays_each_gate_on_train_houses_once(tmp_path: Pat
     assert report.startswith(
         "report runs/gate/x/gate-0.5 runs/gate/x/gate-0.8 --out runs/gate/x/report"
     )
-    calls.unlink()
-    again = subprocess.run(script, cwd=tmp_path, env={**env, "GATES": "0.5 0.8 0.9"},
-                           capture_output=True, text=True, timeout=60)  # fmt: skip
-    assert again.returncode == 0, again.stderr[-3000:]
-    assert "done: gate 0.5" in again.stdout
-    (evaluation,) = (line for line in calls.read_text().splitlines() if line.startswith("eval"))
+    again = _script(tmp_path, "found_gate_sweep.sh", {**env, "GATES": "0.5 0.8 0.9"})
+    assert "done: gate 0.5" in again
+    (evaluation,) = (line for line in _calls(tmp_path) if line.startswith("eval"))
     assert "--found-gate 0.9" in evaluation
+
+
+def test_central_comparison_plays_each_run_at_a_found_gate_too(tmp_path: Path) -> None:
+    """FOUND_GATE=0.8 with a recipe that has the FOUND head: each trained run is also played on
+    the same val episodes at that gate from its checkpoint, as NAME-gate-0.8, once; the report
+    (and the published one) pairs it with NAME; a run with no checkpoint here is not played at
+    the gate; the paper's recipe, which has no FOUND head, refuses the variable."""
+    _copy_script(tmp_path, "central_comparison.sh")
+    out = "runs/central-learn-to-see-720k"
+    variables = {"RECIPE": "learn-to-see", "STAGES": "core", "FRAMES": "720000", "ONLY": "no-map",
+                 "FOUND_GATE": "0.8"}  # fmt: skip
+    _, calls = _central_calls(tmp_path, variables)
+    train, plain, gated, report = calls
+    assert train.startswith("train --agent no-map ") and "--found-head 1" in train
+    assert plain.startswith("eval --agent no-map ") and "--found-gate" not in plain
+    assert gated.startswith("eval --agent no-map --checkpoint " + f"{out}/no-map/checkpoint.pt ")
+    assert "--split val --episodes 100 --workers 2 --seed 0" in gated
+    assert gated.endswith(f"--found-gate 0.8 --out {out}/no-map-gate-0.8/eval-val")
+    assert report.endswith(
+        f"--pair {out}/no-map-gate-0.8/eval-val {out}/no-map/eval-val --out {out}/report"
+    )
+
+    stdout, calls = _central_calls(tmp_path, {**variables, "PUBLISH": "1"})
+    assert "done: no-map-gate-0.8" in stdout
+    assert [call.split()[0] for call in calls] == ["report", "report"]  # nothing played again
+    kept = "docs/learned/central-learn-to-see-720k"
+    assert (tmp_path / kept / "no-map-gate-0.8" / "metrics.json").is_file()
+    assert f"--pair {kept}/no-map-gate-0.8 {kept}/no-map --out {kept}/report" in calls[1]
+
+    shutil.rmtree(tmp_path / kept / "no-map-gate-0.8")
+    stdout, calls = _central_calls(tmp_path, {**variables, "OUT": "runs/fresh"})
+    assert "restored: no-map (published" in stdout
+    assert "skipped: no-map-gate-0.8 (no runs/fresh/no-map/checkpoint.pt to play)" in stdout
+    assert [call.split()[0] for call in calls] == ["report"] and "--pair" not in calls[0]
+
+    paper = subprocess.run(["bash", "scripts/central_comparison.sh"], cwd=tmp_path,
+                           env={**os.environ, "FOUND_GATE": "0.8"}, capture_output=True,
+                           text=True, timeout=60)  # fmt: skip
+    assert (
+        paper.returncode == 2 and "FOUND_GATE is for a recipe with the FOUND head" in paper.stderr
+    )
