@@ -13,6 +13,7 @@ from multion_agents.config_overrides import parse_env_overrides
 from multion_client.constants import NUM_CATEGORIES
 
 SPLITS = ("val", "test", "train")
+DEFAULT_SPLIT = "val"
 
 
 @dataclass(frozen=True)
@@ -31,8 +32,12 @@ class EvalSettings:
         high=NUM_CATEGORIES,
         cli=Option("1-on … 8-on (default 3-on)", flag="--task", metavar="TASK", parse=parse_task),
     )
-    split: str = setting("val", cli=Option("dataset split: val or test (default val)"))
-    """One of ``SPLITS``; any name goes with ``dataset``."""
+    split: str | None = setting(
+        None,
+        cli=Option("dataset split: val or test (default val; with --dataset, the one it holds)"),
+    )
+    """One of ``SPLITS``; any name goes with ``dataset``. None: ``DEFAULT_SPLIT``, or the split a
+    ``dataset`` file names (:func:`multion_agents.evaluate.with_played_split`)."""
     episodes: int | None = setting(
         None,
         low=1,
@@ -106,7 +111,7 @@ class EvalSettings:
 
     def __post_init__(self) -> None:
         check_settings(self)
-        if self.split not in SPLITS and self.dataset is None:
+        if self.split is not None and self.split not in SPLITS and self.dataset is None:
             raise ConfigError(f"unknown split {self.split!r}; splits are {', '.join(SPLITS)}")
         if self.in_process and self.server is not None:
             raise ConfigError("--in-process and --server exclude each other")

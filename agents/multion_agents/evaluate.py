@@ -21,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +43,7 @@ from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion.scenes.viz import gps_to_world
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, merge_overrides
-from multion_agents.eval_settings import EvalSettings
+from multion_agents.eval_settings import DEFAULT_SPLIT, EvalSettings
 from multion_agents.registry import SETUP_TORCH, agent_class, torch_installed
 from multion_agents.seeding import SEED_SCHEME, scheme_seed
 from multion_agents.seeding import episode_seed as episode_seed
@@ -123,7 +123,21 @@ def select_episodes(settings: EvalSettings) -> list[Episode]:
 
 def dataset_file(settings: EvalSettings) -> Path:
     """The dataset file the evaluated episodes are read from."""
-    return Path(settings.dataset or packaged_dataset_path(settings.num_goals, settings.split))
+    split = settings.split or DEFAULT_SPLIT
+    return Path(settings.dataset or packaged_dataset_path(settings.num_goals, split))
+
+
+def with_played_split(settings: EvalSettings) -> EvalSettings:
+    """``settings`` with the split its episodes come from, as the run records it: ``--split``
+    (``DEFAULT_SPLIT`` if none), or the split a ``--dataset`` file names, which a ``--split``
+    given must match."""
+    named = read_header(settings.dataset).get("split") if settings.dataset is not None else None
+    if named is not None and settings.split is not None and settings.split != named:
+        raise ConfigError(
+            f"--split {settings.split}: {settings.dataset} holds {named} episodes (its header's "
+            f'"split"); give --split {named}, or leave --split out'
+        )
+    return replace(settings, split=settings.split or named or DEFAULT_SPLIT)
 
 
 def env_config(settings: EvalSettings, agent: type[Agent]) -> dict[str, Any]:
@@ -350,6 +364,7 @@ def evaluate(settings: EvalSettings, progress: bool = True) -> EvalResult:
     in this process with ``settings.in_process``."""
     # fail on a bad agent, checkpoint or config before starting anything
     check_overrides(settings.env_overrides)
+    settings = with_played_split(settings)
     cls = resolve_agent(settings)
     resolved = resolve_config(env_config(settings, cls))
     # an agent refuses a config it cannot use; its tunables are recorded with the run

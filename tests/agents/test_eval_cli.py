@@ -11,6 +11,7 @@ import pytest
 from PIL import Image
 
 from multion.api.local_server import LocalServer
+from multion.config.datasets import save_dataset
 from multion.config.episode import Episode
 from multion_agents import cli_eval
 
@@ -103,3 +104,23 @@ def test_metrics_json_records_the_agents_own_settings(
     assert _run([*flags, "--out", str(tmp_path / "random")]) == 0
     run = json.loads((tmp_path / "random" / "metrics.json").read_text())["run"]
     assert run["agent_settings"] == {}
+
+
+def test_a_dataset_file_gives_the_run_its_split(
+    room_dataset: tuple[Path, list[Episode]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--dataset FILE: the run records the split FILE's header names (not the default val); a
+    --split that contradicts it is refused, naming both, before anything is played or written."""
+    _, episodes = room_dataset
+    train = tmp_path / "train-1-on.json.gz"
+    save_dataset(train, episodes, 1, "train")
+    flags = ["--agent", "random", "--task", "1-on", "--dataset", str(train), "--in-process"]
+    flags += ["--episodes", "1", "--max-steps", "5", "--pictures", "0", "--quiet"]
+    assert _run([*flags, "--out", str(tmp_path / "played")]) == 0
+    assert json.loads((tmp_path / "played" / "metrics.json").read_text())["run"]["split"] == "train"
+    assert _run([*flags, "--split", "val", "--out", str(tmp_path / "refused")]) == 2
+    error = capsys.readouterr().err
+    assert f"--split val: {train} holds train episodes" in error and "give --split train" in error
+    assert not (tmp_path / "refused").exists()
+    assert _run([*flags, "--split", "train", "--out", str(tmp_path / "agreed")]) == 0
+    assert json.loads((tmp_path / "agreed" / "metrics.json").read_text())["run"]["split"] == "train"
