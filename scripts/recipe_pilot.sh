@@ -120,6 +120,10 @@ pilot "$agent-found-head-coverage" --found-head 1 --curriculum "$found_frames:4"
 # At 0.25 the bonus changed neither Success nor the ground searched (10.8 cells of 44), and the
 # movement policy stayed near uniform (entropy 0.97 of at most 1.10 over three movements): ten
 # times the bonus, so that new ground outweighs the distance reward to a goal not yet seen.
+# On no-map it looped more decisively: without a map it does not know where it has been. With
+# a map (without the bonus, proj-neural-map at 128² walked into walls on half of its forward
+# steps, no-map on 30 %): AGENT=proj-neural-map IMAGE_SIZE=128 RENDERER=gl
+# ONLY=proj-neural-map-found-head-coverage-2.5-128-gl.
 pilot "$agent-found-head-coverage-2.5" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --coverage-reward 2.5
