@@ -192,6 +192,7 @@ def test_vision_pretraining_labels_the_head_within_the_success_distance() -> Non
         labels=np.zeros((4, 8), dtype=np.int64),
         goal=np.array([0, 3, 5, 2]),
         distance=np.array([0.4, 1.5, 1.6, 1.0], dtype=np.float32),
+        recognition=np.zeros(4, dtype=np.int64),
     )
     frames.labels[[0, 1, 2], [0, 3, 5]] = [2, 1, 3]  # goals 0, 3, 5 show; goal 2 does not
     frames.labels[3, 4] = 2  # frame 3 shows another category
@@ -232,5 +233,6 @@ def test_every_agent_with_a_map_pretrains_its_head_from_blank_readings(agent: st
         labels=np.zeros((2, 8), dtype=np.int64),
         goal=np.array([0, 3]),
         distance=np.array([0.4, 3.0], dtype=np.float32),
+        recognition=np.zeros(2, dtype=np.int64),
     )
     assert torch.isfinite(found.logits(frames, np.arange(2))).all()

@@ -422,5 +422,5 @@ def test_balanced_recognition_trains_obj_recog_map_only(tmp_path: Path, room_dat
     train(dataclasses.replace(args, balanced_recognition=True))
     recorded = load_checkpoint(tmp_path / "run" / "checkpoint.pt")["args"]
     assert recorded["balanced_recognition"] is True
-    with pytest.raises(ValueError, match="--balanced-recognition weighs ObjRecogMap's"):
+    with pytest.raises(ValueError, match="--balanced-recognition trains ObjRecogMap.s"):
         train(tiny_args(tmp_path / "other", room_dataset, balanced_recognition=True))

@@ -149,6 +149,7 @@ RECIPE_OPTIONS = (
     "pretrain_vision",
     "pretrain_map",
     "balanced_recognition",
+    "pretrain_recogniser",
     "expert",
     "pose_input",
     "separate_critic",

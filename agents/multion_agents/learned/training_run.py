@@ -157,7 +157,12 @@ class TrainingRun:
         if pretrains and placement.rank == 0:
             if args.pretrain_vision.steps > 0:
                 pretrain_vision(
-                    policy, env_config, args.pretrain_vision, Path(args.out), args.progress
+                    policy,
+                    env_config,
+                    args.pretrain_vision,
+                    Path(args.out),
+                    args.progress,
+                    args.pretrain_recogniser,
                 )
             if args.pretrain_map.steps > 0:
                 pretrain_map(policy, env_config, args.pretrain_map, Path(args.out), args.progress)
@@ -464,7 +469,9 @@ def _prepare(
     env_config = run_env_config(args)
     check_curriculum(args.curriculum, env_config)
     check_map_pretraining(args.pretrain_map, args.agent, model_spec(args.agent).sensors)
-    check_vision_pretraining(args.pretrain_vision, args.agent, model_spec(args.agent).sensors)
+    check_vision_pretraining(
+        args.pretrain_vision, args.agent, model_spec(args.agent).sensors, args.pretrain_recogniser
+    )
     torch.manual_seed(args.seed)
     policy = build_policy(
         args.agent,
@@ -475,12 +482,14 @@ def _prepare(
         args.pose_input,
         args.separate_critic,
     ).to(device)
-    if args.balanced_recognition:
-        if not isinstance(policy.memory, ObjRecogMap):
-            raise ConfigError(
-                f"--balanced-recognition weighs ObjRecogMap's recogniser; {args.agent} has none"
-            )
-        policy.memory.balanced = True
+    for flag, asked in (
+        ("--balanced-recognition", args.balanced_recognition),
+        ("--pretrain-recogniser", args.pretrain_recogniser),
+    ):
+        if asked and not isinstance(policy.memory, ObjRecogMap):
+            raise ConfigError(f"{flag} trains ObjRecogMap's recogniser; {args.agent} has none")
+    if isinstance(policy.memory, ObjRecogMap):
+        policy.memory.balanced = args.balanced_recognition
     if args.found_prior is not None:
         set_found_prior(policy, args.found_prior)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)

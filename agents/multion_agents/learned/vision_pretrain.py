@@ -31,8 +31,10 @@ from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion.task.maps import can_see
 from multion.task.spaces import build_observation_space
-from multion_agents.learned.encoders import ImageEncoder
+from multion_agents.learned.encoders import NUM_CATEGORY_VALUES, ImageEncoder
 from multion_agents.learned.found_supervision import found_head_loss
+from multion_agents.learned.learned_maps import ObjRecogMap, balancing_weights, recognition_label
+from multion_agents.learned.map_ops import MapGeometry
 from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy
 from multion_agents.learned.pretrain import reset_randomly
 from multion_agents.learned.train_options import VisionPretraining
@@ -57,13 +59,15 @@ goal sites, far more than a frame)."""
 class VisionFrames:
     """Rendered frames: ``rgb`` (N, H, W, 3) uint8, ``depth`` (N, H, W, 1) float32, ``labels``
     (N, 8) the place of each category, ``goal`` (N,) the category of the episode's goal the
-    pose was drawn around and ``distance`` (N,) its straight-line metres."""
+    pose was drawn around, ``distance`` (N,) its straight-line metres and ``recognition`` (N,)
+    ObjRecogMap's label (:func:`~multion_agents.learned.learned_maps.recognition_label`)."""
 
     rgb: np.ndarray
     depth: np.ndarray
     labels: np.ndarray
     goal: np.ndarray
     distance: np.ndarray
+    recognition: np.ndarray
 
     def __len__(self) -> int:
         return len(self.labels)
@@ -105,7 +109,8 @@ def sample_frames(
     hfov = config.camera.hfov_deg
     half_view = 0.4 * math.radians(hfov)
     rng = np.random.default_rng(seed)
-    rows: dict[str, list[np.ndarray]] = {"rgb": [], "depth": [], "labels": []}
+    geometry = MapGeometry.from_env_config(config)
+    rows: dict[str, list[np.ndarray]] = {"rgb": [], "depth": [], "labels": [], "recognition": []}
     goals: list[int] = []
     distances: list[float] = []
     env = MultiONEnv(config)
@@ -143,6 +148,13 @@ def sample_frames(
                 rows["rgb"].append(observation["rgb"])
                 rows["depth"].append(observation["depth"])
                 rows["labels"].append(view_labels(observation["goal_mask"]))
+                rows["recognition"].append(
+                    recognition_label(
+                        torch.as_tensor(observation["goal_mask"][None]),
+                        torch.as_tensor(observation["depth"][None]),
+                        geometry,
+                    ).numpy()
+                )
                 goals.append(goal.category)
                 distances.append(float(gaps[pick]))
                 bar.update(1)
@@ -155,6 +167,7 @@ def sample_frames(
         labels=np.stack(rows["labels"]),
         goal=np.asarray(goals, dtype=np.int64),
         distance=np.asarray(distances, dtype=np.float32),
+        recognition=np.concatenate(rows["recognition"]).astype(np.int64),
     )
 
 
@@ -243,17 +256,59 @@ class FoundPretraining:
         return _mean(chance[near]), _mean(chance[~near])
 
 
+@dataclass(frozen=True)
+class RecogniserPretraining:
+    """ObjRecogMap's recogniser learning on the rendered frames too (``--pretrain-recogniser``),
+    class-balanced: most frames show no goal within its 2.5 m."""
+
+    memory: ObjRecogMap
+
+    @classmethod
+    def of(cls, policy: RecurrentPolicy) -> RecogniserPretraining:
+        if not isinstance(policy.memory, ObjRecogMap):
+            raise ConfigError(
+                "--pretrain-recogniser trains ObjRecogMap's recogniser; this agent has none"
+            )
+        return cls(policy.memory)
+
+    def loss(self, feature_map: Tensor, frames: VisionFrames, index: np.ndarray) -> Tensor:
+        """Class-balanced cross-entropy of the recogniser on the frames' image features."""
+        label = torch.as_tensor(frames.recognition[index], device=feature_map.device)
+        weight = balancing_weights(label, NUM_CATEGORY_VALUES)
+        return nn.functional.cross_entropy(
+            self.memory.classifier(feature_map), label, weight=weight
+        )
+
+    def held_out(
+        self, encoder: ImageEncoder, frames: VisionFrames, chunk: int = 256
+    ) -> tuple[float, float]:
+        """Recall (of the frames whose label names a goal, the share answered with that goal)
+        and precision (of the frames answered with a goal, the share whose label it is)."""
+        device = next(self.memory.parameters()).device
+        answers = []
+        with torch.no_grad():
+            for start in range(0, len(frames), chunk):
+                index = np.arange(start, min(start + chunk, len(frames)))
+                feature_map = _encode(encoder, frames, index, device)[0]
+                answers.append(self.memory.classifier(feature_map).argmax(1).cpu().numpy())
+        answer, label = np.concatenate(answers), frames.recognition
+        hits = int(((answer == label) & (label > 0)).sum())
+        named, answered = int((label > 0).sum()), int((answer > 0).sum())
+        return (hits / named if named else math.nan, hits / answered if answered else math.nan)
+
+
 def _mean(values: np.ndarray) -> float:
     return float(values.mean()) if len(values) else math.nan
 
 
-def _embed(
+def _encode(
     encoder: ImageEncoder, frames: VisionFrames, index: np.ndarray, device: torch.device
-) -> Tensor:
+) -> tuple[Tensor, Tensor]:
+    """The encoder's feature map and embedding of the frames at ``index``."""
     rgb = torch.as_tensor(frames.rgb[index], device=device)
     depth = torch.as_tensor(frames.depth[index], device=device)
-    embedding: Tensor = encoder(rgb, depth)[1]
-    return embedding
+    feature_map, embedding = encoder(rgb, depth)
+    return feature_map, embedding
 
 
 @dataclass(frozen=True)
@@ -301,7 +356,7 @@ def predict_goal_in_view(
     with torch.no_grad():
         for start in range(0, len(frames), chunk):
             index = np.arange(start, min(start + chunk, len(frames)))
-            places = head(_embed(encoder, frames, index, device)).argmax(-1).cpu().numpy()
+            places = head(_encode(encoder, frames, index, device)[1]).argmax(-1).cpu().numpy()
             out.append(places[np.arange(len(index)), frames.goal[index]] > 0)
     return np.concatenate(out)
 
@@ -322,16 +377,24 @@ def fit_head(
     held_out: VisionFrames | None = None,
     progress: bool = False,
     found: FoundPretraining | None = None,
+    recogniser: RecogniserPretraining | None = None,
 ) -> float:
     """Train ``head`` (and the encoder when ``train_encoder``; else a probe of frozen features)
     with class-weighted cross-entropy; returns the last loss. Every 100 steps a row goes to
     ``log`` ("pretrain_vision") with the held-out recall and precision over all bands.
     ``found``: the policy's FOUND head learns too (its binary cross-entropy added; the policy's
-    weights trained), and the log gives its held-out mean probability near the goal and far."""
+    weights trained), and the log gives its held-out mean probability near the goal and far.
+    ``recogniser``: ObjRecogMap's recogniser learns too, and the log gives its held-out recall
+    and precision."""
     device = next(head.parameters()).device
     weights = class_weights(frames.labels).to(device)
-    trained = found.policy if found is not None else encoder
-    parameters = list(head.parameters()) + (list(trained.parameters()) if train_encoder else [])
+    trained: list[nn.Module] = [head]
+    if train_encoder:
+        trained.append(found.policy if found is not None else encoder)
+        if recogniser is not None:
+            trained.append(recogniser.memory.classifier)
+    # the policy holds the encoder and the recogniser: each parameter once
+    parameters = list({id(p): p for module in trained for p in module.parameters()}.values())
     optimizer = torch.optim.Adam(parameters, lr=settings.learning_rate, eps=1e-5)
     rng = np.random.default_rng(settings.seed)
     loss_value = math.nan
@@ -340,7 +403,7 @@ def fit_head(
     ):
         index = rng.integers(len(frames), size=settings.batch_size)
         with torch.set_grad_enabled(train_encoder):
-            v_i = _embed(encoder, frames, index, device)
+            feature_map, v_i = _encode(encoder, frames, index, device)
         logits = head(v_i if train_encoder else v_i.detach())
         labels = torch.as_tensor(frames.labels[index], device=device)
         loss = nn.functional.cross_entropy(
@@ -348,6 +411,8 @@ def fit_head(
         )
         if found is not None:
             loss = loss + found_head_loss(found.logits(frames, index), found.labels(frames, index))
+        if recogniser is not None:
+            loss = loss + recogniser.loss(feature_map, frames, index)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -363,14 +428,21 @@ def fit_head(
             }
             if found is not None:
                 row["found_near"], row["found_far"] = found.held_out(held_out)
+            if recogniser is not None:
+                row["recogniser_recall"], row["recogniser_precision"] = recogniser.held_out(
+                    encoder, held_out
+                )
             log.write("pretrain_vision", row)
     return loss_value
 
 
 def check_vision_pretraining(
-    settings: VisionPretraining, agent: str, sensors: tuple[str, ...]
+    settings: VisionPretraining, agent: str, sensors: tuple[str, ...], recogniser: bool = False
 ) -> None:
-    """A ``ConfigError`` naming ``--pretrain-vision`` for an agent that does not see RGB-D."""
+    """A ``ConfigError`` naming ``--pretrain-vision`` for an agent that does not see RGB-D, and
+    ``--pretrain-recogniser`` (``recogniser``) without it."""
+    if recogniser and settings.steps == 0:
+        raise ConfigError("--pretrain-recogniser learns during --pretrain-vision STEPS: give it")
     if settings.steps > 0 and not {"rgb", "depth"} <= set(sensors):
         raise ConfigError(
             f"--pretrain-vision trains the RGB-D encoder, which {agent} does not have (it reads "
@@ -384,9 +456,11 @@ def pretrain_vision(
     settings: VisionPretraining,
     out: Path,
     progress: bool = True,
+    recogniser: bool = False,
 ) -> list[BandScores]:
     """Train ``policy``'s image encoder on frames of train houses (log: ``out/pretrain_vision.csv``);
-    returns the held-out (val houses) recall and precision by band after."""
+    returns the held-out (val houses) recall and precision by band after. ``recogniser``:
+    ObjRecogMap's recogniser learns on the same frames (``--pretrain-recogniser``)."""
     encoder = policy.image_encoder
     if encoder is None:
         raise ConfigError("--pretrain-vision: this policy has no image encoder")
@@ -400,7 +474,8 @@ def pretrain_vision(
     log = TrainingLog(out, tensorboard=False)
     try:
         found = FoundPretraining.of(policy, env_config)
-        fit_head(encoder, head, train, settings, True, log, held_out, progress, found)
+        recognising = RecogniserPretraining.of(policy) if recogniser else None
+        fit_head(encoder, head, train, settings, True, log, held_out, progress, found, recognising)
     finally:
         log.close()
     scores = band_scores(
