@@ -323,6 +323,13 @@ def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> N
         assert "--found-head 1 --curriculum 400:4 --curriculum 700:10 --goal-heads" in train
         assert ("--balanced-recognition" in train) == (agent == "obj-recog-map"), train
         assert evaluation.startswith(f"eval --agent {agent} --checkpoint ")
+    # the recogniser's pretraining is a pilot of obj-recog-map's only
+    variables = {"FRAMES": "1000", "AGENT": "obj-recog-map",
+                 "ONLY": "obj-recog-map-found-head-recogniser no-map-found-head-recogniser"}  # fmt: skip
+    _script(tmp_path, "recipe_pilot.sh", _stand_in(tmp_path, variables))
+    (train, _) = (line for line in _calls(tmp_path) if line.startswith(("train", "eval")))
+    assert "--out runs/pilot/obj-recog-map-found-head-recogniser " in train
+    assert train.endswith("--pretrain-vision 2000 --pretrain-recogniser")
 
 
 def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -> None:
