@@ -41,6 +41,7 @@ from multion_agents.learned.vision_pretrain import (
     fit_head,
     goal_in_view,
     predict_goal_in_view,
+    recogniser_answers,
     sample_frames,
 )
 
@@ -218,18 +219,8 @@ def recogniser_scores(policy: RecurrentPolicy, held_out: VisionFrames) -> list[B
     memory, encoder = policy.memory, policy.image_encoder
     if not isinstance(memory, ObjRecogMap) or encoder is None:
         return None
-    device = policy.device
-    predicted = []
-    with torch.no_grad():
-        for start in range(0, len(held_out), 256):
-            rows = slice(start, min(start + 256, len(held_out)))
-            features, _ = encoder(
-                torch.as_tensor(held_out.rgb[rows], device=device),
-                torch.as_tensor(held_out.depth[rows], device=device),
-            )
-            names = memory.classifier(features).argmax(1).cpu().numpy()
-            predicted.append(names == held_out.goal[rows] + 1)
-    return band_scores(np.concatenate(predicted), goal_in_view(held_out), held_out.distance)
+    predicted = recogniser_answers(memory, encoder, held_out) == held_out.goal + 1
+    return band_scores(predicted, goal_in_view(held_out), held_out.distance)
 
 
 def view_frames(

@@ -284,17 +284,25 @@ class RecogniserPretraining:
     ) -> tuple[float, float]:
         """Recall (of the frames whose label names a goal, the share answered with that goal)
         and precision (of the frames answered with a goal, the share whose label it is)."""
-        device = next(self.memory.parameters()).device
-        answers = []
-        with torch.no_grad():
-            for start in range(0, len(frames), chunk):
-                index = np.arange(start, min(start + chunk, len(frames)))
-                feature_map = _encode(encoder, frames, index, device)[0]
-                answers.append(self.memory.classifier(feature_map).argmax(1).cpu().numpy())
-        answer, label = np.concatenate(answers), frames.recognition
+        answer = recogniser_answers(self.memory, encoder, frames, chunk)
+        label = frames.recognition
         hits = int(((answer == label) & (label > 0)).sum())
         named, answered = int((label > 0).sum()), int((answer > 0).sum())
         return (hits / named if named else math.nan, hits / answered if answered else math.nan)
+
+
+def recogniser_answers(
+    memory: ObjRecogMap, encoder: ImageEncoder, frames: VisionFrames, chunk: int = 256
+) -> np.ndarray:
+    """The recogniser's answer for each frame (N,): 0 "no goal", c + 1 category c."""
+    device = next(memory.parameters()).device
+    answers = []
+    with torch.no_grad():
+        for start in range(0, len(frames), chunk):
+            index = np.arange(start, min(start + chunk, len(frames)))
+            feature_map = _encode(encoder, frames, index, device)[0]
+            answers.append(memory.classifier(feature_map).argmax(1).cpu().numpy())
+    return np.concatenate(answers)
 
 
 def _mean(values: np.ndarray) -> float:
