@@ -18,6 +18,7 @@ Success; their object locator is a pre-trained segmentation head.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -248,8 +249,7 @@ class FoundPretraining:
         distance, and on the rest."""
         chances = []
         with torch.no_grad():
-            for start in range(0, len(frames), chunk):
-                index = np.arange(start, min(start + chunk, len(frames)))
+            for index in _chunks(len(frames), chunk):
                 chances.append(torch.sigmoid(self.logits(frames, index)).cpu().numpy())
         chance = np.concatenate(chances)
         near = self.labels(frames, np.arange(len(frames))).cpu().numpy() > 0.5
@@ -298,11 +298,16 @@ def recogniser_answers(
     device = next(memory.parameters()).device
     answers = []
     with torch.no_grad():
-        for start in range(0, len(frames), chunk):
-            index = np.arange(start, min(start + chunk, len(frames)))
+        for index in _chunks(len(frames), chunk):
             feature_map = _encode(encoder, frames, index, device)[0]
             answers.append(memory.classifier(feature_map).argmax(1).cpu().numpy())
     return np.concatenate(answers)
+
+
+def _chunks(count: int, chunk: int) -> Iterator[np.ndarray]:
+    """Indices 0 … count - 1 in consecutive arrays of at most ``chunk``."""
+    for start in range(0, count, chunk):
+        yield np.arange(start, min(start + chunk, count))
 
 
 def _mean(values: np.ndarray) -> float:
@@ -362,8 +367,7 @@ def predict_goal_in_view(
     device = next(head.parameters()).device
     out = []
     with torch.no_grad():
-        for start in range(0, len(frames), chunk):
-            index = np.arange(start, min(start + chunk, len(frames)))
+        for index in _chunks(len(frames), chunk):
             places = head(_encode(encoder, frames, index, device)[1]).argmax(-1).cpu().numpy()
             out.append(places[np.arange(len(index)), frames.goal[index]] > 0)
     return np.concatenate(out)
