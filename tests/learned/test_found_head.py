@@ -32,7 +32,8 @@ from multion_agents.learned.policy import FOUND_HEAD_PRIOR, RecurrentPolicy, gat
 from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
-from multion_agents.learned.vision_pretrain import FoundPretraining, VisionFrames
+from multion_agents.learned.vision_frames import VisionFrames
+from multion_agents.learned.vision_pretrain import FoundPretraining
 from multion_client.constants import Action
 
 FOUND = int(Action.FOUND)

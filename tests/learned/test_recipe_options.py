@@ -39,13 +39,8 @@ from multion_agents.learned.rollout_envs import stage_config
 from multion_agents.learned.train_options import FoundCurriculum, VisionPretraining
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train
-from multion_agents.learned.vision_pretrain import (
-    class_weights,
-    goal_in_view,
-    pretrain_vision,
-    sample_frames,
-    view_labels,
-)
+from multion_agents.learned.vision_frames import goal_in_view, sample_frames, view_labels
+from multion_agents.learned.vision_pretrain import class_weights, pretrain_vision
 from multion_client.constants import Action
 
 

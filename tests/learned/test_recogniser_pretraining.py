@@ -21,13 +21,8 @@ from multion_agents.learned.models import model_spec
 from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.training_run import run_env_config, train
-from multion_agents.learned.vision_pretrain import (
-    PlaceHead,
-    RecogniserPretraining,
-    VisionFrames,
-    fit_head,
-    sample_frames,
-)
+from multion_agents.learned.vision_frames import VisionFrames, sample_frames
+from multion_agents.learned.vision_pretrain import PlaceHead, RecogniserPretraining, fit_head
 
 
 class FixedAnswers(nn.Module):

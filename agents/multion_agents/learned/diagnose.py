@@ -33,16 +33,14 @@ from multion_agents.learned.found_supervision import found_probabilities
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy, frames_to_tensors
 from multion_agents.learned.train_options import VisionPretraining
+from multion_agents.learned.vision_frames import VisionFrames, goal_in_view, sample_frames
 from multion_agents.learned.vision_pretrain import (
     BandScores,
     PlaceHead,
-    VisionFrames,
     band_scores,
     fit_head,
-    goal_in_view,
     predict_goal_in_view,
     recogniser_answers,
-    sample_frames,
 )
 
 
