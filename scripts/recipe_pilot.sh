@@ -123,7 +123,9 @@ pilot "$agent-found-head-coverage" --found-head 1 --curriculum "$found_frames:4"
 # On no-map it looped more decisively: without a map it does not know where it has been. With
 # a map (without the bonus, proj-neural-map at 128² walked into walls on half of its forward
 # steps, no-map on 30 %): AGENT=proj-neural-map IMAGE_SIZE=128 RENDERER=gl
-# ONLY=proj-neural-map-found-head-coverage-2.5-128-gl.
+# ONLY=proj-neural-map-found-head-coverage-2.5-128-gl. Result: 10.3 cells per episode against
+# 6.7, within reach in 40 episodes against 35, but 33 % val Success against 32 % (+1 [-9, +11])
+# and a lower SPL (docs/learned.md); not kept.
 pilot "$agent-found-head-coverage-2.5" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --coverage-reward 2.5
@@ -191,6 +193,8 @@ pilot "$agent-found-head-separate-critic" --found-head 1 --curriculum "$found_fr
 # the goal within 1.5 m where a linear probe of the same embedding answered on 86 % (`multion
 # diagnose`): the learn-to-see options with the recogniser also learning on vision pretraining's
 # frames. Only for AGENT=obj-recog-map (IMAGE_SIZE=128 RENDERER=gl: its 128² pilot had 21 %).
+# Result: 26 % (+5 [-3, +13]), SPL +4.4 [+0.6, +9.0]; within reach in 41 episodes (28), its
+# FOUND head missing 15 of them (docs/learned.md).
 if [ "$agent" = obj-recog-map ]; then
   pilot "$agent-found-head-recogniser" --found-head 1 --curriculum "$found_frames:4" \
     --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
