@@ -115,10 +115,18 @@ def load_policy(path: str | Path) -> tuple[RecurrentPolicy, ConfigOverrides, str
         raise CheckpointError(f"{path}: {error}") from None
     # without training heads; with the FOUND head and the pose input where it was trained with
     # them (they act)
-    found_head = "found_head.weight" in payload["model"]
-    pose_input = "gps_embedding.weight" in payload["model"]
+    weights = payload["model"]
+    found_head = "found_head.weight" in weights
+    pose_input = "gps_embedding.weight" in weights
+    # a FOUND head wider than the GRU also reads the frame's embedding
+    reads_image = found_head and weights["found_head.weight"].shape[1] > hidden_size
     policy = build_policy(
-        payload["agent"], config, hidden_size, found_head=found_head, pose_input=pose_input
+        payload["agent"],
+        config,
+        hidden_size,
+        found_head=found_head,
+        pose_input=pose_input,
+        found_head_reads_image=reads_image,
     )
     try:
         policy.load_state_dict(acting_weights(payload["model"]))
@@ -153,6 +161,7 @@ RECIPE_OPTIONS = (
     "expert",
     "pose_input",
     "separate_critic",
+    "found_head_reads_image",
 )
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""

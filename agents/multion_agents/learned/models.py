@@ -62,13 +62,15 @@ class ModelSpec:
         found_head: bool = False,
         pose_input: bool = False,
         separate_critic: bool = False,
+        found_head_reads_image: bool = False,
     ) -> RecurrentPolicy:
         """The policy for an env with ``observation_space`` whose config gives ``geometry``
         (None: the default env config's, for tests), with a GRU of ``hidden_size`` units and,
         with ``goal_heads``, the auxiliary goal heads (:mod:`.goal_heads`); with
         ``found_head``, FOUND decided by a supervised head (``--found-head``); with
         ``pose_input``, the GRU reading GPS and compass (``--pose-input``); with
-        ``separate_critic``, the critic on its own GRU (``--separate-critic``)."""
+        ``separate_critic``, the critic on its own GRU (``--separate-critic``); with
+        ``found_head_reads_image``, the FOUND head reading the frame's embedding too."""
         memory = self.build_memory(observation_space, geometry or default_geometry(), hidden_size)
         return RecurrentPolicy(
             observation_space,
@@ -80,6 +82,7 @@ class ModelSpec:
             found_head=found_head,
             pose_input=pose_input,
             separate_critic=separate_critic,
+            found_head_reads_image=found_head_reads_image,
         )
 
 
@@ -189,17 +192,26 @@ def build_policy(
     found_head: bool = False,
     pose_input: bool = False,
     separate_critic: bool = False,
+    found_head_reads_image: bool = False,
 ) -> RecurrentPolicy:
     """The (untrained) policy of model ``agent`` for environments configured by ``env_config``
     (or its wire form, nested dicts), with a GRU of ``hidden_size`` units (768, the
     reference's, by default), with ``goal_heads``, the auxiliary goal heads, with
     ``found_head``, FOUND decided by a supervised head, with ``pose_input``, the GRU
-    reading GPS and compass, and with ``separate_critic``, the critic on its own GRU."""
+    reading GPS and compass, with ``separate_critic``, the critic on its own GRU, and with
+    ``found_head_reads_image``, the FOUND head reading the frame's embedding too."""
     if not isinstance(env_config, EnvConfig):
         env_config = env_config_from_dict(env_config)
     space = build_observation_space(env_config)
     geometry = MapGeometry.from_env_config(env_config)
     spec = model_spec(agent)
     return spec.build(
-        space, geometry, hidden_size, goal_heads, found_head, pose_input, separate_critic
+        space,
+        geometry,
+        hidden_size,
+        goal_heads,
+        found_head,
+        pose_input,
+        separate_critic,
+        found_head_reads_image,
     )

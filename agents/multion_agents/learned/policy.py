@@ -155,6 +155,10 @@ class RecurrentPolicy(nn.Module):
     evaluation may lower it; :func:`gated_logits`), and otherwise samples a movement from the
     actor. It is part of the agent, kept at evaluation.
 
+    ``found_head_reads_image``: the FOUND head reads the current frame's image embedding
+    ``v_i`` beside the GRU output (``--found-head-reads-image``), so its answer need not pass
+    through a GRU whose input a map also fills. Part of the agent, kept at evaluation.
+
     ``pose_input``: the GRU also reads the agent's pose from the episode's start (``gps``,
     ``compass``), each embedded to :data:`POSE_EMBED_DIM` units (``--pose-input``). It is part
     of the agent, kept at evaluation. Memories' queries stay ``[v_i, v_g, v_a]``.
@@ -176,6 +180,7 @@ class RecurrentPolicy(nn.Module):
         found_head: bool = False,
         pose_input: bool = False,
         separate_critic: bool = False,
+        found_head_reads_image: bool = False,
     ) -> None:
         super().__init__()
         if not 1 <= hidden_size <= MAX_HIDDEN_SIZE:
@@ -212,8 +217,12 @@ class RecurrentPolicy(nn.Module):
         self.goal_heads = GoalHeads(hidden_size) if goal_heads else None
         self.found_head: nn.Linear | None = None
         self.found_gate = FOUND_GATE
+        if found_head_reads_image and not (found_head and image_dim):
+            raise ValueError("found_head_reads_image needs a FOUND head and an image encoder")
+        self.found_head_reads_image = found_head_reads_image
         if found_head:
-            self.found_head = _layer(nn.Linear(hidden_size, 1), std=0.01)
+            found_in = hidden_size + (image_dim if found_head_reads_image else 0)
+            self.found_head = _layer(nn.Linear(found_in, 1), std=0.01)
             prior = math.log(FOUND_HEAD_PRIOR / (1.0 - FOUND_HEAD_PRIOR))
             nn.init.constant_(self.found_head.bias, prior)
 
@@ -280,7 +289,7 @@ class RecurrentPolicy(nn.Module):
             prev_action.reshape(-1).long(),
         )
         parts = []
-        image_features = None
+        image_features, v_i = None, None
         if self.image_encoder is not None:
             image_features, v_i = self.image_encoder(flat.get("rgb"), flat.get("depth"))
             parts.append(v_i)
@@ -347,7 +356,10 @@ class RecurrentPolicy(nn.Module):
         logits = self.actor(core)
         found_logit = None
         if self.found_head is not None:
-            found_logit = self.found_head(core).squeeze(-1)
+            found_in = core
+            if self.found_head_reads_image and v_i is not None:
+                found_in = torch.cat([core, v_i.view(steps, batch, -1)], dim=2)
+            found_logit = self.found_head(found_in).squeeze(-1)
             if found_fired is None:
                 fired = found_logit.detach() > _logit(self.found_gate)
             else:

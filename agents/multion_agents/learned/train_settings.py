@@ -236,6 +236,16 @@ class Args:
         ),
     )
     """Not with ``--found-supervision``, which teaches the actor's own FOUND."""
+    found_head_reads_image: bool = setting(
+        False,
+        cli=Option(
+            "the FOUND head reads the current frame's image embedding beside the GRU output, "
+            "so a map filling the GRU's input does not stand between the frame and FOUND; "
+            "kept at evaluation; needs --found-head",
+            toggle=True,
+            group=BEYOND_PAPER,
+        ),
+    )
     found_head_positive_weight: float = setting(
         1.0,
         low=1,
@@ -389,6 +399,10 @@ class Args:
         if self.found_head_positive_weight != 1 and self.found_head == 0:
             raise ConfigError(
                 "--found-head-positive-weight weighs the FOUND head's loss: it needs --found-head"
+            )
+        if self.found_head_reads_image and self.found_head == 0:
+            raise ConfigError(
+                "--found-head-reads-image widens the FOUND head: it needs --found-head"
             )
         if self.expert != "oracle-planner" and self.imitation_coef == 0:
             raise ConfigError(

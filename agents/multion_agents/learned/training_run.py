@@ -481,6 +481,7 @@ def _prepare(
         args.found_head > 0,
         args.pose_input,
         args.separate_critic,
+        args.found_head_reads_image,
     ).to(device)
     for flag, asked in (
         ("--balanced-recognition", args.balanced_recognition),
