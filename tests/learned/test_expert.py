@@ -25,8 +25,8 @@ from multion_agents.learned.expert import (
     ExplorerLabels,
     OraclePlannerLabels,
 )
+from multion_agents.learned.found_gate import FOUND
 from multion_agents.learned.models import MODELS
-from multion_agents.learned.policy import FOUND
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout import collect, start_episodes
 from multion_agents.learned.rollout_envs import NO_LABEL, expert_labels

@@ -21,9 +21,9 @@ from test_recipe_options import tiny_args
 from multion_agents.agent import AgentError
 from multion_agents.learned.agent import learned_agent_class
 from multion_agents.learned.diagnose import diagnosis_config, found_calls
-from multion_agents.learned.found_gate import GateTrace, ending_at_gate, parse_gates
+from multion_agents.learned.found_gate import FOUND_GATE, GateTrace, ending_at_gate, parse_gates
 from multion_agents.learned.models import model_spec
-from multion_agents.learned.policy import FOUND_GATE, RecurrentPolicy
+from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.training_run import train
 from multion_client.constants import Action
 

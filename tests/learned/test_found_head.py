@@ -18,6 +18,7 @@ from test_recipe_options import tiny_args
 from multion.config.ranges import ConfigError
 from multion.config.task import CameraConfig, EnvConfig
 from multion_agents.learned.checkpoint import CheckpointError, load_checkpoint, load_policy
+from multion_agents.learned.found_gate import FOUND_HEAD_PRIOR, gated_logits
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
     IN_VIEW_SENSOR,
@@ -28,7 +29,7 @@ from multion_agents.learned.found_supervision import (
     goal_in_view,
 )
 from multion_agents.learned.models import build_policy, model_spec
-from multion_agents.learned.policy import FOUND_HEAD_PRIOR, RecurrentPolicy, gated_logits
+from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.train_options import VisionPretraining
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_run import run_env_config, train

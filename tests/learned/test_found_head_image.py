@@ -84,7 +84,9 @@ def test_the_option_needs_a_found_head() -> None:
 def test_a_run_acts_with_the_wide_head_and_resumes_only_with_it(
     tmp_path: Path, room_dataset: Path
 ) -> None:
-    args = tiny_args(tmp_path, room_dataset, frames=128, found_head=1.0, found_head_reads_image=True)
+    args = tiny_args(
+        tmp_path, room_dataset, frames=128, found_head=1.0, found_head_reads_image=True
+    )
     train(args)
     path = tmp_path / "run" / "checkpoint.pt"
     payload = load_checkpoint(path)

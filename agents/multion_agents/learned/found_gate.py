@@ -1,4 +1,5 @@
-"""Where a FOUND head's gate should open (issue 51), read off episodes played at one gate.
+"""A FOUND head's gate (issue 51): how it masks the actor (:func:`gated_logits`), and where it
+should open, read off episodes played at one gate.
 
 At 1-ON, where a wrong FOUND ends the episode (``task.found_budget`` 0), the first FOUND ends
 it either way: a success within the success distance, a wrong FOUND elsewhere. An episode
@@ -11,14 +12,24 @@ FOUND would succeed there, then reads every gate off the same episodes.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import torch
+from torch import Tensor
 
-from multion_agents.learned.policy import FOUND_GATE
+from multion_client.constants import Action
 
+FOUND_HEAD_PRIOR = 0.02
+"""The untrained FOUND head's probability (its bias): well under the gate's 0.5, so an untrained
+policy never calls FOUND."""
+FOUND_GATE = 0.5
+"""The FOUND head's probability above which the policy calls FOUND, unless told otherwise
+(``RecurrentPolicy.found_gate``; ``multion eval --found-gate``)."""
+FOUND = int(Action.FOUND)
 SUCCESS = "success"
 WRONG_FOUND = "wrong_found"
 
@@ -67,3 +78,23 @@ def parse_gates(text: str) -> tuple[float, ...]:
     if not gates or not all(0.0 < gate <= FOUND_GATE for gate in gates):
         raise ValueError(f"--gates must be in (0, {FOUND_GATE:g}] (the gate played), got {text!r}")
     return gates
+
+
+def gate_logit(probability: float) -> float:
+    """The FOUND head's logit at which a gate of ``probability`` opens."""
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"found_gate must be in (0, 1), got {probability!r}")
+    return math.log(probability / (1.0 - probability))
+
+
+def gated_logits(actor_logits: Tensor, fired: Tensor) -> Tensor:
+    """The action logits (..., A) of a policy whose FOUND a head decides: where ``fired`` (...)
+    FOUND alone (probability 1), elsewhere the actor's movements with FOUND impossible. A
+    replay that gates as the acting did gives a FOUND step log-probability 0 (PPO's ratio 1:
+    the actor is not taught by it) and a movement the actor's own renormalised log-probability."""
+    lowest = torch.finfo(actor_logits.dtype).min
+    found = torch.zeros_like(actor_logits, dtype=torch.bool)
+    found[..., FOUND] = True
+    only_found = torch.full_like(actor_logits, lowest).masked_fill(found, 0.0)
+    moves = actor_logits.masked_fill(found, lowest)
+    return torch.where(fired.unsqueeze(-1), only_found, moves)

@@ -28,9 +28,16 @@ from torch import Tensor, nn
 from torch.distributions import Categorical
 
 from multion_agents.learned.encoders import ImageEncoder
+from multion_agents.learned.found_gate import (
+    FOUND,
+    FOUND_GATE,
+    FOUND_HEAD_PRIOR,
+    gate_logit,
+    gated_logits,
+)
 from multion_agents.learned.goal_heads import GOAL_VECTOR, GoalHeads, GoalLosses
 from multion_agents.learned.gru import MaskedGRU
-from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES, Action
+from multion_client.constants import NUM_ACTIONS, NUM_CATEGORIES
 
 AUTOCAST_DEVICES = ("cpu", "cuda")
 """Devices whose autocast the GRU recurrence turns off (see ``_recurrent``)."""
@@ -53,13 +60,6 @@ habitat-lab's ObjectNav/PointNav baseline (facebookresearch/habitat-lab,
 The reference's MultiON policies do not read them (``--pose-input``, beyond the paper)."""
 NO_ACTION = NUM_ACTIONS
 """Index of the "no previous action" embedding, used at an episode's first step."""
-FOUND = int(Action.FOUND)
-FOUND_HEAD_PRIOR = 0.02
-"""The untrained FOUND head's probability (its bias): well under the gate's 0.5, so an untrained
-policy never calls FOUND."""
-FOUND_GATE = 0.5
-"""The FOUND head's probability above which the policy calls FOUND, unless told otherwise
-(``RecurrentPolicy.found_gate``; ``multion eval --found-gate``)."""
 
 
 class Memory(nn.Module, ABC):
@@ -361,7 +361,7 @@ class RecurrentPolicy(nn.Module):
                 found_in = torch.cat([core, v_i.view(steps, batch, -1)], dim=2)
             found_logit = self.found_head(found_in).squeeze(-1)
             if found_fired is None:
-                fired = found_logit.detach() > _logit(self.found_gate)
+                fired = found_logit.detach() > gate_logit(self.found_gate)
             else:
                 fired = found_fired.bool()
             logits = gated_logits(logits, fired)
@@ -459,25 +459,6 @@ class RecurrentPolicy(nn.Module):
             out.goal_losses,
             out.found_logit,
         )
-
-
-def _logit(probability: float) -> float:
-    if not 0.0 < probability < 1.0:
-        raise ValueError(f"found_gate must be in (0, 1), got {probability!r}")
-    return math.log(probability / (1.0 - probability))
-
-
-def gated_logits(actor_logits: Tensor, fired: Tensor) -> Tensor:
-    """The action logits (..., A) of a policy whose FOUND a head decides: where ``fired`` (...)
-    FOUND alone (probability 1), elsewhere the actor's movements with FOUND impossible. A
-    replay that gates as the acting did gives a FOUND step log-probability 0 (PPO's ratio 1:
-    the actor is not taught by it) and a movement the actor's own renormalised log-probability."""
-    lowest = torch.finfo(actor_logits.dtype).min
-    found = torch.zeros_like(actor_logits, dtype=torch.bool)
-    found[..., FOUND] = True
-    only_found = torch.full_like(actor_logits, lowest).masked_fill(found, 0.0)
-    moves = actor_logits.masked_fill(found, lowest)
-    return torch.where(fired.unsqueeze(-1), only_found, moves)
 
 
 def frames_to_tensors(observation: dict[str, np.ndarray], keys: tuple[str, ...]) -> Batch:

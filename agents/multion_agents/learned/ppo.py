@@ -21,6 +21,7 @@ from torch import Tensor, nn
 from multion.config.ranges import ConfigError
 from multion.config.task import TaskConfig
 from multion_agents.learned.distributed import average_gradients
+from multion_agents.learned.found_gate import FOUND
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
     IN_VIEW_SENSOR,
@@ -33,7 +34,7 @@ from multion_agents.learned.found_supervision import (
     goal_in_view,
     mean_where,
 )
-from multion_agents.learned.policy import FOUND, RecurrentPolicy
+from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.precision import update_precision
 from multion_agents.learned.rollout import Rollout
 from multion_agents.learned.rollout_envs import NO_LABEL
