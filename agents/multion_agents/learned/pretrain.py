@@ -19,6 +19,7 @@ FOUND next to it.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -27,7 +28,7 @@ import torch
 from tqdm import tqdm
 
 from multion.config.datasets import packaged_dataset_path
-from multion.config.episode import Episode
+from multion.config.episode import Episode, Goal
 from multion.config.ranges import ConfigError
 from multion.config.task import EnvConfig
 from multion.sim.geodesic import distance_field
@@ -77,19 +78,23 @@ def pose_label(
     return Action.TURN_LEFT if bearing > 0 else Action.TURN_RIGHT
 
 
-def reset_randomly(
-    env: MultiONEnv, rng: np.random.Generator, seed: int | None
-) -> tuple[NavGrid, Episode]:
-    """Reset ``env`` into a random one of its episodes (a packaged split's or a file's), or
-    into its next online episode; ``seed`` seeds the reset. Returns the house's grid and the
-    episode (offline data: pretraining and probes draw poses in it)."""
-    options = {}
-    if env.episodes is not None:  # else sampled online
-        options = {"episode_index": int(rng.integers(len(env.episodes)))}
-    env.reset(seed=seed, options=options)
-    grid, episode = env.sim.grid, env.episode
-    assert grid is not None and episode is not None
-    return grid, episode
+def random_goals(
+    env: MultiONEnv, rng: np.random.Generator, seed: int
+) -> Iterator[tuple[NavGrid, Episode, Goal]]:
+    """Endlessly: ``env`` reset into a random one of its episodes (a packaged split's or a
+    file's), or into its next online episode, the first reset seeded by ``seed``; yields the
+    house's grid, the episode and one of its goals drawn by ``rng`` (offline data: pretraining
+    and probes draw poses around it)."""
+    seeded: int | None = seed
+    while True:
+        options = {}
+        if env.episodes is not None:  # else sampled online
+            options = {"episode_index": int(rng.integers(len(env.episodes)))}
+        env.reset(seed=seeded, options=options)
+        seeded = None
+        grid, episode = env.sim.grid, env.episode
+        assert grid is not None and episode is not None
+        yield grid, episode, episode.goals[int(rng.integers(len(episode.goals)))]
 
 
 def sample_map_crops(
@@ -117,13 +122,11 @@ def sample_map_crops(
     env = MultiONEnv(config)
     bar = tqdm(total=count, desc="pretraining crops", unit="crop", disable=not progress)
     try:
-        first = True
+        houses = random_goals(env, rng, seed)
         while len(labels) < count:
-            grid, episode = reset_randomly(env, rng, seed if first else None)
-            first = False
+            grid, episode, goal = next(houses)
             oracle = OracleMap(grid, config.maps)
             oracle.set_goals((*episode.goals, *episode.distractors))
-            goal = episode.goals[rng.integers(len(episode.goals))]
             target = np.asarray(goal.position[:2], dtype=np.float64)
             field = distance_field(grid, target, config.task.goal_radius)
             rows, cols = np.nonzero(np.isfinite(field))

@@ -16,7 +16,7 @@ from multion.task.env import MultiONEnv
 from multion.task.maps import can_see
 from multion_agents.learned.learned_maps import recognition_label
 from multion_agents.learned.map_ops import MapGeometry
-from multion_agents.learned.pretrain import reset_randomly
+from multion_agents.learned.pretrain import random_goals
 from multion_agents.learned.train_options import VisionPretraining
 from multion_client.constants import NUM_CATEGORIES
 
@@ -88,11 +88,9 @@ def sample_frames(
     env = MultiONEnv(config)
     bar = tqdm(total=count, desc="vision frames", unit="frame", disable=not progress)
     try:
-        first = True
+        houses = random_goals(env, rng, seed)
         while len(goals) < count:
-            grid, episode = reset_randomly(env, rng, seed if first else None)
-            first = False
-            goal = episode.goals[int(rng.integers(len(episode.goals)))]
+            grid, _, goal = next(houses)
             target = np.asarray(goal.position[:2], dtype=np.float64)
             cells = np.argwhere(grid.navigable)
             centres = grid.cell_to_world(cells[:, 0], cells[:, 1])
