@@ -204,6 +204,8 @@ fi
 # reach (no-map's missed none at 128²); its GRU also reads the map, and vision pretraining taught
 # the head at episode starts, with the map empty. The head reading the frame's embedding too
 # (--found-head-reads-image), on no-map (the control) and on obj-recog-map with the recogniser.
+# Result (128², gl): no-map 39 % (-1 [-12, +10], SPL +6.4 [+0.8, +12.6]); obj-recog-map 21 %
+# (-5 [-14, +4]), its head missing 17 of 38 episodes within reach. Not kept (docs/learned.md).
 pilot "$agent-found-head-image" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --found-head-reads-image
