@@ -245,8 +245,10 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-houses",
             "no-map-found-head-pose",
             "no-map-found-head-separate-critic",
+            "no-map-found-head-image",
         ]  # fmt: skip
     )
+    assert "--found-head-reads-image" in by_run["no-map-found-head-image"]
     for line in trains:
         assert "--frames 1000" in line and "--found-prior 0.02" in line
     extras = ("--goal-heads", "--found-curriculum", "--pretrain-vision")
