@@ -81,7 +81,8 @@ def parse_gates(text: str) -> tuple[float, ...]:
 
 
 def gate_logit(probability: float) -> float:
-    """The FOUND head's logit at which a gate of ``probability`` opens."""
+    """The FOUND head's logit at which a gate of ``probability`` opens (the logit of that
+    probability)."""
     if not 0.0 < probability < 1.0:
         raise ValueError(f"found_gate must be in (0, 1), got {probability!r}")
     return math.log(probability / (1.0 - probability))

@@ -15,7 +15,6 @@ state (FRMQN, EgoMap), with which it advances step by step.
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from contextlib import nullcontext
 from dataclasses import dataclass
@@ -219,12 +218,10 @@ class RecurrentPolicy(nn.Module):
         self.found_gate = FOUND_GATE
         if found_head_reads_image and not (found_head and image_dim):
             raise ValueError("found_head_reads_image needs a FOUND head and an image encoder")
-        self.found_head_reads_image = found_head_reads_image
         if found_head:
             found_in = hidden_size + (image_dim if found_head_reads_image else 0)
             self.found_head = _layer(nn.Linear(found_in, 1), std=0.01)
-            prior = math.log(FOUND_HEAD_PRIOR / (1.0 - FOUND_HEAD_PRIOR))
-            nn.init.constant_(self.found_head.bias, prior)
+            nn.init.constant_(self.found_head.bias, gate_logit(FOUND_HEAD_PRIOR))
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -238,6 +235,11 @@ class RecurrentPolicy(nn.Module):
     def separate_critic(self) -> bool:
         """Whether the critic reads its own GRU (``--separate-critic``)."""
         return self.critic_gru is not None
+
+    @property
+    def found_head_reads_image(self) -> bool:
+        """Whether the FOUND head also reads the frame's embedding (a head wider than the GRU)."""
+        return self.found_head is not None and self.found_head.in_features > self.hidden_size
 
     @property
     def pose_input(self) -> bool:
