@@ -162,6 +162,7 @@ RECIPE_OPTIONS = (
     "pose_input",
     "separate_critic",
     "found_head_reads_image",
+    "found_head_label",
 )
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""

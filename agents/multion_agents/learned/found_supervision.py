@@ -16,11 +16,13 @@ policy never reads the sensor; it is off in the paper's recipe, and evaluation n
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
 from torch import Tensor
 
+from multion_agents.learned.goal_heads import GOAL_VECTOR
 from multion_agents.learned.train_settings import Args
 from multion_client.constants import Action
 
@@ -33,10 +35,22 @@ IN_VIEW_SENSOR = "goal_mask"
 
 def found_label_sensors(args: Args) -> tuple[str, ...]:
     """The training-only sensors a run's rollouts carry to learn FOUND from: ``goal_distance``
-    for ``--found-supervision``, and ``goal_mask`` too for ``--found-head`` (none without)."""
+    for ``--found-supervision``, and ``goal_mask`` too for ``--found-head`` (none without), and
+    ``goal_vector`` for its ``--found-head-label seen``."""
     if args.found_head > 0:
-        return (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR)
+        seen = (GOAL_VECTOR,) if args.found_head_label == "seen" else ()
+        return (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR, *seen)
     return (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
+
+
+def head_may_know(frames: Mapping[str, Tensor], label: str) -> Tensor:
+    """Per step (T, B), where ``--found-head-label`` ``label`` lets the FOUND head learn that
+    FOUND would succeed: where the frame shows the goal (``in-view``), or where the goal has
+    been in view at some step of the episode so far (``seen``: ``goal_vector``'s first value),
+    so that an agent standing on a goal the frame no longer shows may still call it."""
+    if label == "seen":
+        return frames[GOAL_VECTOR][..., 0] > 0.5
+    return goal_in_view(frames[IN_VIEW_SENSOR], frames["goal"])
 
 
 def goal_in_view(goal_mask: Tensor, goal: Tensor) -> Tensor:
@@ -63,16 +77,16 @@ class FoundTargets:
 
 
 def found_targets(
-    distance: Tensor, success_distance: float, in_view: Tensor | None = None
+    distance: Tensor, success_distance: float, may_know: Tensor | None = None
 ) -> FoundTargets:
     """The targets of a rollout from its ``goal_distance`` readings (T, B, 1), weighted by
-    :func:`class_weights` (``--found-supervision``); with ``in_view`` (T, B), the FOUND head's:
-    only where the frame also shows the goal (what one can see), unweighted
-    (:func:`found_head_loss`)."""
+    :func:`class_weights` (``--found-supervision``); with ``may_know`` (T, B;
+    :func:`head_may_know`), the FOUND head's: only where the agent may know the goal is there
+    (it shows, or has shown), unweighted (:func:`found_head_loss`)."""
     labels = found_labels(distance, success_distance).view(distance.shape[:2])
-    if in_view is None:
+    if may_know is None:
         return FoundTargets(labels, class_weights(labels))
-    return FoundTargets(labels * in_view.to(labels.dtype), None)
+    return FoundTargets(labels * may_know.to(labels.dtype), None)
 
 
 def class_weights(labels: Tensor) -> tuple[float, float] | None:

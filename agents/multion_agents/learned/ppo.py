@@ -24,14 +24,13 @@ from multion_agents.learned.distributed import average_gradients
 from multion_agents.learned.found_gate import FOUND
 from multion_agents.learned.found_supervision import (
     FOUND_LABEL_SENSOR,
-    IN_VIEW_SENSOR,
     FoundTargets,
     found_head_loss,
     found_label_sensors,
     found_loss,
     found_probabilities,
     found_targets,
-    goal_in_view,
+    head_may_know,
     mean_where,
 )
 from multion_agents.learned.policy import RecurrentPolicy
@@ -94,8 +93,8 @@ def ppo_update(
     frames = rollout.frames
     label_sensors = found_label_sensors(args)
     if label_sensors and all(k in frames for k in label_sensors):
-        in_view = goal_in_view(frames[IN_VIEW_SENSOR], frames["goal"]) if args.found_head else None
-        targets = found_targets(frames[FOUND_LABEL_SENSOR], success_distance, in_view)
+        may_know = head_may_know(frames, args.found_head_label) if args.found_head else None
+        targets = found_targets(frames[FOUND_LABEL_SENSOR], success_distance, may_know)
     device = policy.device
     precision = update_precision(args.mixed_precision, device, optimizer)
     totals: dict[str, float] = {}

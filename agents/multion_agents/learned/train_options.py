@@ -15,6 +15,11 @@ EXPERTS = ("oracle-planner", "explorer")
 planner (it plans on an oracle map of the house) or the explorer (frontier exploration from
 RGB-D and pose, what the learner's own sensors give)."""
 
+FOUND_HEAD_LABELS = ("in-view", "seen")
+"""Where ``--found-head`` learns that FOUND would succeed (``found_supervision.found_targets``):
+within the success distance with the goal in the frame (``in-view``), or with the goal in view
+at some step of the episode so far (``seen``, ``goal_vector``'s flag)."""
+
 Curriculum = tuple[tuple[int, float], ...]
 """``((until_frames, max_geodesic), ...)``: until ``until_frames`` frames of the run, online
 training episodes keep each goal within ``max_geodesic`` metres (``online_max_geodesic``) of the

@@ -15,6 +15,7 @@ from multion_agents.learned.policy import HIDDEN_SIZE, MAX_HIDDEN_SIZE
 from multion_agents.learned.precision import PRECISIONS
 from multion_agents.learned.train_options import (
     EXPERTS,
+    FOUND_HEAD_LABELS,
     Curriculum,
     FoundCurriculum,
     MapPretraining,
@@ -246,6 +247,17 @@ class Args:
             group=BEYOND_PAPER,
         ),
     )
+    found_head_label: str = setting(
+        "in-view",
+        choices=FOUND_HEAD_LABELS,
+        cli=Option(
+            "where the FOUND head learns that FOUND would succeed: in-view, within the success "
+            "distance with the goal in the frame; seen, within it with the goal in view at any "
+            "step of the episode so far (goal_vector's flag), which a memory can know standing "
+            "on a goal the frame no longer shows (default %(default)s); needs --found-head",
+            group=BEYOND_PAPER,
+        ),
+    )
     found_head_positive_weight: float = setting(
         1.0,
         low=1,
@@ -400,6 +412,8 @@ class Args:
             raise ConfigError(
                 "--found-head-positive-weight weighs the FOUND head's loss: it needs --found-head"
             )
+        if self.found_head_label != "in-view" and self.found_head == 0:
+            raise ConfigError("--found-head-label labels the FOUND head: it needs --found-head")
         if self.found_head_reads_image and self.found_head == 0:
             raise ConfigError(
                 "--found-head-reads-image widens the FOUND head: it needs --found-head"
