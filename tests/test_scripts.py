@@ -246,9 +246,12 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-pose",
             "no-map-found-head-separate-critic",
             "no-map-found-head-image",
+            "no-map-found-head-seen",
         ]  # fmt: skip
     )
     assert "--found-head-reads-image" in by_run["no-map-found-head-image"]
+    assert "--found-head-label seen" in by_run["no-map-found-head-seen"]
+    assert not any("--found-head-label" in by_run[r] for r in by_run if "seen" not in r)
     for line in trains:
         assert "--frames 1000" in line and "--found-prior 0.02" in line
     extras = ("--goal-heads", "--found-curriculum", "--pretrain-vision")
@@ -332,6 +335,10 @@ def test_the_recipe_pilot_runs_the_options_on_another_agent(tmp_path: Path) -> N
     (train, _) = (line for line in _calls(tmp_path) if line.startswith(("train", "eval")))
     assert "--out runs/pilot/obj-recog-map-found-head-recogniser " in train
     assert train.endswith("--pretrain-vision 2000 --pretrain-recogniser")
+    variables["ONLY"] = "obj-recog-map-found-head-recogniser-seen"
+    _script(tmp_path, "recipe_pilot.sh", _stand_in(tmp_path, variables))
+    (train, _) = (line for line in _calls(tmp_path) if line.startswith(("train", "eval")))
+    assert train.endswith("--pretrain-recogniser --found-head-label seen")
 
 
 def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -> None:
