@@ -150,6 +150,11 @@ def run(args: argparse.Namespace) -> int:
         f"{_share(calls.in_view_probability)})"
     )
     print(
+        f"  not won of those: {calls.missed_in_reach}; steps within reach with the goal out of "
+        f"view but seen earlier: {calls.seen_out_of_view_steps} (mean P(FOUND) "
+        f"{_share(calls.seen_out_of_view_probability)})"
+    )
+    print(
         f"  2.5 m cells entered per episode: {_number(calls.cells_visited)}; in the episodes "
         f"that reached the step limit: {_number(calls.cells_at_step_limit)}"
     )

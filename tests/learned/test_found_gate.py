@@ -103,7 +103,9 @@ def test_gates_read_off_played_episodes_match_episodes_played_with_them() -> Non
     assert played.gate_endings["0.5"] == played.endings
     assert played.endings.get("success", 0) <= played.reached <= 6
     assert played.seen_in_reach <= played.reached
-    assert played.in_view_steps <= played.near_steps
+    assert played.in_view_steps + played.seen_out_of_view_steps <= played.near_steps
+    won = played.endings.get("success", 0)
+    assert played.missed_in_reach == played.reached - won  # 1-ON: a win came within reach
     # 60 steps of 0.25 m cross at most 15 m * sqrt(2) / 2.5 m cell borders
     assert 1 <= played.cells_visited <= 1 + 15 * math.sqrt(2) / 2.5
     read = {gate: played.gate_endings[f"{gate:g}"] for gate in gates}

@@ -368,6 +368,8 @@ def test_diagnose_scores_seeing_and_found_calls_of_a_checkpoint(
     calls = result["found_calls"]
     assert sum(calls["endings"].values()) == 2
     assert calls["near_steps"] + calls["far_steps"] > 0
+    assert calls["in_view_steps"] + calls["seen_out_of_view_steps"] <= calls["near_steps"]
+    assert "out of view but seen earlier" in printed
     assert "camera (tiny)" in printed  # the config's renderer: the checkpoint's is not kept
     # the machine's renderer (auto: gl where a context opens, else tiny), as in `multion eval`
     code = main(["diagnose", checkpoint, "--episodes", "1", "--no-probe", "--renderer", "auto",

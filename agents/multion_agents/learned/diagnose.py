@@ -65,6 +65,14 @@ class FoundCalls:
     """Steps within reach where the frame shows the goal."""
     in_view_probability: float = math.nan
     """Mean probability of FOUND on those steps (nan: none)."""
+    missed_in_reach: int = 0
+    """Episodes that came within reach and were not won."""
+    seen_out_of_view_steps: int = 0
+    """Steps within reach where the frame does not show the goal but it has been in view this
+    episode (``goal_vector``'s flag): a goal underfoot, or one turned away from. The FOUND head
+    learns "not here" on them with ``--found-head-label in-view`` and "here" with ``seen``."""
+    seen_out_of_view_probability: float = math.nan
+    """Mean probability of FOUND on those steps (nan: none)."""
     cells_visited: float = math.nan
     """Mean per episode of the task's ``cells_visited`` (the 2.5 m cells of the start frame it
     entered): how much ground it searched."""
@@ -150,12 +158,13 @@ def found_calls(
     """Play ``episodes`` episodes of ``config`` with ``policy`` (:func:`play`), recording
     FOUND's probability at every step (a FOUND head's own), where the goal is within reach and
     in view, and with a FOUND head, how the episodes would have ended with each of ``gates``."""
-    oracles = ("goal_distance", "goal_mask")
+    oracles = ("goal_distance", "goal_mask", "goal_vector")
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
     reach = config.task.success_distance
     chances: list[list[float]] = [[] for _ in range(episodes)]
     in_reach: list[list[bool]] = [[] for _ in range(episodes)]
     in_view: list[list[bool]] = [[] for _ in range(episodes)]
+    seen: list[list[bool]] = [[] for _ in range(episodes)]
 
     def record(episode: int, observation: dict[str, Any], out: PolicyOutput) -> None:
         # with --found-head, the head's probability (its gate opens above found_gate)
@@ -163,6 +172,7 @@ def found_calls(
         chances[episode].append(float(found_probabilities(out.logits[0, 0], head)[0]))
         in_reach[episode].append(float(observation["goal_distance"][0]) <= reach)
         in_view[episode].append(shows_goal(observation))
+        seen[episode].append(float(observation["goal_vector"][0]) > 0.5)
 
     finals = play(policy, config, episodes, seed, record, progress)
     endings = [str(final["end_reason"]) for final in finals]
@@ -170,6 +180,10 @@ def found_calls(
     traces = [
         GateTrace(np.asarray(c), np.asarray(r, dtype=bool), np.asarray(v, dtype=bool), ending)
         for c, r, v, ending in zip(chances, in_reach, in_view, endings, strict=True)
+    ]
+    out_of_view = [
+        trace.in_reach & ~trace.in_view & np.asarray(s, dtype=bool)
+        for trace, s in zip(traces, seen, strict=True)
     ]
     return FoundCalls(
         near_steps=sum(int(trace.in_reach.sum()) for trace in traces),
@@ -181,6 +195,11 @@ def found_calls(
         seen_in_reach=sum(bool((trace.in_reach & trace.in_view).any()) for trace in traces),
         in_view_steps=sum(int((trace.in_reach & trace.in_view).sum()) for trace in traces),
         in_view_probability=_mean_where(traces, lambda t: t.in_reach & t.in_view),
+        missed_in_reach=sum(
+            bool(trace.in_reach.any()) and trace.ending != "success" for trace in traces
+        ),
+        seen_out_of_view_steps=sum(int(where.sum()) for where in out_of_view),
+        seen_out_of_view_probability=_mean_over(traces, out_of_view),
         cells_visited=_mean(cells),
         cells_at_step_limit=_mean(
             [n for n, ending in zip(cells, endings, strict=True) if ending == "max_steps"]
@@ -234,7 +253,12 @@ def view_frames(
 
 def _mean_where(traces: Sequence[GateTrace], where: Callable[[GateTrace], np.ndarray]) -> float:
     """The mean probability over the steps of ``traces`` where ``where`` holds (nan: none)."""
-    chosen = [trace.probability[where(trace)] for trace in traces]
+    return _mean_over(traces, [where(trace) for trace in traces])
+
+
+def _mean_over(traces: Sequence[GateTrace], masks: Sequence[np.ndarray]) -> float:
+    """The mean probability over the steps of ``traces`` its mask in ``masks`` picks."""
+    chosen = [trace.probability[mask] for trace, mask in zip(traces, masks, strict=True)]
     values = np.concatenate(chosen) if chosen else np.empty(0)
     return float(values.mean()) if values.size else math.nan
 
