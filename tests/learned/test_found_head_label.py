@@ -61,15 +61,18 @@ def test_seen_labels_standing_on_a_goal_seen_earlier_but_not_one_never_seen() ->
     assert targets.weights is None  # the head's loss, unweighted, as with in-view
 
 
-def test_a_seen_run_carries_goal_vector_and_an_in_view_run_does_not(
+def test_each_label_carries_only_the_sensor_it_reads(
     tmp_path: Path, room_dataset: Path
 ) -> None:
     in_view = tiny_args(tmp_path, room_dataset, found_head=1.0)
     seen = tiny_args(tmp_path, room_dataset, found_head=1.0, found_head_label="seen")
     assert found_label_sensors(in_view) == (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR)
-    assert found_label_sensors(seen) == (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR, GOAL_VECTOR)
+    assert found_label_sensors(seen) == (FOUND_LABEL_SENSOR, GOAL_VECTOR)
     assert GOAL_VECTOR in run_env_config(seen).sensors
     assert GOAL_VECTOR not in run_env_config(in_view).sensors
+    # no-map reads no goal_mask, and the seen label does not either: the env renders none
+    assert IN_VIEW_SENSOR in run_env_config(in_view).sensors
+    assert IN_VIEW_SENSOR not in run_env_config(seen).sensors
     # with the goal heads, which read goal_vector already, the env lists it once
     both = dataclasses.replace(seen, goal_heads=True)
     assert run_env_config(both).sensors.count(GOAL_VECTOR) == 1

@@ -35,11 +35,11 @@ IN_VIEW_SENSOR = "goal_mask"
 
 def found_label_sensors(args: Args) -> tuple[str, ...]:
     """The training-only sensors a run's rollouts carry to learn FOUND from: ``goal_distance``
-    for ``--found-supervision``, and ``goal_mask`` too for ``--found-head`` (none without), and
-    ``goal_vector`` for its ``--found-head-label seen``."""
+    for ``--found-supervision``, and for ``--found-head`` too the one :func:`head_may_know`
+    reads, ``goal_mask`` (``in-view``) or ``goal_vector`` (``seen``); none without."""
     if args.found_head > 0:
-        seen = (GOAL_VECTOR,) if args.found_head_label == "seen" else ()
-        return (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR, *seen)
+        may_know = GOAL_VECTOR if args.found_head_label == "seen" else IN_VIEW_SENSOR
+        return (FOUND_LABEL_SENSOR, may_know)
     return (FOUND_LABEL_SENSOR,) if args.found_supervision > 0 else ()
 
 
