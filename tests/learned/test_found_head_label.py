@@ -61,9 +61,7 @@ def test_seen_labels_standing_on_a_goal_seen_earlier_but_not_one_never_seen() ->
     assert targets.weights is None  # the head's loss, unweighted, as with in-view
 
 
-def test_each_label_carries_only_the_sensor_it_reads(
-    tmp_path: Path, room_dataset: Path
-) -> None:
+def test_each_label_carries_only_the_sensor_it_reads(tmp_path: Path, room_dataset: Path) -> None:
     in_view = tiny_args(tmp_path, room_dataset, found_head=1.0)
     seen = tiny_args(tmp_path, room_dataset, found_head=1.0, found_head_label="seen")
     assert found_label_sensors(in_view) == (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR)
