@@ -29,7 +29,12 @@ from multion.config.task import EnvConfig
 from multion.task.env import MultiONEnv
 from multion_agents.agent import ConfigOverrides, merge_overrides
 from multion_agents.learned.found_gate import GateTrace, gate_endings
-from multion_agents.learned.found_supervision import found_probabilities
+from multion_agents.learned.found_supervision import (
+    FOUND_LABEL_SENSOR,
+    IN_VIEW_SENSOR,
+    found_probabilities,
+)
+from multion_agents.learned.goal_heads import GOAL_VECTOR, goal_seen
 from multion_agents.learned.learned_maps import ObjRecogMap
 from multion_agents.learned.policy import PolicyOutput, RecurrentPolicy, frames_to_tensors
 from multion_agents.learned.train_options import VisionPretraining
@@ -144,7 +149,7 @@ def play(
 def shows_goal(observation: dict[str, Any]) -> bool:
     """Whether the frame shows the current goal: a ``goal_mask`` pixel holds its category + 1."""
     goal = int(np.asarray(observation["goal"]).reshape(-1)[0])
-    return bool(np.any(np.asarray(observation["goal_mask"]) == goal + 1))
+    return bool(np.any(np.asarray(observation[IN_VIEW_SENSOR]) == goal + 1))
 
 
 def found_calls(
@@ -158,7 +163,7 @@ def found_calls(
     """Play ``episodes`` episodes of ``config`` with ``policy`` (:func:`play`), recording
     FOUND's probability at every step (a FOUND head's own), where the goal is within reach and
     in view, and with a FOUND head, how the episodes would have ended with each of ``gates``."""
-    oracles = ("goal_distance", "goal_mask", "goal_vector")
+    oracles = (FOUND_LABEL_SENSOR, IN_VIEW_SENSOR, GOAL_VECTOR)
     config = replace(config, sensors=tuple(dict.fromkeys((*config.sensors, *oracles))))
     reach = config.task.success_distance
     chances: list[list[float]] = [[] for _ in range(episodes)]
@@ -170,9 +175,9 @@ def found_calls(
         # with --found-head, the head's probability (its gate opens above found_gate)
         head = None if out.found_logit is None else out.found_logit[0, 0]
         chances[episode].append(float(found_probabilities(out.logits[0, 0], head)[0]))
-        in_reach[episode].append(float(observation["goal_distance"][0]) <= reach)
+        in_reach[episode].append(float(observation[FOUND_LABEL_SENSOR][0]) <= reach)
         in_view[episode].append(shows_goal(observation))
-        seen[episode].append(float(observation["goal_vector"][0]) > 0.5)
+        seen[episode].append(bool(goal_seen(torch.as_tensor(observation[GOAL_VECTOR]))))
 
     finals = play(policy, config, episodes, seed, record, progress)
     endings = [str(final["end_reason"]) for final in finals]

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from multion_agents.learned.goal_heads import GOAL_VECTOR
+from multion_agents.learned.goal_heads import GOAL_VECTOR, goal_seen
 from multion_agents.learned.train_settings import Args
 from multion_client.constants import Action
 
@@ -49,7 +49,7 @@ def head_may_know(frames: Mapping[str, Tensor], label: str) -> Tensor:
     been in view at some step of the episode so far (``seen``: ``goal_vector``'s first value),
     so that an agent standing on a goal the frame no longer shows may still call it."""
     if label == "seen":
-        return frames[GOAL_VECTOR][..., 0] > 0.5
+        return goal_seen(frames[GOAL_VECTOR])
     return goal_in_view(frames[IN_VIEW_SENSOR], frames["goal"])
 
 

@@ -44,6 +44,12 @@ class GoalTargets:
     distance: Tensor
 
 
+def goal_seen(vector: Tensor) -> Tensor:
+    """Whether the current goal has been in view this episode, from ``goal_vector``
+    observations (..., 3): their first value, 0 or 1."""
+    return vector[..., 0] > 0.5
+
+
 def goal_targets(vector: Tensor) -> GoalTargets:
     """The three heads' class labels of ``goal_vector`` observations (N, 3)."""
     vector = vector.float()
@@ -52,7 +58,7 @@ def goal_targets(vector: Tensor) -> GoalTargets:
     direction = torch.floor(torch.remainder(degrees + half_bin, 360.0) / (2 * half_bin))
     distance = torch.floor(vector[:, 2] / DISTANCE_BIN_METRES)
     return GoalTargets(
-        seen=(vector[:, 0] > 0.5).long(),
+        seen=goal_seen(vector).long(),
         direction=direction.long().clamp(0, DIRECTION_BINS - 1),
         distance=distance.long().clamp(0, DISTANCE_BINS - 1),
     )
