@@ -247,11 +247,14 @@ def test_the_recipe_pilot_trains_each_option_alone_and_together(tmp_path: Path) 
             "no-map-found-head-separate-critic",
             "no-map-found-head-image",
             "no-map-found-head-seen",
+            "no-map-found-head-frozen",
         ]  # fmt: skip
     )
     assert "--found-head-reads-image" in by_run["no-map-found-head-image"]
     assert "--found-head-label seen" in by_run["no-map-found-head-seen"]
     assert not any("--found-head-label" in by_run[r] for r in by_run if "seen" not in r)
+    assert by_run["no-map-found-head-frozen"].endswith("--pretrain-vision 2000 --freeze-vision")
+    assert not any("--freeze-vision" in by_run[r] for r in by_run if "frozen" not in r)
     for line in trains:
         assert "--frames 1000" in line and "--found-prior 0.02" in line
     extras = ("--goal-heads", "--found-curriculum", "--pretrain-vision")

@@ -163,6 +163,7 @@ RECIPE_OPTIONS = (
     "separate_critic",
     "found_head_reads_image",
     "found_head_label",
+    "freeze_vision",
 )
 """Training options that make a different recipe: a run resumes only with the values its
 checkpoint recorded (a checkpoint that predates an option was trained with it off)."""

@@ -64,7 +64,11 @@ from multion_agents.learned.rollout_envs import (
 )
 from multion_agents.learned.train_settings import Args
 from multion_agents.learned.training_log import TrainingLog, plot_learning_curve
-from multion_agents.learned.vision_pretrain import check_vision_pretraining, pretrain_vision
+from multion_agents.learned.vision_pretrain import (
+    check_vision_pretraining,
+    freeze_image_encoder,
+    pretrain_vision,
+)
 
 GRADIENT_NORMS_EVERY = 10
 """Every this many updates (the first included), ``progress.csv`` gets each loss term's gradient
@@ -213,6 +217,8 @@ class TrainingRun:
         evaluation: Evaluation | None,
     ) -> TrainingRun:
         broadcast_parameters(policy)
+        if args.freeze_vision:  # after pretraining; a resume freezes the loaded weights again
+            freeze_image_encoder(policy)
         # per-rank action sampling, continuing after a resume
         torch.manual_seed(args.seed * 7919 + updates * 104729 + placement.rank)
         return cls(args, env_config, policy, optimizer, placement, updates, frames, evaluation)

@@ -330,6 +330,14 @@ def check_vision_pretraining(
         )
 
 
+def freeze_image_encoder(policy: RecurrentPolicy) -> None:
+    """Take ``policy``'s image encoder out of training (``--freeze-vision``): its weights get no
+    gradient, so the optimiser, which skips parameters without one, leaves them as they are."""
+    if policy.image_encoder is None:
+        raise ConfigError("--freeze-vision: this policy has no image encoder")
+    policy.image_encoder.requires_grad_(False)
+
+
 def pretrain_vision(
     policy: RecurrentPolicy,
     env_config: EnvConfig,
