@@ -60,6 +60,17 @@ def test_the_learner_bench_names_an_unknown_agent_and_a_bad_count(capsys) -> Non
     assert "--learner-envs '8,0': each count in 1-256" in capsys.readouterr().err
     assert main(["bench", "--only", "learner", "--learner-mixed-precision", "fp8"]) == 2
     assert "--learner-mixed-precision 'fp8': one of off, bf16, fp16" in capsys.readouterr().err
+    assert main(["bench", "--only", "learner", "--learner-image-size", "512"]) == 2
+    assert "--learner-image-size 512: in 36-128 pixels" in capsys.readouterr().err
+
+
+def test_the_learner_bench_times_a_frozen_encoder_beside_the_learning_one(capsys) -> None:
+    settings = learner_settings("no-map", 1, "cpu", envs="2", image_size=40, freeze_vision=True)
+    results = run_learner_bench(dataclasses.replace(settings, rollout_steps=4))
+    assert results is not None and list(results) == ["no-map", "no-map frozen"]
+    assert results["no-map frozen"][2]["update_ms"] > 0
+    out = capsys.readouterr().out
+    assert "40² RGB-D" in out and "no-map: update with the encoder frozen, faster by 2 envs" in out
 
 
 def test_the_learner_bench_times_a_bf16_update(capsys) -> None:

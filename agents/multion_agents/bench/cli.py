@@ -122,6 +122,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="off",
         help="the update's precision: off (default), bf16 or fp16 (CUDA only)",
     )
+    learner.add_argument(
+        "--learner-image-size",
+        type=int,
+        default=36,
+        help="RGB-D side in pixels (36-256, default 36; the 128² recipe: 128)",
+    )
+    learner.add_argument(
+        "--learner-freeze-vision",
+        action="store_true",
+        help="also time each agent with its image encoder frozen (--freeze-vision), a row each",
+    )
     parser.add_argument(
         "--participants",
         type=int,
@@ -244,7 +255,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             bench = learner_settings(
                 args.learner_agents, args.learner_updates, args.device, args.learner_envs,
-                args.learner_mixed_precision,
+                args.learner_mixed_precision, args.learner_image_size, args.learner_freeze_vision,
             )  # fmt: skip
         except ValueError as error:
             print(f"multion bench: {error}", file=sys.stderr)

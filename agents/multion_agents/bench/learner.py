@@ -3,8 +3,9 @@
 The rollout is synthetic (observations drawn from the environment's observation space with a
 fixed seed) but shaped as the central comparison's recipe (``scripts/central_comparison.sh``):
 environments in two groups (8, 16, 32 and 64 by default: one row each), 128 steps per update,
-36² RGB-D, the reference's defaults (50-cell oracle crop, 768-unit GRU, 4 mini-batches, so a
-mini-batch holds a quarter of the environments and grows with them). The two timed parts are
+36² RGB-D (``--learner-image-size``), the reference's defaults (50-cell oracle crop, 768-unit
+GRU, 4 mini-batches, so a mini-batch holds a quarter of the environments and grows with them);
+``--learner-freeze-vision`` adds a row per agent with its image encoder frozen. The two timed parts are
 the trainer's own code:
 
 1. **acting**: ``policy.get_action_and_value`` for each group of environments, step by step,
@@ -37,12 +38,16 @@ from multion_agents.learned.models import MODELS, build_policy, model_spec
 from multion_agents.learned.policy import State, frames_to_tensors
 from multion_agents.learned.ppo import ppo_update
 from multion_agents.learned.precision import PRECISIONS
-from multion_agents.learned.rollout import Rollout, compute_gae
+from multion_agents.learned.rollout import Rollout, compute_gae, store_frame
 from multion_agents.learned.rollout_envs import training_env_config
 from multion_agents.learned.train_settings import Args
+from multion_agents.learned.vision_pretrain import freeze_image_encoder
 
 AGENTS = ("no-map", "oracle-map", "oracle-ego-map", "proj-neural-map", "obj-recog-map")
 """The central comparison's learned agents (Table 3 at 1-ON)."""
+MIN_IMAGE_SIZE, MAX_IMAGE_SIZE = 36, 128
+"""The image encoder's smallest input, and the 128² recipe's: a synthetic rollout of 128² RGB-D
+holds 0.9 GB of frames at 64 environments, 3.8 GB at the 256 that ``--learner-envs`` allows."""
 
 
 @dataclass(frozen=True)
@@ -56,6 +61,9 @@ class LearnerBench:
     updates: int = 2
     """Timed updates; one more before them is a warm-up."""
     mixed_precision: str = "off"
+    freeze_vision: bool = False
+    """Also time each agent with its image encoder frozen (``--freeze-vision``: no gradient,
+    outputs kept from acting), a row each."""
     episode_steps: int = 50
     """Mean episode length of the synthetic rollout (a new episode starts with probability
     1 / ``episode_steps``): an untrained policy's episodes end every few dozen steps."""
@@ -74,7 +82,7 @@ def parse_counts(option: str, text: str, high: int) -> tuple[int, ...]:
 
 def learner_settings(
     agents: str | None, updates: int, device: str, envs: str | None = None,
-    mixed_precision: str = "off",
+    mixed_precision: str = "off", image_size: int = 36, freeze_vision: bool = False,
 ) -> LearnerBench:  # fmt: skip
     """The bench of ``--learner-agents`` (comma-separated; None: :data:`AGENTS`) and
     ``--learner-envs`` (comma-separated; None: 8,16,32,64), or a ``ValueError`` naming the
@@ -90,13 +98,17 @@ def learner_settings(
         )
     if updates < 1:
         raise ValueError(f"--learner-updates {updates}: at least 1 timed update")
+    if not MIN_IMAGE_SIZE <= image_size <= MAX_IMAGE_SIZE:
+        raise ValueError(
+            f"--learner-image-size {image_size}: in {MIN_IMAGE_SIZE}-{MAX_IMAGE_SIZE} pixels"
+        )
     if mixed_precision not in PRECISIONS:
         raise ValueError(
             f"--learner-mixed-precision {mixed_precision!r}: one of {', '.join(PRECISIONS)}"
         )
     return LearnerBench(
         agents=names, device=device, updates=updates, env_counts=env_counts,
-        mixed_precision=mixed_precision,
+        mixed_precision=mixed_precision, image_size=image_size, freeze_vision=freeze_vision,
     )  # fmt: skip
 
 
@@ -128,9 +140,11 @@ def _synchronize(device: torch.device) -> None:
         torch.cuda.synchronize(device)
 
 
-def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
+def time_agent(
+    agent: str, bench: LearnerBench, envs: int, frozen: bool = False
+) -> dict[str, float]:
     """Acting and updating ms per frame of ``agent`` with ``envs`` environments (means over the
-    timed updates)."""
+    timed updates); ``frozen``: with the image encoder frozen as ``--freeze-vision`` freezes it."""
     device = select_device(bench.device)
     spec = model_spec(agent)
     config = training_env_config(1, spec.train_sensors, bench.image_size, "train",
@@ -141,6 +155,8 @@ def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
                 mixed_precision=bench.mixed_precision)  # fmt: skip
     torch.manual_seed(0)
     policy = build_policy(agent, config, args.hidden_size).to(device)
+    if frozen:
+        freeze_image_encoder(policy)
     optimizer = torch.optim.Adam(policy.parameters(), lr=args.learning_rate, eps=1e-5)
     keys, steps = policy.train_sensors, bench.rollout_steps
     frames = synthetic_frames(build_observation_space(env_config), keys, steps, envs, seed=0)
@@ -154,6 +170,7 @@ def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
         columns = {k: torch.zeros(steps, envs) for k in ("logprob", "value")}
         actions = torch.zeros(steps, envs, dtype=torch.long)
         prev = torch.zeros(steps, envs, dtype=torch.long)
+        rollout_frames = dict(frames)  # a frozen encoder's outputs join them while acting
         state: State = policy.initial_state(envs)
         initial_state = {k: v.detach().cpu().clone() for k, v in state.items()}
         torch.set_num_threads(act_threads)
@@ -162,9 +179,11 @@ def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
         for t in range(steps):
             for rows in groups:
                 frame = frames_to_tensors({k: frames[k][t, rows].numpy() for k in keys}, keys)
+                frame = policy.cache_images({k: v.to(device) for k, v in frame.items()})
+                store_frame(rollout_frames, t, rows, frame)
                 with torch.no_grad():
                     action, logprob, value, new_state = policy.get_action_and_value(
-                        {k: v.to(device) for k, v in frame.items()},
+                        frame,
                         prev[t, rows].to(device),
                         starts[t, rows].to(device),
                         {k: v[rows] for k, v in state.items()},
@@ -179,7 +198,7 @@ def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
         _synchronize(device)
         act_seconds = time.perf_counter() - tick
         rollout = Rollout(
-            frames=frames, prev_actions=prev, starts=starts, actions=actions,
+            frames=rollout_frames, prev_actions=prev, starts=starts, actions=actions,
             logprobs=columns["logprob"], values=columns["value"],
             rewards=torch.randn(steps, envs, generator=generator) * 0.1,
             dones=torch.roll(starts, -1, 0), initial_state=initial_state,
@@ -200,6 +219,11 @@ def time_agent(agent: str, bench: LearnerBench, envs: int) -> dict[str, float]:
     return {"act_ms": act_ms, "update_ms": update_ms, "fps": 1000 / (act_ms + update_ms)}
 
 
+def _sees(agent: str) -> bool:
+    spec = model_spec(agent)
+    return spec.use_rgb or spec.use_depth
+
+
 def run_learner_bench(bench: LearnerBench) -> dict[str, dict[int, dict[str, float]]] | None:
     """Print and return each agent's learner figures for each number of environments; None
     (with the reason printed) when the device asked for is not there."""
@@ -213,22 +237,33 @@ def run_learner_bench(bench: LearnerBench) -> dict[str, dict[int, dict[str, floa
         f"({name}), {cores_per_rank()} cores, synthetic observations (no simulator)"
     )
     columns = ("envs", "acting", "updating", "learner", "learner", "vs no-map")
-    print(f"{'agent':>16} " + " ".join(f"{c:>10}" for c in columns))
+    print(f"{'agent':>22} " + " ".join(f"{c:>10}" for c in columns))
     units = ("", "ms/frame", "ms/frame", "ms/frame", "frames/s", "(time)")
-    print(f"{'':>16} " + " ".join(f"{c:>10}" for c in units))
+    print(f"{'':>22} " + " ".join(f"{c:>10}" for c in units))
     results: dict[str, dict[int, dict[str, float]]] = {}
-    for agent in bench.agents:
-        results[agent] = {}
+    variants = [(agent, False) for agent in bench.agents]
+    if bench.freeze_vision:  # agents without an image encoder have nothing to freeze
+        variants += [(a, True) for a in bench.agents if _sees(a)]
+    for agent, frozen in variants:
+        name = f"{agent} frozen" if frozen else agent
+        results[name] = {}
         for envs in bench.env_counts:
-            result = time_agent(agent, bench, envs)
-            results[agent][envs] = result
+            result = time_agent(agent, bench, envs, frozen)
+            results[name][envs] = result
             total = result["act_ms"] + result["update_ms"]
             base = results.get("no-map", {}).get(envs)
             ratio = (
                 f"{total / (base['act_ms'] + base['update_ms']):9.1f}×" if base else f"{'-':>10}"
             )
             print(
-                f"{agent:>16} {envs:10d} {result['act_ms']:10.2f} {result['update_ms']:10.2f} "
+                f"{name:>22} {envs:10d} {result['act_ms']:10.2f} {result['update_ms']:10.2f} "
                 f"{total:10.2f} {result['fps']:10.0f} {ratio}"
             )
+    for agent, frozen in variants:
+        if frozen:
+            speedups = ", ".join(
+                f"{envs} envs {results[agent][envs]['update_ms'] / row['update_ms']:.2f}×"
+                for envs, row in results[f"{agent} frozen"].items()
+            )
+            print(f"{agent}: update with the encoder frozen, faster by {speedups}")
     return results

@@ -59,6 +59,9 @@ habitat-lab's ObjectNav/PointNav baseline (facebookresearch/habitat-lab,
 The reference's MultiON policies do not read them (``--pose-input``, beyond the paper)."""
 NO_ACTION = NUM_ACTIONS
 """Index of the "no previous action" embedding, used at an episode's first step."""
+IMAGE_FEATURES, IMAGE_EMBEDDING = "image_features", "image_embedding"
+"""Frame keys of a frozen image encoder's outputs (``--freeze-vision``), computed once when the
+rollout acts and replayed by PPO's update instead of running the encoder twice more."""
 
 
 class Memory(nn.Module, ABC):
@@ -247,6 +250,22 @@ class RecurrentPolicy(nn.Module):
         return self.gps_embedding is not None
 
     @property
+    def vision_frozen(self) -> bool:
+        """Whether the image encoder takes no gradient (``--freeze-vision``), so its outputs
+        for a frame never change during an update and a rollout may keep them."""
+        encoder = self.image_encoder
+        return encoder is not None and not any(p.requires_grad for p in encoder.parameters())
+
+    def cache_images(self, frames: Batch) -> Batch:
+        """``frames`` (B, ...) with the frozen encoder's outputs under :data:`IMAGE_FEATURES`
+        and :data:`IMAGE_EMBEDDING`; as they are when the encoder learns."""
+        if not self.vision_frozen or self.image_encoder is None:
+            return frames
+        with torch.no_grad():
+            features, embedding = self.image_encoder(frames.get("rgb"), frames.get("depth"))
+        return {**frames, IMAGE_FEATURES: features, IMAGE_EMBEDDING: embedding}
+
+    @property
     def train_sensors(self) -> tuple[str, ...]:
         """Observation keys needed while training (acting sensors plus supervision)."""
         extra = self.memory.train_sensors if self.memory is not None else ()
@@ -292,7 +311,12 @@ class RecurrentPolicy(nn.Module):
         )
         parts = []
         image_features, v_i = None, None
-        if self.image_encoder is not None:
+        if IMAGE_EMBEDDING in flat:
+            if not self.vision_frozen:  # a learning encoder's gradient would be lost
+                raise ValueError("cached image features need a frozen image encoder")
+            image_features, v_i = flat.pop(IMAGE_FEATURES), flat.pop(IMAGE_EMBEDDING)
+            parts.append(v_i)
+        elif self.image_encoder is not None:
             image_features, v_i = self.image_encoder(flat.get("rgb"), flat.get("depth"))
             parts.append(v_i)
         parts += [self.goal_embedding(flat["goal"].long()), self.action_embedding(previous)]

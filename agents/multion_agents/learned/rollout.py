@@ -162,11 +162,11 @@ def _act(
     """Sample the actions of environments ``rows`` at step ``t`` and record what they saw."""
     device = policy.device
     frame = frames_to_tensors({k: live.observation[k][rows] for k in keys}, keys)
-    for k in keys:
-        frames[k][t, rows] = frame[k]
+    frame = policy.cache_images({k: v.to(device) for k, v in frame.items()})
+    store_frame(frames, t, rows, frame)
     with torch.no_grad():
         action, logprob, value, state = policy.get_action_and_value(
-            {k: v.to(device) for k, v in frame.items()},
+            frame,
             live.prev_action[rows].to(device),
             live.start[rows].to(device),
             {k: v[rows] for k, v in live.state.items()},
@@ -182,6 +182,17 @@ def _act(
     columns["value"][t, rows] = value.cpu()
     live.prev_action[rows] = action
     return action
+
+
+def store_frame(frames: dict[str, Tensor], t: int, rows: slice, frame: dict[str, Tensor]) -> None:
+    """Keep ``frame`` (rows, ...) at step ``t`` of the (T, E, ...) ``frames``; a key the
+    buffer lacks (a frozen encoder's outputs, :meth:`RecurrentPolicy.cache_images`) gets
+    a buffer shaped as the others."""
+    steps, count = next(iter(frames.values())).shape[:2]
+    for k, v in frame.items():
+        if k not in frames:
+            frames[k] = torch.empty(steps, count, *v.shape[1:], dtype=v.dtype)
+        frames[k][t, rows] = v.cpu()
 
 
 def _record_step(
