@@ -231,7 +231,8 @@ pilot "$agent-found-head-seen" --found-head 1 --curriculum "$found_frames:4" \
 # The learned maps write the image encoder's features (proj-neural-map its spatial features,
 # obj-recog-map its recogniser's answers on them), which PPO changes under the map as it goes:
 # the learn-to-see options with the pretrained encoder frozen (--freeze-vision), on any agent
-# (AGENT=proj-neural-map for the map; no-map as the control). Also 1.3-1.5x cheaper updates.
+# (AGENT=proj-neural-map for the map; no-map as the control). Cheaper updates too: the rollout
+# keeps the frozen encoder's outputs (multion bench --only learner --learner-freeze-vision).
 pilot "$agent-found-head-frozen" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --freeze-vision
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
