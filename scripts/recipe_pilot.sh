@@ -220,6 +220,7 @@ fi
 # (--found-head-label seen), on obj-recog-map with the recogniser, and on no-map (the control).
 # Result (128², gl): obj-recog-map 29 % (+3 [-6, +12]), winning 29 of the 34 episodes within
 # reach (15 misses there before), but within reach less often; -11 [-22, 0] against no-map.
+# no-map with the label: 32 % (-8 [-19, +3] against the in-view label); not kept.
 if [ "$agent" = obj-recog-map ]; then
   pilot "$agent-found-head-recogniser-seen" --found-head 1 --curriculum "$found_frames:4" \
     --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
