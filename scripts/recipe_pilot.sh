@@ -234,6 +234,8 @@ pilot "$agent-found-head-seen" --found-head 1 --curriculum "$found_frames:4" \
 # the learn-to-see options with the pretrained encoder frozen (--freeze-vision), on any agent
 # (AGENT=proj-neural-map for the map; no-map as the control). Cheaper updates too: the rollout
 # keeps the frozen encoder's outputs (multion bench --only learner --learner-freeze-vision).
+# Result (128², gl): proj-neural-map 22 % (-10 [-20, 0] against unfrozen), no-map 29 % (-11
+# [-23, 0]); the map against no-map, both frozen, -7 [-17, +3]. Not kept (docs/learned.md).
 pilot "$agent-found-head-frozen" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --freeze-vision
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).
