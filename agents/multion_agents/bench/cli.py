@@ -126,7 +126,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--learner-image-size",
         type=int,
         default=36,
-        help="RGB-D side in pixels (36-256, default 36; the 128² recipe: 128)",
+        help="RGB-D side in pixels (36-128, default 36; the 128² recipe: 128)",
     )
     learner.add_argument(
         "--learner-freeze-vision",

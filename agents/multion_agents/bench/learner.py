@@ -5,8 +5,8 @@ fixed seed) but shaped as the central comparison's recipe (``scripts/central_com
 environments in two groups (8, 16, 32 and 64 by default: one row each), 128 steps per update,
 36² RGB-D (``--learner-image-size``), the reference's defaults (50-cell oracle crop, 768-unit
 GRU, 4 mini-batches, so a mini-batch holds a quarter of the environments and grows with them);
-``--learner-freeze-vision`` adds a row per agent with its image encoder frozen. The two timed parts are
-the trainer's own code:
+``--learner-freeze-vision`` adds a row per agent with its image encoder frozen. The two timed
+parts are the trainer's own code:
 
 1. **acting**: ``policy.get_action_and_value`` for each group of environments, step by step,
    with the frames copied to the device as the trainer copies them;
@@ -178,9 +178,9 @@ def time_agent(
         tick = time.perf_counter()
         for t in range(steps):
             for rows in groups:
-                frame = frames_to_tensors({k: frames[k][t, rows].numpy() for k in keys}, keys)
-                frame = policy.cache_images({k: v.to(device) for k, v in frame.items()})
-                store_frame(rollout_frames, t, rows, frame)
+                observed = frames_to_tensors({k: frames[k][t, rows].numpy() for k in keys}, keys)
+                frame = policy.cache_images({k: v.to(device) for k, v in observed.items()})
+                store_frame(rollout_frames, t, rows, {**frame, **observed})
                 with torch.no_grad():
                     action, logprob, value, new_state = policy.get_action_and_value(
                         frame,

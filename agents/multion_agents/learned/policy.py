@@ -61,7 +61,7 @@ NO_ACTION = NUM_ACTIONS
 """Index of the "no previous action" embedding, used at an episode's first step."""
 IMAGE_FEATURES, IMAGE_EMBEDDING = "image_features", "image_embedding"
 """Frame keys of a frozen image encoder's outputs (``--freeze-vision``), computed once when the
-rollout acts and replayed by PPO's update instead of running the encoder twice more."""
+rollout acts and replayed by PPO's update instead of running the encoder once per epoch."""
 
 
 class Memory(nn.Module, ABC):
@@ -259,10 +259,11 @@ class RecurrentPolicy(nn.Module):
     def cache_images(self, frames: Batch) -> Batch:
         """``frames`` (B, ...) with the frozen encoder's outputs under :data:`IMAGE_FEATURES`
         and :data:`IMAGE_EMBEDDING`; as they are when the encoder learns."""
-        if not self.vision_frozen or self.image_encoder is None:
+        encoder = self.image_encoder
+        if encoder is None or not self.vision_frozen:
             return frames
         with torch.no_grad():
-            features, embedding = self.image_encoder(frames.get("rgb"), frames.get("depth"))
+            features, embedding = encoder(frames.get("rgb"), frames.get("depth"))
         return {**frames, IMAGE_FEATURES: features, IMAGE_EMBEDDING: embedding}
 
     @property

@@ -161,9 +161,9 @@ def _act(
 ) -> Tensor:
     """Sample the actions of environments ``rows`` at step ``t`` and record what they saw."""
     device = policy.device
-    frame = frames_to_tensors({k: live.observation[k][rows] for k in keys}, keys)
-    frame = policy.cache_images({k: v.to(device) for k, v in frame.items()})
-    store_frame(frames, t, rows, frame)
+    observed = frames_to_tensors({k: live.observation[k][rows] for k in keys}, keys)
+    frame = policy.cache_images({k: v.to(device) for k, v in observed.items()})
+    store_frame(frames, t, rows, {**frame, **observed})  # observations from the host copy
     with torch.no_grad():
         action, logprob, value, state = policy.get_action_and_value(
             frame,

@@ -326,8 +326,8 @@ class Args:
     )
     """``learned/vision_pretrain.py`` (``freeze_image_encoder``): with the encoder trained by PPO,
     what ProjNeuralMap and ObjRecogMap write changes under the map as the run goes. It also
-    spares the update the encoder's backward pass (1.3-1.5x faster updates at 128², measured once
-    outside ``multion bench``: docs/learned.md)."""
+    makes the update cheaper: the rollout keeps the encoder's outputs and the update replays them
+    (``multion bench --only learner --learner-freeze-vision``; docs/training-speed.md)."""
     threads: int = setting(
         1,
         low=1,
