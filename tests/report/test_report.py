@@ -280,6 +280,20 @@ def test_runs_from_before_eval_set_still_load(report_runs: Path, tmp_path: Path)
     assert run.other_settings == "camera.width=16, task.max_steps=80"
 
 
+def test_a_run_reads_the_success_distance_it_was_played_with(
+    report_runs: Path, tmp_path: Path
+) -> None:
+    """``search-or-stop`` counts "within reach" with the run's own ``task.success_distance``."""
+    from multion_agents.report.runs import load_run
+
+    assert load_run(report_runs / "oracle-planner-1on").success_distance == 1.5
+    changed = copy_run(report_runs / "oracle-planner-1on", tmp_path / "near")
+    payload = json.loads((changed / "metrics.json").read_text())
+    payload["run"]["resolved_config"]["task"]["success_distance"] = 1.0
+    (changed / "metrics.json").write_text(json.dumps(payload))
+    assert load_run(changed).success_distance == 1.0
+
+
 def test_train_and_eval_share_the_set_parser(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -1,8 +1,10 @@
-"""The report's table of ground searched (issue 51): the task's ``cells_visited`` per episode
-and at the step limit, a run evaluated before the task measured it left out."""
+"""The report's search tables (issue 51): the task's ``cells_visited`` per episode and at the
+step limit; episodes within reach of their goal and the lost ones split into stopping and
+search failures by ``closest_to_goal``; runs evaluated before the task measured them left out."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -10,7 +12,7 @@ import pytest
 
 from multion_agents.report.paper import paper_results
 from multion_agents.report.runs import EpisodeResult, Run
-from multion_agents.report.search import search_coverage
+from multion_agents.report.search import search_coverage, search_or_stop
 
 RunOf = Callable[..., Run]
 
@@ -47,3 +49,46 @@ def test_cells_per_episode_and_at_the_step_limit(one_goal_run: RunOf) -> None:
 def test_no_table_when_no_run_measured_it(one_goal_run: RunOf) -> None:
     older = one_goal_run("older", _episodes([{"success": 1.0, "end_reason": "success"}]))
     assert search_coverage([older], ["older"], paper_results()) is None
+
+
+def _ended(success: float, closest: float, reason: str) -> dict[str, Any]:
+    return {"success": success, "closest_to_goal": closest, "end_reason": reason}
+
+
+def test_lost_episodes_split_into_stopping_and_search_failures(one_goal_run: RunOf) -> None:
+    played = _episodes(
+        [
+            _ended(1.0, 0.0, "success"),
+            _ended(0.0, 1.2, "wrong_found"),  # stood within reach, called FOUND elsewhere
+            _ended(0.0, 4.0, "max_steps"),
+            _ended(0.0, 6.0, "max_steps"),
+        ]
+    )
+    older = one_goal_run("older", _episodes([{"success": 1.0, "end_reason": "success"}]))
+    table = search_or_stop([one_goal_run("agent", played), older], ["agent", "older"],
+                           paper_results())  # fmt: skip
+    assert table is not None
+    (record,) = table.records
+    assert record["within_reach"] == pytest.approx(0.5)
+    assert record["within_reach_low"] <= 0.5 <= record["within_reach_high"]
+    assert (record["won"], record["lost_within_reach"], record["lost_never_within_reach"]) == (
+        1,
+        1,
+        2,
+    )
+    assert record["closest_approach_median"] == pytest.approx(5.0)
+    assert table.rows[0][3:] == ["1", "1", "2", "5.0"]
+    assert any("Left out" in note and "older" in note for note in table.notes)
+    # the run's own success distance decides what "within reach" is
+    strict = dataclasses.replace(one_goal_run("strict", played), success_distance=1.0)
+    strict_table = search_or_stop([strict], ["strict"], paper_results())
+    assert strict_table is not None
+    (strict_record,) = strict_table.records
+    assert strict_record["lost_within_reach"] == 0
+    assert strict_record["lost_never_within_reach"] == 3
+    assert strict_record["closest_approach_median"] == pytest.approx(4.0)
+
+
+def test_no_split_when_no_run_measured_closest_approach(one_goal_run: RunOf) -> None:
+    older = one_goal_run("older", _episodes([{"success": 0.0, "end_reason": "max_steps"}]))
+    assert search_or_stop([older], ["older"], paper_results()) is None

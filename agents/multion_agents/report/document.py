@@ -24,7 +24,7 @@ from multion_agents.report.movement import movement
 from multion_agents.report.pairs import requested_pairs
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
-from multion_agents.report.search import search_coverage
+from multion_agents.report.search import search_coverage, search_or_stop
 from multion_agents.report.tables import (
     Table,
     paired,
@@ -97,6 +97,7 @@ def all_tables(
         cameras(runs, labels, paper),
         by_distance(runs, labels, paper),
         search_coverage(runs, labels, paper),
+        search_or_stop(runs, labels, paper),
         movement(runs, labels, paper),
         paired(runs, labels, paper),
         requested_pairs(runs, labels, pairs),

@@ -29,6 +29,7 @@ TRAINING_LOG = "progress.csv"
 ACTION_DIGITS = "".join(str(int(action)) for action in Action)
 """The digits an ``episodes.jsonl`` writes its actions with (``evaluate.actions_text``)."""
 DEFAULT_FOUND_BUDGET = TaskConfig().found_budget
+DEFAULT_SUCCESS_DISTANCE = TaskConfig().success_distance
 
 
 class RunError(UsageError, ValueError):
@@ -86,6 +87,9 @@ class Run:
     agent_settings: str = ""
     """The agent's own tunables as ``name=value, ...`` (``found_gate=0.8``; ``run.agent_settings``),
     '' for agents without any."""
+    success_distance: float = DEFAULT_SUCCESS_DISTANCE
+    """``task.success_distance`` of the environment the agent played in, metres: how near a
+    goal FOUND had to be called."""
 
     @property
     def name(self) -> str:
@@ -271,6 +275,7 @@ def load_run(path: Path) -> Run:
         seed_scheme=str(scheme),
         seed_scheme_recorded="seed_scheme" in run,
         agent_settings=_joined({key: str(value) for key, value in agent_settings.items()}),
+        success_distance=float(task.get("success_distance", DEFAULT_SUCCESS_DISTANCE)),
     )
 
 

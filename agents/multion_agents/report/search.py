@@ -1,13 +1,20 @@
-"""How much ground each run's search covered: the task's ``cells_visited`` (2.5 m cells of the
-start frame an episode stood in), per episode and in the episodes that ran to the step limit.
-It tells an agent that walks far and misses its goal from one that stays near its start: what
-issue 51 measured of the agents that must see. Runs evaluated before the task measured it are
-left out, and a note says so.
+"""How each run searched, from the task's measures (beyond the paper; issue 51 measured the
+agents that must see with them). Runs evaluated before the task measured them are left out,
+and a note says so.
+
+* :func:`search_coverage`: ``cells_visited`` (2.5 m cells of the start frame an episode stood
+  in), per episode and in the episodes that ran to the step limit. It tells an agent that walks
+  far and misses its goal from one that stays near its start.
+* :func:`search_or_stop`: ``closest_to_goal`` splits the lost episodes into those that stood
+  within reach of the goal they were lost on (FOUND was not called there: a stopping failure)
+  and those that never came that near (a search failure).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+
+import numpy as np
 
 from multion.config.datasets import task_name
 from multion_agents.report.paper import PaperResults
@@ -16,6 +23,7 @@ from multion_agents.report.stats import bootstrap
 from multion_agents.report.tables import Table, display_order
 
 MEASURE = "cells_visited"
+CLOSEST = "closest_to_goal"
 
 
 def search_coverage(
@@ -70,5 +78,71 @@ def search_coverage(
     table.note_left_out(
         [labels[i] for i in range(len(runs)) if i not in measured],
         "evaluated before the task measured cells_visited",
+    )
+    return table
+
+
+def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
+    """Per run, the share of episodes that came within reach of the goal they ended on (95 %
+    bootstrap interval), and the lost episodes split by whether they did; None when no run
+    measured ``closest_to_goal``."""
+    measured = [i for i, run in enumerate(runs) if all(CLOSEST in e.metrics for e in run.episodes)]
+    if not measured:
+        return None
+    table = Table(
+        "search-or-stop",
+        "Search or stop: episodes within reach of their goal, and where the lost ones were lost",
+        ["agent", "task", "came within reach %", "won", "lost within reach",
+         "lost, never within reach", "their closest approach, median m"],
+    )  # fmt: skip
+    for i in display_order(runs, labels, paper):
+        if i not in measured:
+            continue
+        run = runs[i]
+        reach = run.success_distance
+        won = [e.metrics.get("success", 0.0) >= 1.0 for e in run.episodes]
+        closest = np.array([float(e.metrics[CLOSEST]) for e in run.episodes])
+        within = closest <= reach
+        came = bootstrap([float(w or x) for w, x in zip(won, within, strict=True)])
+        lost_near = sum(not w and x for w, x in zip(won, within, strict=True))
+        far = [c for w, c, x in zip(won, closest, within, strict=True) if not w and not x]
+        median = float(np.median(far)) if far else None
+        table.rows.append(
+            [
+                labels[i],
+                task_name(run.num_goals),
+                f"{100 * came.mean:.0f} [{100 * came.low:.0f}, {100 * came.high:.0f}]",
+                str(sum(won)),
+                str(lost_near),
+                str(len(far)),
+                f"{median:.1f}" if median is not None else "–",
+            ]
+        )
+        table.records.append(
+            {
+                "run": run.name,
+                "agent": labels[i],
+                "task": task_name(run.num_goals),
+                "episodes": run.count,
+                "success_distance": reach,
+                "within_reach": round(came.mean, 4),
+                "within_reach_low": round(came.low, 4),
+                "within_reach_high": round(came.high, 4),
+                "won": sum(won),
+                "lost_within_reach": lost_near,
+                "lost_never_within_reach": len(far),
+                "closest_approach_median": round(median, 3) if median is not None else None,
+            }
+        )
+    table.notes.append(
+        "Within reach: the task's closest_to_goal, the shortest geodesic distance to the goal "
+        "an episode ended on since that goal became current, at most task.success_distance. A "
+        "won episode counts as within reach. Lost within reach: FOUND was not called there (a "
+        "stopping failure); lost, never within reach: the search did not get there (a search "
+        "failure), with the median of how near it came. Beyond the paper."
+    )
+    table.note_left_out(
+        [labels[i] for i in range(len(runs)) if i not in measured],
+        "evaluated before the task measured closest_to_goal",
     )
     return table
