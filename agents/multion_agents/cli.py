@@ -39,6 +39,9 @@ COMMANDS: dict[str, Command] = {
     "video": Command(
         "multion_agents.cli_video", "film an episode of an eval run from its recorded actions"
     ),
+    "rescore": Command(
+        "multion_agents.cli_rescore", "add the task's newer measures to eval runs by replaying them"
+    ),
     "train": Command("multion_agents.cli_train", "train a learned agent with PPO / DD-PPO"),
     "diagnose": Command(
         "multion_agents.cli_diagnose",

@@ -3,8 +3,9 @@ stored (``cells_visited``) is no difference, a stored one that changed is."""
 
 from __future__ import annotations
 
-from multion.leaderboard.replay import ReplayedEpisode, as_stored
+from multion.leaderboard.replay import ReplayedEpisode
 from multion.leaderboard.results import missed_metrics
+from multion.task.measures import metrics_as_stored
 
 
 def test_a_measure_the_stored_run_lacks_is_no_difference() -> None:
@@ -20,5 +21,5 @@ def test_a_measure_the_stored_run_lacks_is_no_difference() -> None:
 def test_an_older_placeholder_still_reads_as_one() -> None:
     placeholder = missed_metrics(1, "abandoned")
     older = {key: value for key, value in placeholder.items() if key != "cells_visited"}
-    assert as_stored(placeholder, older) == older
-    assert as_stored(placeholder, {**older, "steps": 3}) != {**older, "steps": 3}
+    assert metrics_as_stored(placeholder, older) == older
+    assert metrics_as_stored(placeholder, {**older, "steps": 3}) != {**older, "steps": 3}

@@ -51,8 +51,9 @@ def test_no_table_when_no_run_measured_it(one_goal_run: RunOf) -> None:
     assert search_coverage([older], ["older"], paper_results()) is None
 
 
-def _ended(success: float, closest: float, reason: str) -> dict[str, Any]:
-    return {"success": success, "closest_to_goal": closest, "end_reason": reason}
+def _ended(success: float, closest: float, reason: str, seen: bool | None = None) -> dict[str, Any]:
+    metrics = {"success": success, "closest_to_goal": closest, "end_reason": reason}
+    return metrics if seen is None else {**metrics, "current_goal_seen": seen}
 
 
 def test_lost_episodes_split_into_stopping_and_search_failures(one_goal_run: RunOf) -> None:
@@ -77,7 +78,8 @@ def test_lost_episodes_split_into_stopping_and_search_failures(one_goal_run: Run
         2,
     )
     assert record["closest_approach_median"] == pytest.approx(5.0)
-    assert table.rows[0][3:] == ["1", "1", "2", "5.0"]
+    assert record["lost_never_within_reach_seen"] is None  # not measured: "–"
+    assert table.rows[0][3:] == ["1", "1", "2", "–", "5.0"]
     assert any("Left out" in note and "older" in note for note in table.notes)
     # the run's own success distance decides what "within reach" is
     strict = dataclasses.replace(one_goal_run("strict", played), success_distance=1.0)
@@ -92,3 +94,21 @@ def test_lost_episodes_split_into_stopping_and_search_failures(one_goal_run: Run
 def test_no_split_when_no_run_measured_closest_approach(one_goal_run: RunOf) -> None:
     older = one_goal_run("older", _episodes([{"success": 0.0, "end_reason": "max_steps"}]))
     assert search_or_stop([older], ["older"], paper_results()) is None
+
+
+def test_search_failures_split_by_whether_the_goal_was_seen(one_goal_run: RunOf) -> None:
+    played = _episodes(
+        [
+            _ended(1.0, 0.0, "success", seen=False),  # won: not counted among the lost
+            _ended(0.0, 1.0, "max_steps", seen=True),  # lost within reach
+            _ended(0.0, 3.0, "max_steps", seen=True),  # saw it, never got there
+            _ended(0.0, 7.0, "wrong_found", seen=False),
+            _ended(0.0, 9.0, "max_steps", seen=False),
+        ]
+    )
+    table = search_or_stop([one_goal_run("agent", played)], ["agent"], paper_results())
+    assert table is not None
+    (record,) = table.records
+    assert (record["lost_within_reach"], record["lost_never_within_reach"]) == (1, 3)
+    assert record["lost_never_within_reach_seen"] == 1
+    assert table.rows[0][6] == "1"

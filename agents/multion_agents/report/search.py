@@ -24,6 +24,7 @@ from multion_agents.report.tables import Table, display_order
 
 MEASURE = "cells_visited"
 CLOSEST = "closest_to_goal"
+SEEN = "current_goal_seen"
 
 
 def search_coverage(
@@ -93,7 +94,7 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
         "search-or-stop",
         "Search or stop: episodes within reach of their goal, and where the lost ones were lost",
         ["agent", "task", "came within reach %", "won", "lost within reach",
-         "lost, never within reach", "their closest approach, median m"],
+         "lost, never within reach", "of them, saw the goal", "their closest approach, median m"],
     )  # fmt: skip
     for i in display_order(runs, labels, paper):
         if i not in measured:
@@ -105,8 +106,15 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
         within = closest <= reach
         came = bootstrap([float(w or x) for w, x in zip(won, within, strict=True)])
         lost_near = sum(not w and x for w, x in zip(won, within, strict=True))
-        far = [c for w, c, x in zip(won, closest, within, strict=True) if not w and not x]
+        lost_far = [not w and not x for w, x in zip(won, within, strict=True)]
+        far = [float(c) for c, lost in zip(closest, lost_far, strict=True) if lost]
         median = float(np.median(far)) if far else None
+        seen = (
+            sum(bool(e.metrics[SEEN]) for e, lost in zip(run.episodes, lost_far, strict=True)
+                if lost)
+            if all(SEEN in e.metrics for e in run.episodes)
+            else None
+        )  # fmt: skip
         table.rows.append(
             [
                 labels[i],
@@ -115,6 +123,7 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
                 str(sum(won)),
                 str(lost_near),
                 str(len(far)),
+                str(seen) if seen is not None else "–",
                 f"{median:.1f}" if median is not None else "–",
             ]
         )
@@ -131,6 +140,7 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
                 "won": sum(won),
                 "lost_within_reach": lost_near,
                 "lost_never_within_reach": len(far),
+                "lost_never_within_reach_seen": seen,
                 "closest_approach_median": round(median, 3) if median is not None else None,
             }
         )
@@ -139,7 +149,10 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
         "an episode ended on since that goal became current, at most task.success_distance. A "
         "won episode counts as within reach. Lost within reach: FOUND was not called there (a "
         "stopping failure); lost, never within reach: the search did not get there (a search "
-        "failure), with the median of how near it came. Beyond the paper."
+        "failure), with the median of how near it came, and how many of them had the goal in "
+        "view (the task's current_goal_seen: in the field of view within maps.view_distance, "
+        "a clear line on the grid; '–' for runs evaluated before it, which `multion rescore` "
+        "adds it to). Beyond the paper."
     )
     table.note_left_out(
         [labels[i] for i in range(len(runs)) if i not in measured],

@@ -161,6 +161,14 @@ def _parse_actions(text: Any, where: str) -> tuple[int, ...] | None:
 # ---------------------------------------------------------------------- replay
 def dataset_episode(run: RecordedRun, episode_id: str) -> Episode:
     """Episode ``episode_id`` of the run's dataset, after checking the file is the one played."""
+    episode = dataset_episodes(run).get(episode_id)
+    if episode is None:
+        raise VideoError(f"{run.dataset} has no episode {episode_id!r}")
+    return episode
+
+
+def dataset_episodes(run: RecordedRun) -> dict[str, Episode]:
+    """The run's dataset by episode id, after checking the file is the one played."""
     if run.dataset_sha256:
         digest = hashlib.sha256(run.dataset.read_bytes()).hexdigest()
         if digest != run.dataset_sha256:
@@ -172,10 +180,7 @@ def dataset_episode(run: RecordedRun, episode_id: str) -> Episode:
         episodes = load_dataset(run.dataset, run.num_goals)
     except DatasetError as error:
         raise VideoError(f"{run.dataset}: {error}") from None
-    for episode in episodes:
-        if episode.episode_id == episode_id:
-            return episode
-    raise VideoError(f"{run.dataset} has no episode {episode_id!r}")
+    return {episode.episode_id: episode for episode in episodes}
 
 
 def replay_env(run: RecordedRun) -> MultiONEnv:

@@ -17,6 +17,7 @@ from multion.leaderboard.models import EpisodeRecord, Run
 from multion.leaderboard.results import missed_metrics, summarize
 from multion.leaderboard.storage import StorageError
 from multion.task.env import MultiONEnv
+from multion.task.measures import metrics_as_stored
 
 REPLAY_SENSORS = ["goal"]
 """Metrics do not depend on what is rendered, so a replay renders nothing."""
@@ -33,13 +34,7 @@ class ReplayedEpisode:
 
     @property
     def same(self) -> bool:
-        return self.stored == as_stored(self.replayed, self.stored)
-
-
-def as_stored(metrics: dict[str, Any], stored: dict[str, Any]) -> dict[str, Any]:
-    """``metrics`` without the measures that ``stored`` lacks: a measure added to the task
-    after a run was stored (``cells_visited``) is no difference in its replay."""
-    return {key: value for key, value in metrics.items() if key in stored}
+        return self.stored == metrics_as_stored(self.replayed, self.stored)
 
 
 def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterator[ReplayedEpisode]:
@@ -68,7 +63,9 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
                 yield ReplayedEpisode(record.position, record.metrics, record.metrics)
                 continue
             placeholder = missed_metrics(track.num_goals, record.end_reason)
-            if not record.actions and record.metrics == as_stored(placeholder, record.metrics):
+            if not record.actions and record.metrics == metrics_as_stored(
+                placeholder, record.metrics
+            ):
                 # never started
                 yield ReplayedEpisode(record.position, record.metrics, placeholder)
                 continue

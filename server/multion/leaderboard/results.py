@@ -87,6 +87,7 @@ def missed_metrics(num_goals: int, end_reason: str) -> dict[str, Any]:
         "path_length_at_found": 0.0,
         "ppl_reference": 0.0,
         "seen_before_current": [],
+        "current_goal_seen": False,
         "cells_visited": 0,
         "end_reason": end_reason,
     }

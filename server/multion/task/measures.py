@@ -349,6 +349,33 @@ class SeenBeforeCurrent(Measure):
         return out
 
 
+class CurrentGoalSeen(Measure):
+    """Whether the goal the episode is on (the current goal; the last one once every goal is
+    found) has been in view: in the camera's field of view, within ``maps.view_distance``, with
+    a clear line on the navigation grid (the test :class:`SeenBeforeCurrent` uses). An episode
+    lost with it saw its goal and did not get there; one lost without it never saw the goal
+    (beyond the paper; issue 51's split of the search failures)."""
+
+    name = "current_goal_seen"
+
+    def reset(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._state = state
+
+    def update(self, state: EpisodeState, measures: dict[str, Measure]) -> None:
+        self._state = state
+
+    @property
+    def value(self) -> bool:
+        s = self._state
+        return s.first_seen_step[min(s.goals_found, s.episode.num_goals - 1)] is not None
+
+
+def metrics_as_stored(metrics: Mapping[str, Any], stored: Mapping[str, Any]) -> dict[str, Any]:
+    """``metrics`` without the measures that ``stored`` lacks: a measure added to the task
+    after a run was stored (``cells_visited``) is no difference in its replay."""
+    return {key: value for key, value in metrics.items() if key in stored}
+
+
 def seen_split(metrics: Iterable[Mapping[str, Any]], goal: int) -> tuple[list[float], list[float]]:
     """1.0 / 0.0 (goal ``goal`` found or not) for the episodes in which goal ``goal - 1`` was
     found, split into those where ``goal`` was seen before that (by :class:`SeenBeforeCurrent`)
@@ -433,6 +460,7 @@ DEFAULT_MEASURES: tuple[type[Measure], ...] = (
     PathLengthAtFound,
     ReferencePPL,
     SeenBeforeCurrent,
+    CurrentGoalSeen,
     CellsVisited,
     EndReason,
 )
