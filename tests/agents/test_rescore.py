@@ -106,3 +106,15 @@ def test_a_directory_that_is_no_run_is_named(
 ) -> None:
     assert _run(cli_rescore, [str(tmp_path / "missing"), "--quiet"]) == 2
     assert "missing" in capsys.readouterr().err
+
+
+def test_a_run_without_recorded_actions_is_refused(
+    evaluated: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    silent = _older(evaluated, tmp_path / "silent")
+    lines = _lines(silent)
+    for line in lines:
+        del line["actions"]
+    (silent / "episodes.jsonl").write_text("".join(json.dumps(line) + "\n" for line in lines))
+    assert _run(cli_rescore, [str(silent), "--quiet"]) == 2
+    assert "no recorded actions" in capsys.readouterr().err

@@ -12,7 +12,7 @@ import pytest
 
 from multion_agents.report.paper import paper_results
 from multion_agents.report.runs import EpisodeResult, Run
-from multion_agents.report.search import search_coverage, search_or_stop
+from multion_agents.report.search import search_coverage, search_or_stop, search_pairs
 
 RunOf = Callable[..., Run]
 
@@ -79,7 +79,7 @@ def test_lost_episodes_split_into_stopping_and_search_failures(one_goal_run: Run
     )
     assert record["closest_approach_median"] == pytest.approx(5.0)
     assert record["lost_never_within_reach_seen"] is None  # not measured: "–"
-    assert table.rows[0][3:] == ["1", "1", "2", "–", "5.0"]
+    assert table.rows[0][3:] == ["–", "1", "1", "2", "–", "5.0"]
     assert any("Left out" in note and "older" in note for note in table.notes)
     # the run's own success distance decides what "within reach" is
     strict = dataclasses.replace(one_goal_run("strict", played), success_distance=1.0)
@@ -111,4 +111,31 @@ def test_search_failures_split_by_whether_the_goal_was_seen(one_goal_run: RunOf)
     (record,) = table.records
     assert (record["lost_within_reach"], record["lost_never_within_reach"]) == (1, 3)
     assert record["lost_never_within_reach_seen"] == 1
-    assert table.rows[0][6] == "1"
+    assert record["saw_goal"] == 2
+    assert table.rows[0][3].startswith("40 [") and table.rows[0][7] == "1"
+
+
+def test_pairs_asked_for_compare_reach_and_sight_on_common_episodes(one_goal_run: RunOf) -> None:
+    a = one_goal_run("a", _episodes([
+        _ended(1.0, 0.0, "success", seen=True),
+        _ended(0.0, 1.2, "max_steps", seen=True),
+        _ended(0.0, 4.0, "max_steps", seen=True),
+        _ended(0.0, 9.0, "max_steps", seen=False),
+    ]))  # fmt: skip
+    b = one_goal_run("b", _episodes([
+        _ended(0.0, 3.0, "max_steps", seen=False),
+        _ended(0.0, 3.0, "max_steps", seen=False),
+        _ended(0.0, 4.0, "max_steps", seen=True),
+        _ended(0.0, 9.0, "max_steps", seen=False),
+    ]))  # fmt: skip
+    older = one_goal_run("older", _episodes([{"success": 1.0, "end_reason": "success"}] * 4))
+    runs = [a, b, older]
+    table = search_pairs(runs, ["a", "b", "older"], [(0, 1), (0, 2)])
+    assert table is not None
+    (record,) = table.records  # the pair with a run that lacks the measures is left out
+    assert record["common_episodes"] == 4
+    assert record["diff_within_reach"] == pytest.approx(50.0)  # 2 of 4 against 0
+    assert record["diff_saw_goal"] == pytest.approx(50.0)  # 3 of 4 against 1
+    assert record["diff_within_reach_low"] <= 50.0 <= record["diff_within_reach_high"]
+    assert search_pairs(runs, ["a", "b", "older"], [(0, 2)]) is None
+    assert search_pairs(runs, ["a", "b", "older"], []) is None

@@ -24,7 +24,7 @@ from multion_agents.report.movement import movement
 from multion_agents.report.pairs import requested_pairs
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import Run
-from multion_agents.report.search import search_coverage, search_or_stop
+from multion_agents.report.search import search_coverage, search_or_stop, search_pairs
 from multion_agents.report.tables import (
     Table,
     paired,
@@ -101,6 +101,7 @@ def all_tables(
         movement(runs, labels, paper),
         paired(runs, labels, paper),
         requested_pairs(runs, labels, pairs),
+        search_pairs(runs, labels, pairs),
         run_list(runs, labels, paper),
     ]
     return [table for table in built if table is not None]

@@ -18,9 +18,9 @@ import numpy as np
 
 from multion.config.datasets import task_name
 from multion_agents.report.paper import PaperResults
-from multion_agents.report.runs import Run
-from multion_agents.report.stats import bootstrap
-from multion_agents.report.tables import Table, display_order
+from multion_agents.report.runs import EpisodeResult, Run
+from multion_agents.report.stats import NAN, bootstrap, paired_difference
+from multion_agents.report.tables import Table, display_order, estimate_record, signed
 
 MEASURE = "cells_visited"
 CLOSEST = "closest_to_goal"
@@ -83,47 +83,63 @@ def search_coverage(
     return table
 
 
+def came_within_reach(run: Run, episode: EpisodeResult) -> bool:
+    """Whether ``episode`` won or stood within ``run``'s success distance of the goal it ended
+    on (the task's ``closest_to_goal``)."""
+    metrics = episode.metrics
+    return metrics.get("success", 0.0) >= 1.0 or float(metrics[CLOSEST]) <= run.success_distance
+
+
+def _measures(run: Run, name: str) -> bool:
+    return all(name in e.metrics for e in run.episodes)
+
+
+def _share(values: Sequence[bool]) -> str:
+    estimate = bootstrap([float(v) for v in values])
+    return f"{100 * estimate.mean:.0f} [{100 * estimate.low:.0f}, {100 * estimate.high:.0f}]"
+
+
 def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResults) -> Table | None:
-    """Per run, the share of episodes that came within reach of the goal they ended on (95 %
-    bootstrap interval), and the lost episodes split by whether they did; None when no run
-    measured ``closest_to_goal``."""
-    measured = [i for i, run in enumerate(runs) if all(CLOSEST in e.metrics for e in run.episodes)]
+    """Per run, the shares of episodes that came within reach of the goal they ended on and
+    that saw it (95 % bootstrap intervals), and the lost episodes split by whether they came
+    within reach, and if not, whether they saw the goal; None when no run measured
+    ``closest_to_goal``."""
+    measured = [i for i, run in enumerate(runs) if _measures(run, CLOSEST)]
     if not measured:
         return None
     table = Table(
         "search-or-stop",
         "Search or stop: episodes within reach of their goal, and where the lost ones were lost",
-        ["agent", "task", "came within reach %", "won", "lost within reach",
+        ["agent", "task", "came within reach %", "saw the goal %", "won", "lost within reach",
          "lost, never within reach", "of them, saw the goal", "their closest approach, median m"],
     )  # fmt: skip
     for i in display_order(runs, labels, paper):
         if i not in measured:
             continue
         run = runs[i]
-        reach = run.success_distance
         won = [e.metrics.get("success", 0.0) >= 1.0 for e in run.episodes]
-        closest = np.array([float(e.metrics[CLOSEST]) for e in run.episodes])
-        within = closest <= reach
-        came = bootstrap([float(w or x) for w, x in zip(won, within, strict=True)])
-        lost_near = sum(not w and x for w, x in zip(won, within, strict=True))
-        lost_far = [not w and not x for w, x in zip(won, within, strict=True)]
-        far = [float(c) for c, lost in zip(closest, lost_far, strict=True) if lost]
+        within = [came_within_reach(run, e) for e in run.episodes]
+        lost_far = [not w for w in within]
+        far = [float(e.metrics[CLOSEST]) for e, lost in zip(run.episodes, lost_far, strict=True)
+               if lost]  # fmt: skip
         median = float(np.median(far)) if far else None
-        seen = (
-            sum(bool(e.metrics[SEEN]) for e, lost in zip(run.episodes, lost_far, strict=True)
-                if lost)
-            if all(SEEN in e.metrics for e in run.episodes)
-            else None
-        )  # fmt: skip
+        seen_flags = [bool(e.metrics[SEEN]) for e in run.episodes] if _measures(run, SEEN) else None
+        seen_far = (
+            None
+            if seen_flags is None
+            else sum(seen and lost for seen, lost in zip(seen_flags, lost_far, strict=True))
+        )
+        came = bootstrap([float(w) for w in within])
         table.rows.append(
             [
                 labels[i],
                 task_name(run.num_goals),
-                f"{100 * came.mean:.0f} [{100 * came.low:.0f}, {100 * came.high:.0f}]",
+                _share(within),
+                _share(seen_flags) if seen_flags is not None else "–",
                 str(sum(won)),
-                str(lost_near),
+                str(sum(within) - sum(won)),
                 str(len(far)),
-                str(seen) if seen is not None else "–",
+                str(seen_far) if seen_far is not None else "–",
                 f"{median:.1f}" if median is not None else "–",
             ]
         )
@@ -133,29 +149,92 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
                 "agent": labels[i],
                 "task": task_name(run.num_goals),
                 "episodes": run.count,
-                "success_distance": reach,
+                "success_distance": run.success_distance,
                 "within_reach": round(came.mean, 4),
                 "within_reach_low": round(came.low, 4),
                 "within_reach_high": round(came.high, 4),
+                "saw_goal": None if seen_flags is None else sum(seen_flags),
                 "won": sum(won),
-                "lost_within_reach": lost_near,
+                "lost_within_reach": sum(within) - sum(won),
                 "lost_never_within_reach": len(far),
-                "lost_never_within_reach_seen": seen,
+                "lost_never_within_reach_seen": seen_far,
                 "closest_approach_median": round(median, 3) if median is not None else None,
             }
         )
     table.notes.append(
         "Within reach: the task's closest_to_goal, the shortest geodesic distance to the goal "
         "an episode ended on since that goal became current, at most task.success_distance. A "
-        "won episode counts as within reach. Lost within reach: FOUND was not called there (a "
-        "stopping failure); lost, never within reach: the search did not get there (a search "
-        "failure), with the median of how near it came, and how many of them had the goal in "
-        "view (the task's current_goal_seen: in the field of view within maps.view_distance, "
-        "a clear line on the grid; '–' for runs evaluated before it, which `multion rescore` "
-        "adds it to). Beyond the paper."
+        "won episode counts as within reach. Saw the goal: the task's current_goal_seen, the "
+        "goal in the field of view within maps.view_distance with a clear line on the grid "
+        "('–' for runs evaluated before the task measured it; `multion rescore` adds it). Lost "
+        "within reach: FOUND was not called there (a stopping failure); lost, never within "
+        "reach: the search did not get there (a search failure), with how many of them saw "
+        "the goal and the median of how near they came. Beyond the paper."
     )
     table.note_left_out(
         [labels[i] for i in range(len(runs)) if i not in measured],
         "evaluated before the task measured closest_to_goal",
+    )
+    return table
+
+
+def search_pairs(
+    runs: Sequence[Run], labels: Sequence[str], pairs: Sequence[tuple[int, int]]
+) -> Table | None:
+    """For each pair asked for (``--pair``) whose runs both measured ``closest_to_goal``: A − B
+    of the shares that came within reach and that saw the goal, on the episodes both played
+    (95 % paired bootstrap intervals); None when there is no such pair."""
+    table = Table(
+        "search-pairs",
+        "Search or stop for the pairs asked for: A − B on the episodes both played "
+        "(percentage points)",
+        ["A", "B", "task", "common episodes", "Δ came within reach", "Δ saw the goal"],
+    )
+    for i, j in pairs:
+        a, b = runs[i], runs[j]
+        if not (_measures(a, CLOSEST) and _measures(b, CLOSEST)):
+            continue
+        in_b = {e.episode_id: e for e in b.episodes}
+        common = [(e, in_b[e.episode_id]) for e in a.episodes if e.episode_id in in_b]
+        if not common:
+            continue
+        reach = paired_difference(
+            [float(came_within_reach(a, x)) for x, _ in common],
+            [float(came_within_reach(b, y)) for _, y in common],
+        )
+        seen = (
+            paired_difference(
+                [float(x.metrics[SEEN]) for x, _ in common],
+                [float(y.metrics[SEEN]) for _, y in common],
+            )
+            if _measures(a, SEEN) and _measures(b, SEEN)
+            else NAN
+        )
+        table.rows.append(
+            [labels[i], labels[j], task_name(a.num_goals), str(len(common)), signed(reach),
+             signed(seen)]
+        )  # fmt: skip
+        table.records.append(
+            {
+                "a": labels[i],
+                "b": labels[j],
+                "run_a": a.name,
+                "run_b": b.name,
+                "task": task_name(a.num_goals),
+                "common_episodes": len(common),
+                **estimate_record(reach, "diff_within_reach"),
+                **(
+                    estimate_record(seen, "diff_saw_goal")
+                    if seen is not NAN
+                    else dict.fromkeys(("diff_saw_goal", "diff_saw_goal_low", "diff_saw_goal_high"))
+                ),
+            }
+        )
+    if not table.rows:
+        return None
+    table.notes.append(
+        'As in "Search or stop": came within reach (a won episode counts) and saw the goal, '
+        "each episode 1 or 0; each cell the mean of A − B with a 95% paired bootstrap interval; "
+        "**bold**: the interval excludes 0."
     )
     return table

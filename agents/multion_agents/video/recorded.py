@@ -48,7 +48,7 @@ class RecordedEpisode:
         if self.recorded_actions is None:
             raise VideoError(
                 f"episode {self.episode_id} has no recorded actions (the run predates them): "
-                "evaluate again to film it"
+                "evaluate it again to replay or film it"
             )
         return self.recorded_actions
 
