@@ -20,9 +20,9 @@ from torch import Tensor
 from multion_agents.learned import policy as policy_module
 from multion_agents.learned.encoders import MapCNN
 from multion_agents.learned.env_groups import EnvGroups, make_env_groups
+from multion_agents.learned.memory import Batch
 from multion_agents.learned.models import MODELS, build_policy
 from multion_agents.learned.oracle_maps import OracleMapMemory
-from multion_agents.learned.policy import Batch
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout import Rollout, collect, start_episodes
 from multion_agents.learned.rollout_envs import make_vector_env, training_env_config

@@ -1,5 +1,5 @@
 """Issue 30: the learned-map agents read all of a replay's map crops in one batch
-(:class:`~multion_agents.learned.policy.MapMemory`), and learn what they learned when each
+(:class:`~multion_agents.learned.memory.MapMemory`), and learn what they learned when each
 step's crop was read on its own.
 
 "Before" is the same code with the batched read switched off: the policy then calls the
@@ -16,8 +16,8 @@ from rollouts import actor_rollout, assert_same_loss_and_gradients
 from torch import Tensor
 
 from multion_agents.learned import policy as policy_module
+from multion_agents.learned.memory import MapMemory
 from multion_agents.learned.models import build_policy, model_spec
-from multion_agents.learned.policy import MapMemory
 from multion_agents.learned.ppo import Args, ppo_loss
 from multion_agents.learned.rollout_envs import training_env_config
 

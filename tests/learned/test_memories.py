@@ -13,8 +13,9 @@ from multion.task.spaces import build_observation_space
 from multion_agents.learned import map_ops
 from multion_agents.learned.episodic import FRMQN, SMT, masked_attention
 from multion_agents.learned.learned_maps import EgoMap, ObjRecogMap, recognition_label
+from multion_agents.learned.memory import Memory
 from multion_agents.learned.models import model_spec
-from multion_agents.learned.policy import HIDDEN_SIZE, Memory, RecurrentPolicy
+from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy
 
 NEW_MODELS = [
     "frmqn",

@@ -34,8 +34,9 @@ from multion.config.codec import env_config_from_dict
 from multion.task.spaces import build_observation_space
 from multion_agents.bench.train import cuda_missing
 from multion_agents.learned.distributed import cores_per_rank, select_device
+from multion_agents.learned.memory import State
 from multion_agents.learned.models import MODELS, build_policy, model_spec
-from multion_agents.learned.policy import State, frames_to_tensors
+from multion_agents.learned.policy import frames_to_tensors
 from multion_agents.learned.ppo import ppo_update
 from multion_agents.learned.precision import PRECISIONS
 from multion_agents.learned.rollout import Rollout, compute_gae, store_frame

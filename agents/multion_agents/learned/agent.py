@@ -10,7 +10,8 @@ import torch
 
 from multion_agents.agent import Agent, AgentError, ConfigOverrides, Observation
 from multion_agents.learned.checkpoint import load_policy
-from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
+from multion_agents.learned.memory import State
+from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
 
 
 class LearnedAgent(Agent):

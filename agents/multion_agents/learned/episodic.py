@@ -19,14 +19,8 @@ import torch.nn.functional as F
 from gymnasium import spaces
 from torch import Tensor, nn
 
-from multion_agents.learned.policy import (
-    ACTION_EMBED_DIM,
-    GOAL_EMBED_DIM,
-    HIDDEN_SIZE,
-    Batch,
-    Memory,
-    State,
-)
+from multion_agents.learned.memory import Batch, Memory, State
+from multion_agents.learned.policy import ACTION_EMBED_DIM, GOAL_EMBED_DIM, HIDDEN_SIZE
 
 IMAGE_EMBED_DIM = 512
 """``ImageEncoder``'s default embedding width, as RecurrentPolicy builds it."""

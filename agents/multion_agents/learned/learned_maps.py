@@ -31,7 +31,8 @@ from multion_agents.learned import map_ops
 from multion_agents.learned.encoders import EMBED_DIM, NUM_CATEGORY_VALUES, MapCNN
 from multion_agents.learned.episodic import policy_query_dim
 from multion_agents.learned.map_ops import MapGeometry
-from multion_agents.learned.policy import HIDDEN_SIZE, Batch, MapMemory, State
+from multion_agents.learned.memory import Batch, MapMemory, State
+from multion_agents.learned.policy import HIDDEN_SIZE
 
 RECOGNITION_DISTANCE = 2.5
 """A goal counts as "in view" for the recognition label within this distance, metres."""

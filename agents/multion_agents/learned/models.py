@@ -1,6 +1,6 @@
 """The registry of learned agents: every row of the paper's Table 3 and its ablations.
 
-A :class:`ModelSpec` says how to build the agent's :class:`~multion_agents.learned.policy.Memory`
+A :class:`ModelSpec` says how to build the agent's :class:`~multion_agents.learned.memory.Memory`
 from the environment's observation space, whether it sees RGB-D, and which environment settings
 it changes (e.g. hidden goal objects). ``multion train --agent NAME`` and
 ``multion eval --agent NAME --checkpoint PATH`` look names up in :data:`MODELS`.
@@ -21,8 +21,9 @@ from multion_agents.agent import AgentError
 from multion_agents.learned.episodic import build_frmqn, build_smt
 from multion_agents.learned.learned_maps import build_ego_map, build_proj_neural_map, obj_recog_map
 from multion_agents.learned.map_ops import MapGeometry, default_geometry
+from multion_agents.learned.memory import Memory
 from multion_agents.learned.oracle_maps import OracleMapMemory
-from multion_agents.learned.policy import HIDDEN_SIZE, Memory, RecurrentPolicy
+from multion_agents.learned.policy import HIDDEN_SIZE, RecurrentPolicy
 
 MemoryBuilder = Callable[[spaces.Dict, MapGeometry, int], Memory | None]
 """Builds a memory from the env's observation space and map geometry (both from its config)

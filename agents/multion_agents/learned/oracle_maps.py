@@ -11,7 +11,7 @@ from gymnasium import spaces
 from torch import Tensor
 
 from multion_agents.learned.encoders import MapCNN, SemanticMapEmbedding
-from multion_agents.learned.policy import Batch, Memory, State
+from multion_agents.learned.memory import Batch, Memory, State
 
 
 class OracleMapMemory(Memory):

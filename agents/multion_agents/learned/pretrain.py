@@ -36,7 +36,8 @@ from multion.sim.navgrid import NavGrid
 from multion.task.env import MultiONEnv
 from multion.task.maps import OracleMap
 from multion.task.spaces import build_observation_space
-from multion_agents.learned.policy import Batch, RecurrentPolicy
+from multion_agents.learned.memory import Batch
+from multion_agents.learned.policy import RecurrentPolicy
 from multion_agents.learned.train_options import MapPretraining
 from multion_agents.learned.training_log import TrainingLog
 from multion_client.constants import Action

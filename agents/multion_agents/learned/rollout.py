@@ -17,7 +17,8 @@ import torch
 from torch import Tensor
 
 from multion_agents.learned.env_groups import EnvGroups, StepResult
-from multion_agents.learned.policy import RecurrentPolicy, State, frames_to_tensors
+from multion_agents.learned.memory import State
+from multion_agents.learned.policy import RecurrentPolicy, frames_to_tensors
 from multion_agents.learned.rollout_envs import expert_labels, finished_episodes
 
 
