@@ -368,7 +368,8 @@ def test_the_recipe_pilot_runs_a_variant_at_another_image_size(tmp_path: Path) -
 
 def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -> None:
     """RECIPE=learn-to-see trains every agent with the options beyond the paper at 3M frames
-    (near goals over the first 200k, as in its pilot), obj-recog-map with its balanced recogniser, into
+    (near goals over the first 200k, as in its pilot), obj-recog-map with its balanced recogniser
+    pretrained on rendered frames, into
     runs/central-learn-to-see, reported beside the paper's published runs; an unknown recipe is
     refused."""
     _copy_script(tmp_path, "central_comparison.sh")
@@ -382,7 +383,9 @@ def test_central_comparison_runs_issue_51s_recipe_as_a_variant(tmp_path: Path) -
         assert "--frames 3000000 " in call and "--out runs/central-learn-to-see/" in call
         assert "--found-head 1 --goal-heads --pretrain-vision 2000 --curriculum 200000:4" in call
         assert "--curriculum 350000:10" in call and "--found-curriculum" not in call
-        assert ("--balanced-recognition" in call) == (agent == "obj-recog-map"), call
+        recognises = agent == "obj-recog-map"
+        assert ("--balanced-recognition --pretrain-recogniser" in call) == recognises, call
+        assert ("--pretrain-recogniser" in call) == recognises, call
     report = next(c for c in calls if c.startswith("report "))
     assert "docs/learned/central " in report
     # at the paper runs' 720k frames: a variant of its own, beside the 3M one
