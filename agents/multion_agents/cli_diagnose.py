@@ -154,6 +154,8 @@ def run(args: argparse.Namespace) -> int:
         f"view but seen earlier: {calls.seen_out_of_view_steps} (mean P(FOUND) "
         f"{_share(calls.seen_out_of_view_probability)})"
     )
+    print(f"  episodes whose goal came into view (within {config.maps.view_distance:g} m): "
+          f"{calls.saw_goal}")  # fmt: skip
     print(
         f"  2.5 m cells entered per episode: {_number(calls.cells_visited)}; in the episodes "
         f"that reached the step limit: {_number(calls.cells_at_step_limit)}"

@@ -103,6 +103,7 @@ def test_gates_read_off_played_episodes_match_episodes_played_with_them() -> Non
     assert played.gate_endings["0.5"] == played.endings
     assert played.endings.get("success", 0) <= played.reached <= 6
     assert played.seen_in_reach <= played.reached
+    assert played.seen_in_reach <= played.saw_goal <= 6  # in view within reach: in view
     assert played.in_view_steps + played.seen_out_of_view_steps <= played.near_steps
     won = played.endings.get("success", 0)
     assert played.missed_in_reach == played.reached - won  # 1-ON: a win came within reach

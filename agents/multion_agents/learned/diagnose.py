@@ -78,6 +78,9 @@ class FoundCalls:
     learns "not here" on them with ``--found-head-label in-view`` and "here" with ``seen``."""
     seen_out_of_view_probability: float = math.nan
     """Mean probability of FOUND on those steps (nan: none)."""
+    saw_goal: int = 0
+    """Episodes whose goal came into view (the task's ``current_goal_seen``: in the field of
+    view within ``maps.view_distance``, a clear line on the grid): those the search served."""
     cells_visited: float = math.nan
     """Mean per episode of the task's ``cells_visited`` (the 2.5 m cells of the start frame it
     entered): how much ground it searched."""
@@ -205,6 +208,7 @@ def found_calls(
         ),
         seen_out_of_view_steps=sum(int(where.sum()) for where in out_of_view),
         seen_out_of_view_probability=_mean_over(traces, out_of_view),
+        saw_goal=sum(bool(final["current_goal_seen"]) for final in finals),
         cells_visited=_mean(cells),
         cells_at_step_limit=_mean(
             [n for n, ending in zip(cells, endings, strict=True) if ending == "max_steps"]
