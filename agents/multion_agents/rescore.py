@@ -11,7 +11,6 @@ was, and the error names the first episode that differs.
 
 from __future__ import annotations
 
-import copy
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,9 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from multion.common.files import write_atomically
-from multion.config.codec import session_config_from_dict
 from multion.config.episode import Episode
-from multion.config.ranges import ConfigError
 from multion.task.env import MultiONEnv
 from multion.task.measures import metrics_as_stored
 from multion.video.stored import VideoError
@@ -32,6 +29,7 @@ from multion_agents.video.recorded import (
     RecordedEpisode,
     RecordedRun,
     dataset_episodes,
+    replay_env,
 )
 
 RESCORE_SENSORS = ["goal"]
@@ -50,18 +48,6 @@ class Rescored:
     run: RecordedRun
     lines: list[dict[str, Any]]
     added: list[str]
-
-
-def rescore_env(run: RecordedRun) -> MultiONEnv:
-    """An in-process environment with the run's config and no camera."""
-    config = copy.deepcopy(run.env_config)
-    config["sensors"] = list(RESCORE_SENSORS)
-    config.pop("dataset", None)  # each episode is given inline
-    try:
-        env_config, _ = session_config_from_dict(config)
-    except ConfigError as error:
-        raise RescoreError(f"{run.path / METRICS_FILE}: run.env_config: {error}") from None
-    return MultiONEnv(env_config, episodes=[])
 
 
 def replayed_metrics(
@@ -105,7 +91,7 @@ def rescore_run(run: RecordedRun, on_episode: Callable[[], None] | None = None) 
     episodes = dataset_episodes(run)
     lines = [json.loads(line) for line in (run.path / EPISODES_FILE).read_text().splitlines()]
     added: list[str] = []
-    env = rescore_env(run)
+    env = replay_env(run, RESCORE_SENSORS)
     try:
         for line, recorded in zip(lines, run.episodes, strict=True):
             episode = episodes.get(recorded.episode_id)

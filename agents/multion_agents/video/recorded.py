@@ -13,7 +13,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -183,10 +183,11 @@ def dataset_episodes(run: RecordedRun) -> dict[str, Episode]:
     return {episode.episode_id: episode for episode in episodes}
 
 
-def replay_env(run: RecordedRun) -> MultiONEnv:
-    """An in-process environment with the run's config and an RGB-D camera."""
+def replay_env(run: RecordedRun, sensors: Sequence[str] = FILMED_SENSORS) -> MultiONEnv:
+    """An in-process environment with the run's config and ``sensors`` (by default an RGB-D
+    camera; metrics do not depend on what is rendered)."""
     config = copy.deepcopy(run.env_config)
-    config["sensors"] = list(FILMED_SENSORS)
+    config["sensors"] = list(sensors)
     config.pop("dataset", None)  # the episode is given inline
     try:
         env_config, _ = session_config_from_dict(config)
