@@ -190,7 +190,7 @@ def test_bad_video_requests_get_clear_errors(
         del record["actions"]
     (old / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
     message = error_of(_video([str(old), "--episode", records[0]["episode_id"]]))
-    assert "no recorded actions" in message and "evaluate again" in message
+    assert "no recorded actions" in message and "evaluate it again" in message
 
     long = tmp_path / "long"  # longer than the cap
     shutil.copytree(filmed_run, long)
