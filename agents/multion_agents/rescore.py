@@ -12,6 +12,7 @@ was, and the error names the first episode that differs.
 from __future__ import annotations
 
 import json
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +21,8 @@ from typing import Any
 from multion.common.files import write_atomically
 from multion.config.episode import Episode
 from multion.task.env import MultiONEnv
-from multion.task.measures import metrics_as_stored
+from multion.task.measures import SCORING_SENSORS
+from multion.video.replay import replay_steps
 from multion.video.stored import VideoError
 from multion_agents.report.run_summary import versions
 from multion_agents.video.recorded import (
@@ -31,9 +33,6 @@ from multion_agents.video.recorded import (
     dataset_episodes,
     replay_env,
 )
-
-RESCORE_SENSORS = ["goal"]
-"""Metrics do not depend on what is rendered, so a replay renders nothing."""
 
 
 class RescoreError(VideoError):
@@ -54,33 +53,15 @@ def replayed_metrics(
     env: MultiONEnv, episode: Episode, recorded: RecordedEpisode
 ) -> dict[str, Any]:
     """The final metrics of ``recorded``'s actions played again in ``env`` (as JSON stores
-    them); a RescoreError when the replay ends early, runs on, or changes a recorded metric."""
-    actions = recorded.actions
-    _, info = env.reset(options={"episode": episode})
-    done = not actions  # an episode of no actions never ran (its record is what it was)
-    for step, action in enumerate(actions, start=1):
-        if done:
-            raise RescoreError(
-                f"episode {recorded.episode_id}: the replay ended after {step - 1} of "
-                f"{len(actions)} recorded actions"
-            )
-        _, _, terminated, truncated, info = env.step(action)
-        done = terminated or truncated
-    if not done:
+    them), checked by :func:`~multion.video.replay.replay_steps` against the recorded ones; a
+    RescoreError too when the episode has not ended after its last action."""
+    steps = replay_steps(env, episode, recorded.actions, recorded.metrics, recorded.episode_id)
+    ((_, info, _),) = deque(steps, maxlen=1)  # played to the end, where the check runs
+    replayed: dict[str, Any] = json.loads(json.dumps(info["metrics"]))
+    if replayed.get("end_reason") is None:
         raise RescoreError(
             f"episode {recorded.episode_id}: the replay had not ended after its "
-            f"{len(actions)} recorded actions"
-        )
-    replayed: dict[str, Any] = json.loads(json.dumps(info["metrics"]))
-    if metrics_as_stored(replayed, recorded.metrics) != recorded.metrics:
-        differences = [
-            f"{key} {replayed.get(key)!r} (recorded {value!r})"
-            for key, value in recorded.metrics.items()
-            if replayed.get(key) != value
-        ]
-        raise RescoreError(
-            f"episode {recorded.episode_id}: the replay does not reproduce the recorded "
-            f"metrics: {'; '.join(differences[:4])} (another dataset or simulator version?)"
+            f"{len(recorded.actions)} recorded actions"
         )
     return replayed
 
@@ -91,7 +72,7 @@ def rescore_run(run: RecordedRun, on_episode: Callable[[], None] | None = None) 
     episodes = dataset_episodes(run)
     lines = [json.loads(line) for line in (run.path / EPISODES_FILE).read_text().splitlines()]
     added: list[str] = []
-    env = replay_env(run, RESCORE_SENSORS)
+    env = replay_env(run, SCORING_SENSORS)
     try:
         for line, recorded in zip(lines, run.episodes, strict=True):
             episode = episodes.get(recorded.episode_id)

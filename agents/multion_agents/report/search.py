@@ -19,7 +19,7 @@ import numpy as np
 from multion.config.datasets import task_name
 from multion_agents.report.paper import PaperResults
 from multion_agents.report.runs import EpisodeResult, Run
-from multion_agents.report.stats import NAN, bootstrap, paired_difference
+from multion_agents.report.stats import NAN, Estimate, bootstrap, paired_difference
 from multion_agents.report.tables import Table, display_order, estimate_record, signed
 
 MEASURE = "cells_visited"
@@ -94,8 +94,7 @@ def _measures(run: Run, name: str) -> bool:
     return all(name in e.metrics for e in run.episodes)
 
 
-def _share(values: Sequence[bool]) -> str:
-    estimate = bootstrap([float(v) for v in values])
+def _share(estimate: Estimate) -> str:
     return f"{100 * estimate.mean:.0f} [{100 * estimate.low:.0f}, {100 * estimate.high:.0f}]"
 
 
@@ -134,8 +133,10 @@ def search_or_stop(runs: Sequence[Run], labels: Sequence[str], paper: PaperResul
             [
                 labels[i],
                 task_name(run.num_goals),
-                _share(within),
-                _share(seen_flags) if seen_flags is not None else "–",
+                _share(came),
+                _share(bootstrap([float(s) for s in seen_flags]))
+                if seen_flags is not None
+                else "–",
                 str(sum(won)),
                 str(sum(within) - sum(won)),
                 str(len(far)),

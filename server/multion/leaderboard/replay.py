@@ -17,10 +17,7 @@ from multion.leaderboard.models import EpisodeRecord, Run
 from multion.leaderboard.results import missed_metrics, summarize
 from multion.leaderboard.storage import StorageError
 from multion.task.env import MultiONEnv
-from multion.task.measures import metrics_as_stored
-
-REPLAY_SENSORS = ["goal"]
-"""Metrics do not depend on what is rendered, so a replay renders nothing."""
+from multion.task.measures import SCORING_SENSORS, metrics_as_stored
 
 
 @dataclass(frozen=True)
@@ -54,7 +51,7 @@ def replay_run(challenge: Challenge, run: Run, progress: bool = False) -> Iterat
         )
     hidden, draw = HiddenEpisodes(challenge, in_subprocess=False), draw_of(run)
     ids = hidden.episode_ids(track, phase, draw)
-    config = track.env_config(phase, tuple(REPLAY_SENSORS), run.maps)
+    config = track.env_config(phase, SCORING_SENSORS, run.maps)
     env_config, _ = session_config_from_dict(config)
     env: MultiONEnv | None = None
     try:

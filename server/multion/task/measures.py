@@ -370,6 +370,11 @@ class CurrentGoalSeen(Measure):
         return s.first_seen_step[min(s.goals_found, s.episode.num_goals - 1)] is not None
 
 
+SCORING_SENSORS = ("goal",)
+"""What an environment that replays stored actions only to score them observes: metrics do not
+depend on what is rendered, so such a replay renders nothing."""
+
+
 def metrics_as_stored(metrics: Mapping[str, Any], stored: Mapping[str, Any]) -> dict[str, Any]:
     """``metrics`` without the measures that ``stored`` lacks: a measure added to the task
     after a run was stored (``cells_visited``) is no difference in its replay."""

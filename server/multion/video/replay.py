@@ -47,12 +47,32 @@ def replay(
     label: str,
 ) -> Iterator[StepView]:
     """The start and each step of ``actions`` played again in ``env``; a VideoError (naming
-    the episode by ``label``) at the end when the replayed metrics are not ``stored_metrics``.
+    the episode by ``label``) at the end when the replayed metrics are not ``stored_metrics``
+    (:func:`replay_steps`)."""
+    for observation, info, action in replay_steps(env, episode, actions, stored_metrics, label):
+        yield _view(env, observation, info, action)
+
+
+ReplayStep = tuple[dict[str, np.ndarray], dict[str, Any], int | None]
+"""The observation and info after an action, and that action (None at the start)."""
+
+
+def replay_steps(
+    env: MultiONEnv,
+    episode: Episode,
+    actions: Sequence[int],
+    stored_metrics: dict[str, Any],
+    label: str,
+) -> Iterator[ReplayStep]:
+    """:func:`replay` without a camera: what ``env`` observes and reports at the start and
+    after each of ``actions``; a VideoError when the episode ends before its last action, and
+    at the end when the replayed metrics are not ``stored_metrics``.
 
     Only the metrics that ``stored_metrics`` has are compared: an episode that a leaderboard
-    ended by a timeout keeps its own end reason, which a replay cannot reproduce."""
+    ended by a timeout keeps its own end reason, which a replay cannot reproduce, and a measure
+    added to the task after the run was stored is no difference."""
     observation, info = env.reset(options={"episode": episode})
-    yield _view(env, observation, info, None)
+    yield observation, info, None
     done = False
     for step, action in enumerate(actions, start=1):
         if done:
@@ -62,7 +82,7 @@ def replay(
             )
         observation, _, terminated, truncated, info = env.step(action)
         done = terminated or truncated
-        yield _view(env, observation, info, action)
+        yield observation, info, action
     replayed = json.loads(json.dumps(info["metrics"]))  # compared as stored (JSON)
     differences = [
         f"{key} {replayed.get(key)!r} (recorded {value!r})"
