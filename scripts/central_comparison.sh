@@ -34,7 +34,7 @@
 #     OUT=$OLDPWD/runs/central bash scripts/central_comparison.sh
 # RECIPE (default paper) picks the training options: `paper`, the paper's PPO; `learn-to-see`,
 # issue 51's options beyond the paper for every agent, those of its pilot's best no-map run
-# (`no-map-found-head-all`, docs/learned.md: 29 % val Success at 500k frames against the paper
+# (`no-map-found-head-all`, docs/learn-to-see.md: 29 % val Success at 500k frames against the paper
 # recipe's 2 %): FOUND decided by a supervised head, pretrained with the image encoder on
 # rendered frames; Marza et al.'s goal heads; goals within 4 m until 200k frames and 10 m until
 # 350k, as in the pilot (its train Success at 4 m levelled off within 100k frames, so the rest
@@ -42,7 +42,7 @@
 # obj-recog-map; 3M
 # frames by default; a recipe other than the paper's is a variant of its own
 # (runs/central-learn-to-see, docs/learned/central-learn-to-see). At 128² with gl its pilot
-# reached 40 % (its FOUND head sees the goal there; docs/learned.md), so it also runs as
+# reached 40 % (its FOUND head sees the goal there; docs/learn-to-see.md), so it also runs as
 #   RECIPE=learn-to-see FRAMES=720000 IMAGE_SIZE=128 RENDERER=gl ...  # runs/central-128-gl-learn-to-see-720k
 # FOUND_GATE=G (a recipe with the FOUND head only): each trained run NAME is also played on the
 # same val episodes with the head's gate at G as the run NAME-gate-G, paired with NAME in the
@@ -118,7 +118,7 @@ train_and_eval() {
   local extra=("${options[@]}")
   if [ "$recipe_name" != paper ] && [ "$agent" = obj-recog-map ]; then
     # its recogniser pretrained on rendered frames too: in the 128² pilots it brought the goal
-    # into view +15 [+7, +24] more often and SPL +4.4 [+0.6, +9.0] (docs/learned.md)
+    # into view +15 [+7, +24] more often and SPL +4.4 [+0.6, +9.0] (docs/learn-to-see.md)
     extra+=(--balanced-recognition --pretrain-recogniser)
   fi
   $multion train --agent "$agent" "${recipe[@]}" --out "$dir" "${resume[@]}" "${extra[@]}" "$@"

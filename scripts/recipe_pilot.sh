@@ -88,7 +88,7 @@ pilot "$agent-found-head-near" --found-head 1 --curriculum "$found_frames:4" \
 pilot "$agent-found-head-vision" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --pretrain-vision 2000
 # The same with wrong FOUNDs free (no penalty, no end) until 40 % of the frames, so that the
-# gate's early mistakes do not end training episodes: 25 % val Success (docs/learned.md).
+# gate's early mistakes do not end training episodes: 25 % val Success (docs/learn-to-see.md).
 pilot "$agent-found-head-free" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --pretrain-vision 2000 --found-curriculum "$found_frames:0"
 # The same with the goal heads and vision pretraining (29 %: the learn-to-see recipe). Its
@@ -96,7 +96,7 @@ pilot "$agent-found-head-free" --found-head 1 --curriculum "$found_frames:4" \
 # (63 at 128², `multion bench --only goal-pixels`), so the goal heads may have too little to
 # see: IMAGE_SIZE=128 RENDERER=gl runs it as no-map-found-head-all-128-gl. Result: 40 % val
 # Success, every episode that came within reach won (25 of 40 at 36²), no more of them reached
-# (docs/learned.md, "At 128²: the FOUND head sees").
+# (docs/learn-to-see.md, "At 128²: the FOUND head sees").
 pilot "$agent-found-head-all" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000
 # Its train Success fell from 36 % to 4 % when the goals moved from 4 m to 10 m: the same with
@@ -125,7 +125,7 @@ pilot "$agent-found-head-coverage" --found-head 1 --curriculum "$found_frames:4"
 # steps, no-map on 30 %): AGENT=proj-neural-map IMAGE_SIZE=128 RENDERER=gl
 # ONLY=proj-neural-map-found-head-coverage-2.5-128-gl. Result: 10.3 cells per episode against
 # 6.7, within reach in 40 episodes against 35, but 33 % val Success against 32 % (+1 [-9, +11])
-# and a lower SPL (docs/learned.md); not kept.
+# and a lower SPL (docs/learn-to-see.md); not kept.
 pilot "$agent-found-head-coverage-2.5" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --coverage-reward 2.5
@@ -137,7 +137,7 @@ pilot "$agent-found-head-long" --found-head 1 --curriculum "$found_frames:4" \
 # Its movement policy stayed near uniform (entropy 1.00 of at most 1.10 over three movements,
 # 0.80-0.94 with the paper's recipe), and its gradient norm before clipping was 2-4, against
 # 0.3-0.5 with the paper's recipe: the heads' losses outweigh PPO's on the shared GRU (measured
-# since: gru_gradient_* in progress.csv, docs/learned.md). The reference does not normalise
+# since: gru_gradient_* in progress.csv, docs/learn-to-see.md). The reference does not normalise
 # advantages (saimwani/multiON ppo_multinav.yaml l. 44); normalised, PPO's term has unit scale
 # beside the heads' and the entropy bonus. Result: movements more decisive (entropy 0.78-0.88),
 # 22 % val Success against 29 %; the recipe stays as it is.
@@ -151,14 +151,14 @@ pilot "$agent-found-head-normalized" --found-head 1 --curriculum "$found_frames:
 # (encoder, GRU) hears the policy louder: the learn-to-see options with the value loss and
 # each goal head weighted a fifth (0.5 -> 0.1, 0.25 -> 0.05). Result: the policy's share of the
 # GRU's gradient rose to 14-19 %, train Success per 100k frames stayed the recipe's, 20 % val
-# Success against 29 % (docs/learned.md); the recipe stays as it is.
+# Success against 29 % (docs/learn-to-see.md); the recipe stays as it is.
 pilot "$agent-found-head-policy-share" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --value-coef 0.1 --goal-head-coef 0.05
 # Imitation with a teacher the learner can follow: DAgger labels from the `explorer` baseline
 # (frontier search on a map it builds from the learner's own RGB-D and pose, then the goal once
 # its colour shows; --expert explorer), where the oracle planner's labels walked to goals the
-# learner had not seen (docs/learned.md: 2 % train Success). With the actor calling FOUND (no
+# learner had not seen (docs/learn-to-see.md: 2 % train Success). With the actor calling FOUND (no
 # head) the run stopped at 107k frames: episodes ended on a wrong FOUND after ~100 steps and
 # train Success stayed at 5 % with goals within 4 m (the recipe's: 34-39 %). So the learn-to-see
 # options, FOUND by the head, and the explorer's movements taught to the actor (its FOUND labels
@@ -171,12 +171,12 @@ pilot "$agent-found-head-explorer-imitation" --found-head 1 --curriculum "$found
 # each trained in 8 of the 61 train houses at a time (new draws at each curriculum stage and
 # resume: the reset seed is the seed's and the update's), so about 24 houses in all, the same
 # ones for the runs that went uninterrupted. The v3 recipe's oracle-map changed house every 5
-# episodes (docs/learned.md). The learn-to-see options with a new house every 5 episodes.
+# episodes (docs/learn-to-see.md). The learn-to-see options with a new house every 5 episodes.
 pilot "$agent-found-head-houses" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --episodes-per-scene 5
 # The agent's pose. Failures are mostly episodes that never come within reach: the policy
-# walks in loops (docs/learned.md, "How they move"), and nothing it reads says where it has
+# walks in loops (docs/learn-to-see.md, "How they move"), and nothing it reads says where it has
 # been. The task serves GPS and compass (the reference's multinav_mp3d.yaml l. 35), which its
 # policies do not read; habitat-lab's ObjectNav baseline does (resnet_policy.py l. 487, 520).
 # The learn-to-see options with the GRU reading the pose (--pose-input).
@@ -186,7 +186,7 @@ pilot "$agent-found-head-pose" --found-head 1 --curriculum "$found_frames:4" \
 # policy's, and weighting it a fifth (`policy-share`) changed nothing; separate networks avoid
 # that interference (Cobbe et al. 2021, Phasic Policy Gradient, abstract). The learn-to-see
 # options with the critic reading its own GRU over the same inputs, detached (--separate-critic).
-# Result: 29 % val Success, the recipe's own (paired +0 [-10, +10], docs/learned.md); not kept.
+# Result: 29 % val Success, the recipe's own (paired +0 [-10, +10], docs/learn-to-see.md); not kept.
 pilot "$agent-found-head-separate-critic" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --separate-critic
 # obj-recog-map's recogniser, trained only during PPO, answered on 42 % of the val frames showing
@@ -194,7 +194,7 @@ pilot "$agent-found-head-separate-critic" --found-head 1 --curriculum "$found_fr
 # diagnose`): the learn-to-see options with the recogniser also learning on vision pretraining's
 # frames. Only for AGENT=obj-recog-map (IMAGE_SIZE=128 RENDERER=gl: its 128² pilot had 21 %).
 # Result: 26 % (+5 [-3, +13]), SPL +4.4 [+0.6, +9.0]; within reach in 41 episodes (28), its
-# FOUND head missing 15 of them (docs/learned.md).
+# FOUND head missing 15 of them (docs/learn-to-see.md).
 if [ "$agent" = obj-recog-map ]; then
   pilot "$agent-found-head-recogniser" --found-head 1 --curriculum "$found_frames:4" \
     --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
@@ -205,7 +205,7 @@ fi
 # the head at episode starts, with the map empty. The head reading the frame's embedding too
 # (--found-head-reads-image), on no-map (the control) and on obj-recog-map with the recogniser.
 # Result (128², gl): no-map 39 % (-1 [-12, +10], SPL +6.4 [+0.8, +12.6]); obj-recog-map 21 %
-# (-5 [-14, +4]), its head missing 17 of 38 episodes within reach. Not kept (docs/learned.md).
+# (-5 [-14, +4]), its head missing 17 of 38 episodes within reach. Not kept (docs/learn-to-see.md).
 pilot "$agent-found-head-image" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 \
   --found-head-reads-image
@@ -235,7 +235,7 @@ pilot "$agent-found-head-seen" --found-head 1 --curriculum "$found_frames:4" \
 # (AGENT=proj-neural-map for the map; no-map as the control). Cheaper updates too: the rollout
 # keeps the frozen encoder's outputs (multion bench --only learner --learner-freeze-vision).
 # Result (128², gl): proj-neural-map 22 % (-10 [-20, 0] against unfrozen), no-map 29 % (-11
-# [-23, 0]); the map against no-map, both frozen, -7 [-17, +3]. Not kept (docs/learned.md).
+# [-23, 0]); the map against no-map, both frozen, -7 [-17, +3]. Not kept (docs/learn-to-see.md).
 pilot "$agent-found-head-frozen" --found-head 1 --curriculum "$found_frames:4" \
   --curriculum "$((frames * 7 / 10)):10" --goal-heads --pretrain-vision 2000 --freeze-vision
 # Every option together, FOUND supervision included (it came after `all`, from `multion diagnose`).

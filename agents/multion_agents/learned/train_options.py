@@ -81,7 +81,7 @@ class FoundCurriculum:
     costs ``penalty`` but does not end the training episode; after, the task's own rule (the
     first wrong FOUND ends it, no penalty in the paper's task). ``frames`` = 0: off, the paper's
     recipe. Why: while an agent cannot find its goal, ending the episode by a wrong FOUND is
-    its best policy (docs/learned.md), which is what the agents that must see learned."""
+    its best policy (docs/learn-to-see.md), which is what the agents that must see learned."""
 
     frames: int = bounded(0, 0, 10**9)
     penalty: float = bounded(0.0, 0.0, 1000.0)

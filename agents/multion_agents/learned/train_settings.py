@@ -46,7 +46,7 @@ def _vision_pretraining(steps: int) -> VisionPretraining:
         raise ConfigError(f"--pretrain-vision: {error}") from None
 
 
-BEYOND_PAPER = "beyond the paper's recipe (each off by default; issue 51, docs/learned.md)"
+BEYOND_PAPER = "beyond the paper's recipe (each off by default; issue 51, docs/learn-to-see.md)"
 
 
 @dataclass(frozen=True)
@@ -314,7 +314,7 @@ class Args:
     )
     """``learned/vision_pretrain.py`` (``RecogniserPretraining``): the recogniser that learned
     only during PPO answered on 42 % of the val frames showing the goal within 1.5 m, where a
-    linear probe of the same image embedding answered on 86 % (docs/learned.md)."""
+    linear probe of the same image embedding answered on 86 % (docs/learn-to-see.md)."""
     freeze_vision: bool = setting(
         False,
         cli=Option(
