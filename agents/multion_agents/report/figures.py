@@ -88,6 +88,9 @@ def metrics_vs_m(
     return path
 
 
+_LABEL_INCHES_PER_CHARACTER = 0.075  # a 9-point tick label's mean character width
+
+
 def episode_lengths(
     runs: Sequence[Run], labels: Sequence[str], paper: PaperResults, path: Path
 ) -> Path:
@@ -96,8 +99,13 @@ def episode_lengths(
     order = display_order(runs, labels, paper)
     all_labels = list(dict.fromkeys(labels[i] for i in order))
     colours = dict(zip(all_labels, _colours(len(all_labels)), strict=True))
+    # the tick labels (run names, up to ~90 characters) get their own width beside the panels,
+    # or constrained layout squeezes the panels to nothing and cuts the names
+    label_width = _LABEL_INCHES_PER_CHARACTER * max(len(label) for label in all_labels)
     figure = Figure(
-        figsize=(4.2 * len(tasks), 1.2 + 0.45 * len(all_labels)), dpi=DPI, layout="constrained"
+        figsize=(4.2 * len(tasks) + label_width, 1.2 + 0.45 * len(all_labels)),
+        dpi=DPI,
+        layout="constrained",
     )
     axes = np.atleast_1d(figure.subplots(1, len(tasks), sharey=True, sharex=True))
     longest = max(float(run.values("steps").max()) for run in runs)
