@@ -6,6 +6,7 @@ import argparse
 import csv
 import json
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -218,6 +219,24 @@ def test_figures_are_written(full_report: Path) -> None:
             assert image.size[0] > 600 and image.size[1] > 300
     text = (full_report / "report.md").read_text()
     assert "![Metrics against m](metrics-vs-m.png)" in text
+
+
+def test_episode_lengths_make_room_for_long_run_names(report_runs: Path, tmp_path: Path) -> None:
+    """Run names up to ~90 characters (a comparison's directories) get their own width: the
+    panel keeps its size instead of constrained layout squeezing it away (and cutting them)."""
+    source = report_runs / "random-oracle-found-2on"
+    widths = {}
+    for name in ("a", "a-comparison-published-under-a-long-directory-name-at-128-with-gl-720k"):
+        twin = copy_run(source, tmp_path / name)
+        out = tmp_path / f"out-{name}"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert report([str(source), str(twin), "--out", str(out)]) == 0
+        assert not [w for w in caught if "constrained_layout" in str(w.message)]
+        with Image.open(out / "episode-lengths.png") as image:
+            widths[name] = image.size[0]
+    short, long = widths.values()
+    assert long > short
 
 
 def test_doc_mode_replaces_only_the_generated_part(
