@@ -88,7 +88,8 @@ def metrics_vs_m(
     return path
 
 
-_LABEL_INCHES_PER_CHARACTER = 0.075  # a 9-point tick label's mean character width
+_TICK_LABEL_POINTS = 9
+_LABEL_INCHES_PER_CHARACTER = 0.6 * _TICK_LABEL_POINTS / 72  # a character: ~0.6 em wide
 
 
 def episode_lengths(
@@ -132,7 +133,7 @@ def episode_lengths(
         axis.set_title(f"{m}-ON")
         axis.set_xlabel("episode length (steps, log scale)")
         axis.grid(alpha=0.3, axis="x")
-    axes[0].set_yticks(range(len(all_labels)), all_labels, fontsize=9)
+    axes[0].set_yticks(range(len(all_labels)), all_labels, fontsize=_TICK_LABEL_POINTS)
     axes[0].set_ylim(len(all_labels) - 0.5, -0.5)
     figure.suptitle("Episode lengths: box 25–75%, line median, whiskers 5–95%, dots beyond")
     figure.savefig(path)
