@@ -26,10 +26,11 @@ def test_cells_per_episode_and_at_the_step_limit(one_goal_run: RunOf) -> None:
         "searcher",
         _episodes(
             [
-                {"cells_visited": 4, "end_reason": "success"},
-                {"cells_visited": 10, "end_reason": "max_steps"},
-                {"cells_visited": 13, "end_reason": "max_steps"},
-                {"cells_visited": 1, "end_reason": "wrong_found"},
+                {"cells_visited": 4, "end_reason": "success", "path_length": 3.0},
+                {"cells_visited": 10, "end_reason": "max_steps", "path_length": 80.0},
+                {"cells_visited": 13, "end_reason": "max_steps", "path_length": 120.0},
+                {"cells_visited": 2, "end_reason": "max_steps", "path_length": 9.5},
+                {"cells_visited": 1, "end_reason": "wrong_found", "path_length": 0.5},
             ]
         ),
     )
@@ -38,11 +39,15 @@ def test_cells_per_episode_and_at_the_step_limit(one_goal_run: RunOf) -> None:
     assert table is not None
     assert [row[0] for row in table.rows] == ["searcher"]
     (record,) = table.records
-    assert record["cells"] == pytest.approx(7.0)
-    assert record["cells_low"] <= 7.0 <= record["cells_high"]
-    assert record["episodes_at_step_limit"] == 2
-    assert record["cells_at_step_limit"] == pytest.approx(11.5)
-    assert table.rows[0][3] == "11.5 (2)"
+    assert record["cells"] == pytest.approx(6.0)
+    assert record["cells_low"] <= 6.0 <= record["cells_high"]
+    assert record["episodes_at_step_limit"] == 3
+    assert record["cells_at_step_limit"] == pytest.approx(8.333)
+    assert table.rows[0][3] == "8.3 (3)"
+    # the step-limited episodes walked 80, 120 and 9.5 m: the last one stuck
+    assert record["walked_at_step_limit_median"] == pytest.approx(80.0)
+    assert record["stuck_at_step_limit"] == 1
+    assert table.rows[0][4:] == ["80", "1"]
     assert any("Left out" in note and "older" in note for note in table.notes)
 
 

@@ -3,8 +3,9 @@ agents that must see with them). Runs evaluated before the task measured them ar
 and a note says so.
 
 * :func:`search_coverage`: ``cells_visited`` (2.5 m cells of the start frame an episode stood
-  in), per episode and in the episodes that ran to the step limit. It tells an agent that walks
-  far and misses its goal from one that stays near its start.
+  in), per episode and in the episodes that ran to the step limit, with how far those walked
+  (``path_length``). It tells an agent that walks far and misses its goal from one that stays
+  near its start, and one that loops (far walked, few cells) from one stuck against a wall.
 * :func:`search_or_stop`: ``closest_to_goal`` splits the lost episodes into those that stood
   within reach of the goal they were lost on (FOUND was not called there: a stopping failure)
   and those that never came that near (a search failure).
@@ -25,6 +26,9 @@ from multion_agents.report.tables import Table, display_order, estimate_record, 
 MEASURE = "cells_visited"
 CLOSEST = "closest_to_goal"
 SEEN = "current_goal_seen"
+# a step-limited episode that walked less than this is stuck: 40 forward steps of 0.25 m in
+# the task's 2,500 (the reference's 1-ON limit)
+STUCK_METRES = 10.0
 
 
 def search_coverage(
@@ -38,25 +42,34 @@ def search_coverage(
     table = Table(
         "search",
         "Ground searched: 2.5 m cells entered per episode",
-        ["agent", "task", "every episode", "episodes at the step limit"],
+        [
+            "agent",
+            "task",
+            "every episode",
+            "episodes at the step limit",
+            "their m walked, median",
+            f"of them, stuck (under {STUCK_METRES:.0f} m)",
+        ],
     )
     for i in display_order(runs, labels, paper):
         if i not in measured:
             continue
         run = runs[i]
         cells = [float(e.metrics[MEASURE]) for e in run.episodes]
-        limit = [
-            float(e.metrics[MEASURE])
-            for e in run.episodes
-            if e.metrics.get("end_reason") == "max_steps"
-        ]
+        limited = [e for e in run.episodes if e.metrics.get("end_reason") == "max_steps"]
+        limit = [float(e.metrics[MEASURE]) for e in limited]
+        walked = [float(e.metrics["path_length"]) for e in limited if "path_length" in e.metrics]
+        stuck = sum(metres < STUCK_METRES for metres in walked)
         every, at_limit = bootstrap(cells), bootstrap(limit)
+        median_walked = float(np.median(walked)) if walked else None
         table.rows.append(
             [
                 labels[i],
                 task_name(run.num_goals),
                 f"{every.mean:.1f} [{every.low:.1f}, {every.high:.1f}]",
                 f"{at_limit.mean:.1f} ({len(limit)})" if limit else "– (0)",
+                "–" if median_walked is None else f"{median_walked:.0f}",
+                "–" if not walked else str(stuck),
             ]
         )
         table.records.append(
@@ -69,12 +82,18 @@ def search_coverage(
                 "cells_high": round(every.high, 3),
                 "episodes_at_step_limit": len(limit),
                 "cells_at_step_limit": round(at_limit.mean, 3) if limit else None,
+                "walked_at_step_limit_median": (
+                    None if median_walked is None else round(median_walked, 3)
+                ),
+                "stuck_at_step_limit": stuck if walked else None,
             }
         )
     table.notes.append(
         "The task's cells_visited: cells of a 2.5 m grid in the episode's start frame (the "
         "start at a cell's centre) that the agent stood in, the start's included; beyond the "
-        "paper (Ye et al., ICCV 2021's coverage grid)."
+        "paper (Ye et al., ICCV 2021's coverage grid). Walked: the task's path_length in the "
+        f"episodes at the step limit; stuck: under {STUCK_METRES:.0f} m in all its steps (40 "
+        "forward steps of 0.25 m); many metres over few cells is a loop."
     )
     table.note_left_out(
         [labels[i] for i in range(len(runs)) if i not in measured],
