@@ -190,8 +190,9 @@ gate_pairs() {
 gate_pairs "${runs[@]}"
 $multion report "${runs[@]}" "${reference[@]}" "${pairs[@]}" --out "$out/report"
 # PUBLISH=1: keep each evaluated run (metrics.json, episodes.jsonl, the training's progress.csv
-# and pretrain_vision.csv: scripts/publish_run.sh) in $published/NAME and regenerate the tables
-# at the head of docs/learned.md (a variant: its report beside the 36² runs in $published/report)
+# and pretrain_vision.csv, after `multion rescore`: scripts/publish_run.sh) in $published/NAME
+# and regenerate the tables at the head of docs/learned.md (a variant: its report beside the 36²
+# runs in $published/report)
 if [ "${PUBLISH:-0}" = 1 ]; then
   for run in "${runs[@]}"; do
     publish_run "$run" "$published/$(basename "$(dirname "$run")")"

@@ -107,8 +107,10 @@ while [ $# -gt 0 ]; do
   if [ "$1" = --out ]; then out=$2; fi
   shift
 done
-mkdir -p "$out"
-touch "$out/checkpoint.pt" "$out/metrics.json" "$out/episodes.jsonl" "$out/report.md"
+if [ -n "$out" ]; then
+  mkdir -p "$out"
+  touch "$out/checkpoint.pt" "$out/metrics.json" "$out/episodes.jsonl" "$out/report.md"
+fi
 """
 
 
@@ -460,10 +462,13 @@ def test_central_comparison_plays_each_run_at_a_found_gate_too(tmp_path: Path) -
 
     stdout, calls = _central_calls(tmp_path, {**variables, "PUBLISH": "1"})
     assert "done: no-map-gate-0.8" in stdout
-    assert [call.split()[0] for call in calls] == ["report", "report"]  # nothing played again
+    # nothing played again; each run gains the task's newer measures before it is kept
+    assert [call.split()[0] for call in calls] == ["report", "rescore", "rescore", "report"]
+    assert sorted(calls[1:3]) == [f"rescore --quiet {out}/no-map-gate-0.8/eval-val",
+                                  f"rescore --quiet {out}/no-map/eval-val"]  # fmt: skip
     kept = "docs/learned/central-learn-to-see-720k"
     assert (tmp_path / kept / "no-map-gate-0.8" / "metrics.json").is_file()
-    assert f"--pair {kept}/no-map-gate-0.8 {kept}/no-map --out {kept}/report" in calls[1]
+    assert f"--pair {kept}/no-map-gate-0.8 {kept}/no-map --out {kept}/report" in calls[3]
 
     shutil.rmtree(tmp_path / kept / "no-map-gate-0.8")
     stdout, calls = _central_calls(tmp_path, {**variables, "OUT": "runs/fresh"})
