@@ -27,7 +27,8 @@ MEASURE = "cells_visited"
 CLOSEST = "closest_to_goal"
 SEEN = "current_goal_seen"
 # a step-limited episode that walked less than this is stuck: 40 forward steps of 0.25 m in
-# the task's 2,500 (the reference's 1-ON limit)
+# 2,500 steps (the defaults of agent.forward_step and task.max_steps, the reference's values:
+# multion.config.reference)
 STUCK_METRES = 10.0
 
 
